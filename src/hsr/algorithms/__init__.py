@@ -1,0 +1,11 @@
+"""The visibility algorithms. Each module has ``NAME``, ``DESCRIPTION`` and
+``resolve(screen, state, ...) -> Fragments``; :data:`ALGORITHMS` is the registry the API
+and the CLI read."""
+
+from __future__ import annotations
+
+from . import zbuffer
+
+ALGORITHMS = {module.NAME: module for module in (zbuffer,)}
+
+__all__ = ["ALGORITHMS"]

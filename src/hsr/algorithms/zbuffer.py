@@ -1,0 +1,48 @@
+"""The z-buffer (Catmull 1974): for every fragment, keep it if it passes the depth test
+against what is stored. Follows OpenGL's depth state exactly, in submission order."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..fragments import Fragments
+from ..pipeline import ScreenTriangles
+from ..raster import TILE, bin_triangles, fill_tiles, setup_triangles
+from ..state import RenderState
+
+NAME = "zbuffer"
+DESCRIPTION = "depth buffer with OpenGL depth state (test, func, mask, clear, range)"
+
+
+def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarray | None = None,
+            counts: bool = False) -> Fragments:
+    """Z-buffer visibility of ``screen``. The depth buffer starts cleared to
+    ``state.clear_depth``, or is ``depth_buffer`` ((H, W) float32, updated in place: draws
+    accumulate as in OpenGL without glClear). ``tri_index`` marks what this draw wrote."""
+    width, height = screen.width, screen.height
+    if depth_buffer is None:
+        depth = np.full((height, width), state.clear_depth, dtype=np.float32)
+    else:
+        depth = depth_buffer
+    tri = np.full((height, width), -1, dtype=np.int32)
+    shape = (height, width) if counts else (1, 1)
+    count_tested = np.zeros(shape, dtype=np.int32)
+    count_written = np.zeros(shape, dtype=np.int32)
+    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+        screen.xy_window, screen.depth_window, width, height)
+    tiles_x = -(-width // TILE)
+    tiles_y = -(-height // TILE)
+    tile_start, tile_tris = bin_triangles(bbox, TILE, tiles_x, tiles_y)
+    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
+    tile_counts = fill_tiles(
+        vert_fixed, edge_bias, bbox, zplane, tile_start, tile_tris, TILE, tiles_x, width,
+        height, state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi,
+        depth, tri, count_tested, count_written, counts)
+    stats = {
+        "triangles_binned": int(np.count_nonzero(bbox[:, 0] <= bbox[:, 1])),
+        "tile_entries": int(len(tile_tris)),
+        "fragments_tested": int(tile_counts[:, 0].sum()),
+        "fragments_written": int(tile_counts[:, 1].sum()),
+    }
+    return Fragments(tri, depth, screen, stats,
+                     count_tested if counts else None, count_written if counts else None)

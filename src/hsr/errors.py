@@ -1,0 +1,22 @@
+"""Exceptions raised by hsr. Every input problem is an :class:`HsrError` subclass, so
+callers (and the CLI) can report it as one line."""
+
+
+class HsrError(Exception):
+    """Base class of every error hsr raises on bad input."""
+
+
+class MeshError(HsrError):
+    """A mesh is missing, unreadable, malformed or invalid (bad indices, NaN/inf, empty)."""
+
+
+class CameraError(HsrError):
+    """A camera has nonsense parameters (near <= 0, far <= near, fov outside (0, 180), ...)."""
+
+
+class RenderError(HsrError):
+    """Render arguments are invalid (size, algorithm name, render state)."""
+
+
+class OutputError(HsrError):
+    """An output file cannot be written (bad extension, missing directory, ...)."""

@@ -1,0 +1,405 @@
+"""Triangle meshes: validation, loading (OBJ by hsr's own reader, other formats through
+trimesh), and the ``Scene`` of mesh instances that every renderer consumes.
+
+Face order is part of hsr's contract (``face_id`` is the index in the loaded face list and
+ties are decided by submission order), so loading must never reorder faces. trimesh keeps
+file order for single-material OBJ files but regroups faces by material when an OBJ has
+several ``usemtl`` blocks, so OBJ files are read by :func:`read_obj` below, which keeps
+file order exactly and fan-triangulates n-gons ``(v0, v1, v2), (v0, v2, v3), ...``.
+PLY, STL, OFF, glTF/GLB and anything else trimesh understands go through trimesh with
+``process=False`` (no merging, no reordering).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import MeshError
+
+__all__ = ["Mesh", "Scene", "Instance", "load", "read_obj", "as_scene"]
+
+
+@dataclass(eq=False)
+class Mesh:
+    """A triangle mesh in model space.
+
+    Attributes
+    ----------
+    positions : (V, 3) float64 array, model-space vertex positions.
+    faces : (F, 3) int64 array of vertex indices; counter-clockwise = front by default.
+    corner_uv : (F, 3, 2) float64 or None, texture coordinates per face corner
+        (OBJ convention: v = 0 is the bottom row of the image).
+    corner_normals : (F, 3, 3) float64 or None, normals per face corner.
+    face_colors : (F, 3) uint8 or None, a base colour per face.
+    texture : path or (H, W, 3|4) uint8 array or None, the diffuse texture.
+    name : a label used in messages.
+    """
+
+    positions: np.ndarray
+    faces: np.ndarray
+    corner_uv: np.ndarray | None = None
+    corner_normals: np.ndarray | None = None
+    face_colors: np.ndarray | None = None
+    texture: object = None
+    name: str = "mesh"
+
+    def __post_init__(self):
+        self.positions, self.faces = _validate_arrays(self.positions, self.faces, self.name)
+        n_faces = len(self.faces)
+        self.corner_uv = _validate_corner(self.corner_uv, (n_faces, 3, 2), "corner_uv", self.name)
+        self.corner_normals = _validate_corner(
+            self.corner_normals, (n_faces, 3, 3), "corner_normals", self.name
+        )
+        if self.face_colors is not None:
+            colors = np.asarray(self.face_colors)
+            if colors.shape != (n_faces, 3):
+                raise MeshError(
+                    f"{self.name}: face_colors must have shape ({n_faces}, 3), got {colors.shape}"
+                )
+            self.face_colors = np.clip(colors, 0, 255).astype(np.uint8)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit normals from the counter-clockwise winding (zero for degenerate faces)."""
+        tri = self.positions[self.faces]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+
+    def degenerate_mask(self) -> np.ndarray:
+        """(F,) bool: faces with a repeated vertex index or zero area (collinear corners).
+
+        Such faces cover no pixel in OpenGL either; renderers skip and count them.
+        """
+        f = self.faces
+        repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+        tri = self.positions[f]
+        e1 = tri[:, 1] - tri[:, 0]
+        e2 = tri[:, 2] - tri[:, 0]
+        area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+        scale = np.maximum(np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e2, e2))
+        # Relative test: a cross product at rounding level of the edge lengths is zero area.
+        return repeated | (area2 <= 1e-12 * scale)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) array: min and max corner of the vertices that faces use."""
+        used = self.positions[np.unique(self.faces)]
+        return np.stack([used.min(axis=0), used.max(axis=0)])
+
+
+def _validate_arrays(positions, faces, name):
+    try:
+        positions = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name}: vertex positions are not numeric ({exc})") from None
+    try:
+        faces_in = np.asarray(faces)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name}: faces are not an integer array ({exc})") from None
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise MeshError(f"{name}: vertex positions must have shape (V, 3), got {positions.shape}")
+    if faces_in.size == 0:
+        raise MeshError(f"{name}: mesh is empty (no faces)")
+    if faces_in.ndim != 2 or faces_in.shape[1] != 3:
+        raise MeshError(f"{name}: faces must have shape (F, 3), got {faces_in.shape}")
+    if not np.issubdtype(faces_in.dtype, np.integer):
+        if not np.issubdtype(faces_in.dtype, np.floating) or np.any(faces_in != np.round(faces_in)):
+            raise MeshError(f"{name}: face indices must be integers")
+    faces = faces_in.astype(np.int64)
+    if len(positions) == 0:
+        raise MeshError(f"{name}: mesh is empty (no vertices)")
+    bad = (faces < 0) | (faces >= len(positions))
+    if bad.any():
+        f = int(np.argwhere(bad)[0][0])
+        raise MeshError(
+            f"{name}: face {f} has vertex index {int(faces[bad][0])} outside 0..{len(positions) - 1}"
+        )
+    finite = np.isfinite(positions).all(axis=1)
+    used = np.zeros(len(positions), dtype=bool)
+    used[faces.ravel()] = True
+    if not finite[used].all():
+        v = int(np.argwhere(~finite & used)[0][0])
+        raise MeshError(f"{name}: vertex {v} has a NaN or infinite coordinate")
+    return np.ascontiguousarray(positions), np.ascontiguousarray(faces)
+
+
+def _validate_corner(values, shape, what, name):
+    if values is None:
+        return None
+    values = np.asarray(values, dtype=np.float64)
+    if values.shape != shape:
+        raise MeshError(f"{name}: {what} must have shape {shape}, got {values.shape}")
+    if not np.isfinite(values).all():
+        raise MeshError(f"{name}: {what} has a NaN or infinite value")
+    return values
+
+
+@dataclass(eq=False)
+class Instance:
+    """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p)."""
+
+    mesh: Mesh
+    model: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def __post_init__(self):
+        model = np.asarray(self.model, dtype=np.float64)
+        if model.shape != (4, 4) or not np.isfinite(model).all():
+            raise MeshError(f"{self.mesh.name}: model matrix must be a finite 4x4 array")
+        self.model = model
+
+
+class Scene:
+    """Mesh instances drawn in order. ``face_id`` is global: the faces of the first
+    instance come first, then the second's, and so on (submission order)."""
+
+    def __init__(self, instances=()):
+        self.instances: list[Instance] = []
+        for item in instances:
+            if isinstance(item, Instance):
+                self.instances.append(item)
+            elif isinstance(item, Mesh):
+                self.add(item)
+            else:
+                self.add(*item)
+
+    def add(self, mesh: Mesh, model=None) -> "Scene":
+        if not isinstance(mesh, Mesh):
+            mesh = as_mesh(mesh)
+        self.instances.append(Instance(mesh, np.eye(4) if model is None else model))
+        return self
+
+    def __len__(self):
+        return len(self.instances)
+
+    @property
+    def n_faces(self) -> int:
+        return sum(inst.mesh.n_faces for inst in self.instances)
+
+    def face_offsets(self) -> np.ndarray:
+        """(n_instances + 1,) start of each instance's faces in the global face list."""
+        return np.concatenate([[0], np.cumsum([i.mesh.n_faces for i in self.instances])]).astype(
+            np.int64
+        )
+
+    def world_triangles(self) -> np.ndarray:
+        """(F, 3, 3) world-space corners of every face, in submission order."""
+        parts = []
+        for inst in self.instances:
+            tri = inst.mesh.positions[inst.mesh.faces]
+            parts.append(tri @ inst.model[:3, :3].T + inst.model[:3, 3])
+        return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) world-space bounding box of all instances."""
+        tri = self.world_triangles().reshape(-1, 3)
+        return np.stack([tri.min(axis=0), tri.max(axis=0)])
+
+
+def as_mesh(source) -> Mesh:
+    """A Mesh from a Mesh, a trimesh.Trimesh or a ``(vertices, faces)`` pair."""
+    if isinstance(source, Mesh):
+        return source
+    if isinstance(source, tuple) and len(source) == 2:
+        return Mesh(source[0], source[1], name="arrays")
+    if type(source).__name__ == "Trimesh":
+        return _from_trimesh(source, "trimesh")
+    raise MeshError(f"cannot make a mesh from {type(source).__name__}")
+
+
+def as_scene(source) -> Scene:
+    """A Scene from a Scene, a Mesh, a trimesh.Trimesh, a (vertices, faces) pair or a list."""
+    if isinstance(source, Scene):
+        if len(source) == 0:
+            raise MeshError("scene is empty")
+        return source
+    if isinstance(source, list):
+        return Scene([as_mesh(s) for s in source])
+    return Scene([as_mesh(source)])
+
+
+def load(source) -> Mesh:
+    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh`` or a
+    ``(vertices, faces)`` pair. Face order is kept exactly. Raises :class:`MeshError`."""
+    if not isinstance(source, (str, os.PathLike)):
+        return as_mesh(source)
+    path = os.fspath(source)
+    if not os.path.exists(path):
+        raise MeshError(f"file not found: {path}")
+    if os.path.isdir(path):
+        raise MeshError(f"{path} is a directory, not a mesh file")
+    if path.lower().endswith(".obj"):
+        return read_obj(path)
+    return _load_with_trimesh(path)
+
+
+def _load_with_trimesh(path: str) -> Mesh:
+    import trimesh  # imported lazily: it is slow to import and OBJ does not need it
+
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception as exc:  # trimesh raises many types for malformed files
+        raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
+    if isinstance(loaded, trimesh.Scene):
+        geometries = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        if not geometries:
+            raise MeshError(f"{path}: no triangles found (empty or unrecognised file)")
+        if len(geometries) > 1:
+            raise MeshError(
+                f"{path}: the file holds {len(geometries)} meshes; hsr cannot keep one face "
+                "order across them, export a single mesh"
+            )
+        loaded = geometries[0]
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise MeshError(f"{path}: no triangles found ({type(loaded).__name__})")
+    return _from_trimesh(loaded, os.path.basename(path))
+
+
+def _from_trimesh(tm, name: str) -> Mesh:
+    faces = np.asarray(tm.faces)
+    corner_uv = None
+    uv = getattr(tm.visual, "uv", None)
+    if uv is not None and len(uv) == len(tm.vertices):
+        corner_uv = np.asarray(uv, dtype=np.float64)[faces]
+    return Mesh(np.asarray(tm.vertices), faces, corner_uv=corner_uv, name=name)
+
+
+def read_obj(path: str) -> Mesh:
+    """Read a Wavefront OBJ file keeping file order; n-gons are fan-triangulated.
+
+    Supports ``v``, ``vt``, ``vn``, ``f`` with ``i``, ``i/j``, ``i//k``, ``i/j/k`` and
+    negative (relative) indices, ``mtllib``/``usemtl`` (``Kd`` colours and the first
+    ``map_Kd`` texture). Other statements are ignored. Raises :class:`MeshError` with the
+    line number on anything malformed.
+    """
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot read ({exc.strerror})") from None
+    name = os.path.basename(path)
+    positions, uvs, normals = [], [], []
+    face_v, face_t, face_n, face_mat = [], [], [], []
+    materials: list[str] = []
+    mtllibs: list[str] = []
+    current_mat = -1
+
+    def resolve(token: str, count: int, lineno: int, what: str) -> int:
+        try:
+            index = int(token)
+        except ValueError:
+            raise MeshError(f"{name}:{lineno}: bad {what} index {token!r}") from None
+        if index > 0 and index <= count:
+            return index - 1
+        if index < 0 and -index <= count:
+            return count + index
+        raise MeshError(f"{name}:{lineno}: {what} index {index} outside 1..{count}")
+
+    for lineno, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        tag = parts[0]
+        try:
+            if tag == "v":
+                positions.append((float(parts[1]), float(parts[2]), float(parts[3])))
+            elif tag == "vt":
+                uvs.append((float(parts[1]), float(parts[2]) if len(parts) > 2 else 0.0))
+            elif tag == "vn":
+                normals.append((float(parts[1]), float(parts[2]), float(parts[3])))
+            elif tag == "f":
+                if len(parts) < 4:
+                    raise MeshError(f"{name}:{lineno}: a face needs at least 3 vertices")
+                corners = []
+                for token in parts[1:]:
+                    fields = token.split("/")
+                    v = resolve(fields[0], len(positions), lineno, "vertex")
+                    t = (
+                        resolve(fields[1], len(uvs), lineno, "texture")
+                        if len(fields) > 1 and fields[1]
+                        else -1
+                    )
+                    n = (
+                        resolve(fields[2], len(normals), lineno, "normal")
+                        if len(fields) > 2 and fields[2]
+                        else -1
+                    )
+                    corners.append((v, t, n))
+                for k in range(1, len(corners) - 1):  # fan: (0, k, k+1) in file order
+                    tri = (corners[0], corners[k], corners[k + 1])
+                    face_v.append([c[0] for c in tri])
+                    face_t.append([c[1] for c in tri])
+                    face_n.append([c[2] for c in tri])
+                    face_mat.append(current_mat)
+            elif tag == "usemtl":
+                mat = parts[1] if len(parts) > 1 else ""
+                if mat not in materials:
+                    materials.append(mat)
+                current_mat = materials.index(mat)
+            elif tag == "mtllib":
+                mtllibs.extend(parts[1:])
+        except (ValueError, IndexError):
+            raise MeshError(f"{name}:{lineno}: cannot parse {line.strip()[:60]!r}") from None
+
+    if not face_v:
+        raise MeshError(f"{name}: mesh is empty (no faces)")
+    faces = np.array(face_v, dtype=np.int64)
+    ft = np.array(face_t, dtype=np.int64)
+    fn = np.array(face_n, dtype=np.int64)
+    corner_uv = None
+    if uvs and (ft >= 0).all():
+        corner_uv = np.array(uvs, dtype=np.float64)[ft]
+    corner_normals = None
+    if normals and (fn >= 0).all():
+        corner_normals = np.array(normals, dtype=np.float64)[fn]
+    face_colors, texture = _read_materials(path, mtllibs, materials, np.array(face_mat))
+    return Mesh(
+        np.array(positions, dtype=np.float64).reshape(-1, 3),
+        faces,
+        corner_uv=corner_uv,
+        corner_normals=corner_normals,
+        face_colors=face_colors,
+        texture=texture,
+        name=name,
+    )
+
+
+def _read_materials(obj_path, mtllibs, materials, face_mat):
+    """Kd colours per face and the first map_Kd texture path from the OBJ's .mtl files.
+    A missing .mtl is not an error (many OBJ files name one they do not ship)."""
+    if not mtllibs or not materials:
+        return None, None
+    base = os.path.dirname(obj_path)
+    kd: dict[str, tuple] = {}
+    texture = None
+    for lib in mtllibs:
+        mtl_path = os.path.join(base, lib)
+        if not os.path.exists(mtl_path):
+            continue
+        current = None
+        with open(mtl_path, encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                parts = line.split()
+                if not parts:
+                    continue
+                if parts[0] == "newmtl" and len(parts) > 1:
+                    current = parts[1]
+                elif parts[0] == "Kd" and current is not None and len(parts) >= 4:
+                    try:
+                        kd[current] = tuple(float(x) for x in parts[1:4])
+                    except ValueError:
+                        continue
+                elif parts[0] == "map_Kd" and texture is None and len(parts) > 1:
+                    candidate = os.path.join(base, parts[-1])
+                    if os.path.exists(candidate):
+                        texture = candidate
+    if not kd:
+        return None, texture
+    table = np.array([kd.get(m, (0.8, 0.8, 0.8)) for m in materials] + [(0.8, 0.8, 0.8)])
+    colors = np.round(np.clip(table[face_mat], 0, 1) * 255).astype(np.uint8)
+    return colors, texture

@@ -1,0 +1,203 @@
+"""The shared triangle fill, compiled with Numba.
+
+Coverage: window x, y snapped to 1/256 pixel, edge functions (Pineda 1988) evaluated in
+exact int64 arithmetic with the top-left fill rule (see :mod:`hsr.conventions`), so a
+pixel centre on an edge shared by two triangles goes to exactly one of them.
+
+Depth: a plane through the *unsnapped* window-space corners, evaluated at the pixel centre
+in float64, clamped to the depth range and rounded to float32 (the buffer format).
+
+Parallelism: the viewport is cut into square tiles; triangles are binned to tiles in
+submission order; tiles are filled in parallel (``prange``), each thread owning whole
+tiles, so there are no races and the result does not depend on the number of threads.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .conventions import SUBPIXEL_BITS
+
+__all__ = ["TILE", "setup_triangles", "bin_triangles", "fill_tiles", "depth_passes"]
+
+TILE = 32  # tile edge in pixels
+_ONE = 1 << SUBPIXEL_BITS
+_HALF = _ONE >> 1
+
+
+@njit(cache=True, parallel=True)
+def setup_triangles(xy_window, depth_window, width, height):
+    """Per-triangle set-up shared by every fill.
+
+    Returns
+    -------
+    vert_fixed : (N, 6) int64, snapped corners (x0, y0, x1, y1, x2, y2) in 1/256 pixel,
+        reordered counter-clockwise (y up).
+    edge_bias : (N, 3) int64, 0 where a centre exactly on the edge is inside (left or
+        bottom edge in y-up window space), -1 where it is not.
+    bbox : (N, 4) int64, inclusive pixel ranges (x_min, x_max, y_min, y_max), clamped to
+        the viewport, y counted from the bottom; empty when min > max.
+    zplane : (N, 5) float64, (x0, y0, z0, dz/dx, dz/dy) of the unsnapped depth plane.
+    """
+    n = xy_window.shape[0]
+    vert_fixed = np.empty((n, 6), dtype=np.int64)
+    edge_bias = np.empty((n, 3), dtype=np.int64)
+    bbox = np.empty((n, 4), dtype=np.int64)
+    zplane = np.zeros((n, 5))
+    for t in prange(n):
+        xs = np.empty(3, dtype=np.int64)
+        ys = np.empty(3, dtype=np.int64)
+        for k in range(3):
+            xs[k] = np.int64(math.floor(xy_window[t, k, 0] * _ONE + 0.5))
+            ys[k] = np.int64(math.floor(xy_window[t, k, 1] * _ONE + 0.5))
+        area = (xs[1] - xs[0]) * (ys[2] - ys[0]) - (xs[2] - xs[0]) * (ys[1] - ys[0])
+        if area < 0:  # make the corner order counter-clockwise
+            xs[1], xs[2] = xs[2], xs[1]
+            ys[1], ys[2] = ys[2], ys[1]
+        for k in range(3):
+            vert_fixed[t, 2 * k] = xs[k]
+            vert_fixed[t, 2 * k + 1] = ys[k]
+            dx = xs[(k + 1) % 3] - xs[k]
+            dy = ys[(k + 1) % 3] - ys[k]
+            edge_bias[t, k] = 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
+        if area == 0:  # covers no pixel centre
+            bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = 0, -1, 0, -1
+            continue
+        # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
+        x_min = -((-(min(xs[0], xs[1], xs[2]) - _HALF)) // _ONE)
+        x_max = (max(xs[0], xs[1], xs[2]) - _HALF) // _ONE
+        y_min = -((-(min(ys[0], ys[1], ys[2]) - _HALF)) // _ONE)
+        y_max = (max(ys[0], ys[1], ys[2]) - _HALF) // _ONE
+        bbox[t, 0] = max(x_min, 0)
+        bbox[t, 1] = min(x_max, width - 1)
+        bbox[t, 2] = max(y_min, 0)
+        bbox[t, 3] = min(y_max, height - 1)
+        # Depth plane from the unsnapped positions.
+        x0, y0, z0 = xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0]
+        ax, ay = xy_window[t, 1, 0] - x0, xy_window[t, 1, 1] - y0
+        bx, by = xy_window[t, 2, 0] - x0, xy_window[t, 2, 1] - y0
+        az, bz = depth_window[t, 1] - z0, depth_window[t, 2] - z0
+        det = ax * by - bx * ay
+        zplane[t, 0], zplane[t, 1], zplane[t, 2] = x0, y0, z0
+        if det != 0.0:
+            zplane[t, 3] = (az * by - bz * ay) / det
+            zplane[t, 4] = (ax * bz - bx * az) / det
+    return vert_fixed, edge_bias, bbox, zplane
+
+
+@njit(cache=True)
+def bin_triangles(bbox, tile, tiles_x, tiles_y):
+    """Tile lists in submission order: triangles of tile k are
+    ``tile_tris[tile_start[k]:tile_start[k + 1]]`` (tile k = ty * tiles_x + tx)."""
+    n_tiles = tiles_x * tiles_y
+    start = np.zeros(n_tiles + 1, dtype=np.int64)
+    n = bbox.shape[0]
+    for t in range(n):
+        if bbox[t, 0] > bbox[t, 1] or bbox[t, 2] > bbox[t, 3]:
+            continue
+        for ty in range(bbox[t, 2] // tile, bbox[t, 3] // tile + 1):
+            for tx in range(bbox[t, 0] // tile, bbox[t, 1] // tile + 1):
+                start[ty * tiles_x + tx + 1] += 1
+    for k in range(n_tiles):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    tile_tris = np.empty(start[n_tiles], dtype=np.int64)
+    for t in range(n):
+        if bbox[t, 0] > bbox[t, 1] or bbox[t, 2] > bbox[t, 3]:
+            continue
+        for ty in range(bbox[t, 2] // tile, bbox[t, 3] // tile + 1):
+            for tx in range(bbox[t, 0] // tile, bbox[t, 1] // tile + 1):
+                k = ty * tiles_x + tx
+                tile_tris[fill[k]] = t
+                fill[k] += 1
+    return start, tile_tris
+
+
+@njit(cache=True, inline="always")
+def depth_passes(func, z, stored):
+    """glDepthFunc comparison ``z OP stored``; codes in DepthFunc order."""
+    if func == 1:
+        return z < stored
+    if func == 3:
+        return z <= stored
+    if func == 0:
+        return False
+    if func == 2:
+        return z == stored
+    if func == 4:
+        return z > stored
+    if func == 5:
+        return z != stored
+    if func == 6:
+        return z >= stored
+    return True
+
+
+@njit(cache=True, parallel=True)
+def fill_tiles(vert_fixed, edge_bias, bbox, zplane, tile_start, tile_tris, tile, tiles_x,
+               width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
+               depth_buf, tri_buf, count_tested, count_written, want_counts):
+    """Z-buffer fill of binned triangles into ``depth_buf`` / ``tri_buf`` (image rows,
+    row 0 = top). ``depth_write`` is the depth mask (ignored when the test is off: OpenGL
+    does not write depth then). Returns per-tile (tested, written) fragment counts."""
+    n_tiles = tile_start.shape[0] - 1
+    tile_counts = np.zeros((n_tiles, 2), dtype=np.int64)
+    write_depth = depth_test and depth_write
+    for k in prange(n_tiles):
+        ty, tx = k // tiles_x, k % tiles_x
+        tx0, ty0 = tx * tile, ty * tile
+        tx1, ty1 = min(tx0 + tile, width) - 1, min(ty0 + tile, height) - 1
+        n_tested = 0
+        n_written = 0
+        for s in range(tile_start[k], tile_start[k + 1]):
+            t = tile_tris[s]
+            x0, x1 = max(bbox[t, 0], tx0), min(bbox[t, 1], tx1)
+            y0, y1 = max(bbox[t, 2], ty0), min(bbox[t, 3], ty1)
+            if x0 > x1 or y0 > y1:
+                continue
+            X0, Y0 = vert_fixed[t, 0], vert_fixed[t, 1]
+            X1, Y1 = vert_fixed[t, 2], vert_fixed[t, 3]
+            X2, Y2 = vert_fixed[t, 4], vert_fixed[t, 5]
+            px = x0 * _ONE + _HALF
+            py = y0 * _ONE + _HALF
+            # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
+            # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
+            e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + edge_bias[t, 0]
+            e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + edge_bias[t, 1]
+            e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + edge_bias[t, 2]
+            step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
+            step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
+            step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE
+            zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
+            dzdx, dzdy = zplane[t, 3], zplane[t, 4]
+            for j in range(y0, y1 + 1):
+                e0, e1, e2 = e0_row, e1_row, e2_row
+                row = height - 1 - j
+                z_row = zz0 + dzdy * (j + 0.5 - zy0)
+                for i in range(x0, x1 + 1):
+                    if (e0 | e1 | e2) >= 0:
+                        z = z_row + dzdx * (i + 0.5 - zx0)
+                        z = min(max(z, z_lo), z_hi)
+                        zf = np.float32(z)
+                        n_tested += 1
+                        if want_counts:
+                            count_tested[row, i] += 1
+                        if (not depth_test) or depth_passes(depth_func, zf, depth_buf[row, i]):
+                            tri_buf[row, i] = t
+                            if write_depth:
+                                depth_buf[row, i] = zf
+                            n_written += 1
+                            if want_counts:
+                                count_written[row, i] += 1
+                    e0 += step_x0
+                    e1 += step_x1
+                    e2 += step_x2
+                e0_row += step_y0
+                e1_row += step_y1
+                e2_row += step_y2
+        tile_counts[k, 0] = n_tested
+        tile_counts[k, 1] = n_written
+    return tile_counts

@@ -1,0 +1,172 @@
+"""Built-in procedural scenes, so a new user (and every test) has something to render
+with no files. Each entry of :data:`SCENES` builds ``(Scene, Camera)``.
+
+- ``cubes``: cube instances overlapping on screen (Gambetta ch. 12's figure).
+- ``cyclic``: three triangles overlapping in a visibility cycle (seed 004, fig. 11.1):
+  no back-to-front order of whole triangles exists, painter's algorithm must fail.
+- ``penetration``: two triangles piercing each other (seed 001's hard case).
+- ``spheres``: intersecting spheres (curved, closed, many small triangles).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .camera import Camera
+from .errors import HsrError
+from .mesh import Mesh, Scene
+
+__all__ = ["SCENES", "get", "cube", "uv_sphere", "cubes", "cyclic", "penetration", "spheres",
+           "translate", "rotate_y", "scale"]
+
+# Gambetta's cube colours: red, green, blue, yellow, purple, cyan (one per side).
+_SIDE_COLORS = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [128, 0, 255],
+                         [0, 255, 255]], dtype=np.uint8)
+
+
+def translate(x, y, z) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def scale(s) -> np.ndarray:
+    m = np.eye(4)
+    m[0, 0] = m[1, 1] = m[2, 2] = s
+    return m
+
+
+def rotate_y(degrees) -> np.ndarray:
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    m = np.eye(4)
+    m[0, 0], m[0, 2], m[2, 0], m[2, 2] = c, s, -s, c
+    return m
+
+
+def cube(colored: bool = True) -> Mesh:
+    """The cube [-1, 1]^3 as 12 triangles, counter-clockwise seen from outside."""
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    idx = {tuple(p): i for i, p in enumerate(v.astype(int))}
+    faces = []
+    for axis in range(3):
+        for sign in (1, -1):
+            u_axis, w_axis = (axis + 1) % 3, (axis + 2) % 3
+            corners = []
+            for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = [0, 0, 0]
+                p[axis], p[u_axis], p[w_axis] = sign, a, b
+                corners.append(idx[tuple(p)])
+            if sign < 0:
+                corners = corners[::-1]
+            faces += [[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]
+    colors = np.repeat(_SIDE_COLORS, 2, axis=0) if colored else None
+    return Mesh(v, np.array(faces), face_colors=colors, name="cube")
+
+
+def uv_sphere(radius=1.0, n_lat=16, n_lon=32, color=None) -> Mesh:
+    """A latitude-longitude sphere, counter-clockwise seen from outside, closed."""
+    verts = [[0.0, radius, 0.0]]
+    for i in range(1, n_lat):
+        theta = math.pi * i / n_lat
+        for j in range(n_lon):
+            phi = 2 * math.pi * j / n_lon
+            verts.append([radius * math.sin(theta) * math.cos(phi), radius * math.cos(theta),
+                          -radius * math.sin(theta) * math.sin(phi)])
+    verts.append([0.0, -radius, 0.0])
+    bottom = len(verts) - 1
+
+    def ring(i, j):
+        return 1 + (i - 1) * n_lon + (j % n_lon)
+
+    faces = []
+    for j in range(n_lon):
+        faces.append([0, ring(1, j), ring(1, j + 1)])
+    for i in range(1, n_lat - 1):
+        for j in range(n_lon):
+            a, b, c, d = ring(i, j), ring(i + 1, j), ring(i + 1, j + 1), ring(i, j + 1)
+            faces += [[a, b, c], [a, c, d]]
+    for j in range(n_lon):
+        faces.append([bottom, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)])
+    faces = np.array(faces)
+    colors = None if color is None else np.tile(np.asarray(color, np.uint8), (len(faces), 1))
+    return Mesh(np.array(verts), faces, face_colors=colors, name="sphere")
+
+
+def cubes():
+    """Four coloured cubes at different depths, overlapping on screen."""
+    scene = Scene()
+    box = cube()
+    scene.add(box, translate(-1.5, 0.0, -7.0) @ scale(0.75))
+    scene.add(box, translate(1.25, 1.5, -9.5) @ rotate_y(195))
+    scene.add(box, translate(0.3, -0.6, -5.2) @ rotate_y(35) @ scale(0.6))
+    scene.add(box, translate(-0.2, 1.2, -12.0) @ rotate_y(-20) @ scale(1.4))
+    camera = Camera.look_at(eye=(-1.0, 2.2, 1.0), target=(0.0, 0.3, -8.0), fov_y=50.0,
+                            near=0.5, far=40.0)
+    return scene, camera
+
+
+def cyclic():
+    """Three long triangles in a visibility cycle: A over B, B over C, C over A.
+
+    Stick i runs along the edge V_i -> V_(i+1) of an equilateral triangle, from a narrow
+    far tail behind V_i to a wide near head beyond V_(i+1); at V_(i+1) its head lies over
+    the tail of stick i+1, so each stick is in front of the next one (seed 004, 11.1).
+    """
+    faces, verts, colors = [], [], []
+    palette = [[230, 60, 60], [60, 200, 60], [70, 110, 240]]
+    corners = [np.array([math.cos(a), math.sin(a)]) * 1.2
+               for a in (math.pi / 2 + 2 * math.pi * i / 3 for i in range(3))]
+    for i in range(3):
+        v0, v1 = corners[i], corners[(i + 1) % 3]
+        length = float(np.linalg.norm(v1 - v0))
+        d = (v1 - v0) / length
+        n = np.array([-d[1], d[0]])
+        tail = v0 - 0.6 * length * d
+        head = v1 + 0.3 * length * d
+        base = len(verts)
+        # Depth rises from the tail (far) to the head (near).
+        verts += [[tail[0], tail[1], -5.6], [head[0] - 0.25 * n[0], head[1] - 0.25 * n[1], -4.4],
+                  [head[0] + 0.25 * n[0], head[1] + 0.25 * n[1], -4.4]]
+        faces.append([base, base + 1, base + 2])
+        colors.append(palette[i])
+    mesh = Mesh(np.array(verts), np.array(faces), face_colors=np.array(colors), name="cyclic")
+    camera = Camera.look_at(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -5.0), fov_y=60.0,
+                            near=0.5, far=20.0)
+    return Scene([mesh]), camera
+
+
+def penetration():
+    """Two triangles that pierce each other: each is in front over part of the other."""
+    verts = np.array([
+        [-1.6, -1.0, -5.5], [1.6, -1.0, -5.5], [0.0, 1.4, -3.5],  # leans towards the eye
+        [-1.4, 1.1, -5.2], [0.1, -1.4, -4.0], [1.5, 0.9, -4.6],   # crosses it
+    ])
+    faces = np.array([[0, 1, 2], [3, 4, 5]])
+    mesh = Mesh(verts, faces, face_colors=np.array([[235, 150, 40], [40, 150, 235]]),
+                name="penetration")
+    camera = Camera.look_at(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -5.0), fov_y=50.0,
+                            near=0.5, far=20.0)
+    return Scene([mesh]), camera
+
+
+def spheres():
+    """Three intersecting spheres."""
+    scene = Scene()
+    scene.add(uv_sphere(1.0, 24, 48, (220, 80, 80)), translate(-0.7, 0.0, -6.0))
+    scene.add(uv_sphere(0.9, 24, 48, (80, 200, 90)), translate(0.6, 0.3, -6.4))
+    scene.add(uv_sphere(0.7, 24, 48, (90, 120, 230)), translate(0.0, -0.5, -5.3))
+    camera = Camera.look_at(eye=(0.0, 0.5, 0.0), target=(0.0, 0.0, -6.0), fov_y=40.0,
+                            near=1.0, far=20.0)
+    return scene, camera
+
+
+SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres": spheres}
+
+
+def get(name: str):
+    """``(Scene, Camera)`` of the built-in scene ``name``."""
+    if name not in SCENES:
+        raise HsrError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
+    return SCENES[name]()

@@ -1,0 +1,95 @@
+"""OpenGL-style render state: depth test, depth function, depth mask, clear depth,
+depth range, face culling and winding. Names follow the GL calls they mirror."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from enum import Enum
+
+from .errors import RenderError
+
+__all__ = ["DepthFunc", "CullMode", "FrontFace", "RenderState"]
+
+
+class DepthFunc(str, Enum):
+    """glDepthFunc. The fragment passes when ``fragment_depth OP stored_depth``."""
+
+    NEVER = "never"
+    LESS = "less"
+    EQUAL = "equal"
+    LEQUAL = "lequal"
+    GREATER = "greater"
+    NOTEQUAL = "notequal"
+    GEQUAL = "gequal"
+    ALWAYS = "always"
+
+    @property
+    def code(self) -> int:
+        """Integer code used by the compiled kernels (order of GL_NEVER..GL_ALWAYS)."""
+        return list(DepthFunc).index(self)
+
+
+class CullMode(str, Enum):
+    """glCullFace, with NONE meaning glDisable(GL_CULL_FACE)."""
+
+    NONE = "none"
+    BACK = "back"
+    FRONT = "front"
+    FRONT_AND_BACK = "front_and_back"
+
+
+class FrontFace(str, Enum):
+    """glFrontFace: which window-space winding is front-facing."""
+
+    CCW = "ccw"
+    CW = "cw"
+
+
+def _enum(cls, value, what):
+    if isinstance(value, cls):
+        return value
+    try:
+        return cls(str(value).lower().replace("-", "_"))
+    except ValueError:
+        choices = ", ".join(m.value for m in cls)
+        raise RenderError(f"{what} must be one of {choices}; got {value!r}") from None
+
+
+@dataclass(frozen=True)
+class RenderState:
+    """The depth and culling state a draw runs with (OpenGL defaults, except that the
+    depth test is enabled, since hidden-surface removal is the point)."""
+
+    depth_test: bool = True
+    depth_func: DepthFunc = DepthFunc.LESS
+    depth_mask: bool = True
+    clear_depth: float = 1.0
+    depth_range: tuple = (0.0, 1.0)
+    cull: CullMode = CullMode.NONE
+    front_face: FrontFace = FrontFace.CCW
+
+    def __post_init__(self):
+        object.__setattr__(self, "depth_func", _enum(DepthFunc, self.depth_func, "depth func"))
+        object.__setattr__(self, "cull", _enum(CullMode, self.cull, "cull mode"))
+        object.__setattr__(self, "front_face", _enum(FrontFace, self.front_face, "front face"))
+        try:
+            near, far = (float(v) for v in self.depth_range)
+        except (TypeError, ValueError):
+            raise RenderError(f"depth range must be two numbers, got {self.depth_range!r}") from None
+        for v in (near, far):
+            if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+                raise RenderError(f"depth range values must be in [0, 1], got {self.depth_range!r}")
+        object.__setattr__(self, "depth_range", (near, far))
+        try:
+            clear = float(self.clear_depth)
+        except (TypeError, ValueError):
+            raise RenderError(f"clear depth must be a number, got {self.clear_depth!r}") from None
+        if not math.isfinite(clear):
+            raise RenderError(f"clear depth must be finite, got {self.clear_depth!r}")
+        # glClearDepth clamps to [0, 1].
+        object.__setattr__(self, "clear_depth", min(max(clear, 0.0), 1.0))
+
+    def with_(self, **changes) -> "RenderState":
+        """A copy with some fields changed."""
+        return replace(self, **changes)
