@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit, prange
 
 from .pipeline import ScreenTriangles
 
@@ -33,10 +34,18 @@ class Fragments:
     @property
     def face_id(self) -> np.ndarray:
         """(H, W) int32: source face index, -1 for background."""
-        face = np.full(self.tri_index.shape, -1, dtype=np.int32)
-        covered = self.tri_index >= 0
-        face[covered] = self.screen.face_id[self.tri_index[covered]]
-        return face
+        return lookup_ids(self.tri_index, self.screen.face_id)
+
+
+@njit(cache=True, parallel=True)
+def lookup_ids(index, table):
+    """(H, W) int32: ``table[index]`` where ``index >= 0``, else -1."""
+    out = np.empty(index.shape, dtype=np.int32)
+    for r in prange(index.shape[0]):
+        for c in range(index.shape[1]):
+            i = index[r, c]
+            out[r, c] = table[i] if i >= 0 else -1
+    return out
 
 
 def perspective_barycentrics(fragments: Fragments) -> np.ndarray:
@@ -70,5 +79,5 @@ def perspective_barycentrics(fragments: Fragments) -> np.ndarray:
     lam = np.where(det[:, None] == 0.0, 1.0 / 3.0, lam)
     persp = lam * screen.inv_w[t]
     persp /= persp.sum(axis=1, keepdims=True)
-    out[rows, cols] = np.einsum("ki,kij->kj", persp, screen.bary_source[t])
+    out[rows, cols] = np.einsum("ki,kij->kj", persp, screen.corner_barycentrics(t))
     return out

@@ -3,8 +3,10 @@
 model/view/projection -> clip space -> clip (near, far, guard band) -> divide + viewport
 -> face culling -> :class:`ScreenTriangles`.
 
-Written once, vectorised in NumPy; only the (few) triangles that cross a clip plane go
-through the compiled Sutherland-Hodgman clipper.
+Vertices are transformed once (NumPy, (V, 4) @ (4, 4)); a compiled per-face kernel
+classifies each face (degenerate / outside / needs clipping / simple) and projects the
+simple ones straight to window space. Only the (usually few) faces that cross a clip plane
+go through the Sutherland-Hodgman clipper in :mod:`hsr.clip`.
 """
 
 from __future__ import annotations
@@ -12,13 +14,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 
 from .clip import clip_planes, clip_triangles
 from .conventions import GUARD_BAND_PIXELS
 from .mesh import Scene
 from .state import CullMode, FrontFace, RenderState
 
-__all__ = ["ScreenTriangles", "transform_scene", "prepare"]
+__all__ = ["ScreenTriangles", "prepare", "scene_clip_vertices"]
+
+# Face status codes of the classification kernel.
+SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP = 0, 1, 2, 3
 
 
 @dataclass
@@ -29,118 +35,223 @@ class ScreenTriangles:
     xy_window : (N, 3, 2) float64, window x, y (pixels, y up, origin bottom-left).
     depth_window : (N, 3) float64, window depth in the depth range.
     inv_w : (N, 3) float64, 1 / w_clip per corner (for perspective-correct barycentrics).
-    bary_source : (N, 3, 3) float64, barycentrics of each corner on its source face.
     face_id : (N,) int64, index of the source face in the scene's global face list.
     front : (N,) bool, front-facing under the state's winding.
+    piece : (N,) int64, -1 for a whole face, else a row of ``piece_bary``.
+    piece_bary : (M, 3, 3) float64, barycentrics on the source face of the corners of
+        the pieces that clipping cut out of faces.
     width, height : viewport size in pixels.
     """
 
     xy_window: np.ndarray
     depth_window: np.ndarray
     inv_w: np.ndarray
-    bary_source: np.ndarray
     face_id: np.ndarray
     front: np.ndarray
+    piece: np.ndarray
+    piece_bary: np.ndarray
     width: int
     height: int
 
     def __len__(self):
         return len(self.face_id)
 
-    def subset(self, keep: np.ndarray) -> "ScreenTriangles":
+    def subset(self, keep) -> "ScreenTriangles":
         return ScreenTriangles(self.xy_window[keep], self.depth_window[keep], self.inv_w[keep],
-                               self.bary_source[keep], self.face_id[keep], self.front[keep],
-                               self.width, self.height)
+                               self.face_id[keep], self.front[keep], self.piece[keep],
+                               self.piece_bary, self.width, self.height)
+
+    def corner_barycentrics(self, index) -> np.ndarray:
+        """(K, 3, 3) barycentrics on the source face of the corners of triangles ``index``."""
+        index = np.asarray(index)
+        out = np.broadcast_to(np.eye(3), index.shape + (3, 3)).copy()
+        piece = self.piece[index]
+        cut = piece >= 0
+        out[cut] = self.piece_bary[piece[cut]]
+        return out
 
 
-def transform_scene(scene: Scene, view_proj: np.ndarray):
-    """Clip-space corners of every face: ``(F, 3, 4)`` float64, plus the ``(F,)``
-    degenerate mask (repeated index or zero area in model space)."""
-    parts, degenerate = [], []
+@njit(cache=True, inline="always")
+def _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset):
+    inv_w = 1.0 / w
+    return ((x * inv_w + 1.0) * half_w, (y * inv_w + 1.0) * half_h,
+            z * inv_w * depth_scale + depth_offset, inv_w)
+
+
+@njit(cache=True, inline="always")
+def _is_degenerate(positions, a, b, c):
+    # Repeated index, or zero area relative to the edge lengths (collinear corners): such
+    # a face covers no pixel in OpenGL either, so it is skipped and counted.
+    if a == b or b == c or a == c:
+        return True
+    e1x, e1y, e1z = (positions[b, 0] - positions[a, 0], positions[b, 1] - positions[a, 1],
+                     positions[b, 2] - positions[a, 2])
+    e2x, e2y, e2z = (positions[c, 0] - positions[a, 0], positions[c, 1] - positions[a, 1],
+                     positions[c, 2] - positions[a, 2])
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    area2_sq = nx * nx + ny * ny + nz * nz
+    scale = max(e1x * e1x + e1y * e1y + e1z * e1z, e2x * e2x + e2y * e2y + e2z * e2z)
+    return area2_sq <= 1e-24 * scale * scale
+
+
+@njit(cache=True, parallel=True)
+def degenerate_faces(positions, faces):
+    """(F,) bool: faces with a repeated vertex or zero area (see ``_is_degenerate``)."""
+    n = faces.shape[0]
+    out = np.empty(n, dtype=np.bool_)
+    for f in prange(n):
+        out[f] = _is_degenerate(positions, faces[f, 0], faces[f, 1], faces[f, 2])
+    return out
+
+
+@njit(cache=True, parallel=True)
+def classify_faces(pos_clip, faces, degenerate, planes, width, height, depth_scale,
+                   depth_offset):
+    """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
+    window coordinates, depth, 1/w and twice the signed window area (y up)."""
+    n = faces.shape[0]
+    status = np.empty(n, dtype=np.int8)
+    xy = np.empty((n, 3, 2))
+    depth = np.empty((n, 3))
+    inv_w = np.empty((n, 3))
+    area = np.zeros(n)
+    half_w, half_h = 0.5 * width, 0.5 * height
+    n_planes = planes.shape[0]
+    for f in prange(n):
+        if degenerate[f]:
+            status[f] = DEGENERATE
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        # Trivial reject: all corners outside one frustum plane (|x|,|y|,|z| <= w).
+        outside = False
+        for axis in range(3):
+            for sign in (-1.0, 1.0):
+                if (sign * pos_clip[a, axis] > pos_clip[a, 3]
+                        and sign * pos_clip[b, axis] > pos_clip[b, 3]
+                        and sign * pos_clip[c, axis] > pos_clip[c, 3]):
+                    outside = True
+        if outside:
+            status[f] = OUTSIDE
+            continue
+        crossing = False
+        for p in range(n_planes):
+            for v in (a, b, c):
+                d = (planes[p, 0] * pos_clip[v, 0] + planes[p, 1] * pos_clip[v, 1]
+                     + planes[p, 2] * pos_clip[v, 2] + planes[p, 3] * pos_clip[v, 3])
+                if d < 0.0:
+                    crossing = True
+        if crossing:
+            status[f] = NEEDS_CLIP
+            continue
+        status[f] = SIMPLE
+        for k in range(3):
+            v = faces[f, k]
+            xy[f, k, 0], xy[f, k, 1], depth[f, k], inv_w[f, k] = _to_window(
+                pos_clip[v, 0], pos_clip[v, 1], pos_clip[v, 2], pos_clip[v, 3], half_w, half_h,
+                depth_scale, depth_offset)
+        area[f] = ((xy[f, 1, 0] - xy[f, 0, 0]) * (xy[f, 2, 1] - xy[f, 0, 1])
+                   - (xy[f, 2, 0] - xy[f, 0, 0]) * (xy[f, 1, 1] - xy[f, 0, 1]))
+    return status, xy, depth, inv_w, area
+
+
+@njit(cache=True)
+def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
+    """(N, 3, 4) clip-space triangles -> window xy, depth, 1/w and twice the signed area."""
+    n = pos_clip.shape[0]
+    xy = np.empty((n, 3, 2))
+    depth = np.empty((n, 3))
+    inv_w = np.empty((n, 3))
+    area = np.empty(n)
+    half_w, half_h = 0.5 * width, 0.5 * height
+    for t in range(n):
+        for k in range(3):
+            xy[t, k, 0], xy[t, k, 1], depth[t, k], inv_w[t, k] = _to_window(
+                pos_clip[t, k, 0], pos_clip[t, k, 1], pos_clip[t, k, 2], pos_clip[t, k, 3],
+                half_w, half_h, depth_scale, depth_offset)
+        area[t] = ((xy[t, 1, 0] - xy[t, 0, 0]) * (xy[t, 2, 1] - xy[t, 0, 1])
+                   - (xy[t, 2, 0] - xy[t, 0, 0]) * (xy[t, 1, 1] - xy[t, 0, 1]))
+    return xy, depth, inv_w, area
+
+
+def scene_clip_vertices(scene: Scene, view_proj: np.ndarray):
+    """Clip-space vertices of all instances and their faces re-indexed into them:
+    ``(pos_clip (V, 4), faces (F, 3), degenerate (F,))`` in submission order."""
+    pos, faces, degenerate = [], [], []
+    base = 0
     for inst in scene.instances:
         mvp = view_proj @ inst.model
         mesh = inst.mesh
-        pos_clip = mesh.positions @ mvp[:, :3].T + mvp[:, 3]
-        parts.append(pos_clip[mesh.faces])
-        degenerate.append(mesh.degenerate_mask())
-    return np.concatenate(parts), np.concatenate(degenerate)
+        pos.append(mesh.positions @ mvp[:, :3].T + mvp[:, 3])
+        faces.append(mesh.faces + base if base else mesh.faces)
+        degenerate.append(degenerate_faces(mesh.positions, mesh.faces))
+        base += len(mesh.positions)
+    if len(pos) == 1:
+        return np.ascontiguousarray(pos[0]), faces[0], degenerate[0]
+    return np.concatenate(pos), np.concatenate(faces), np.concatenate(degenerate)
+
+
+def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
+    """(front, keep) from the counter-clockwise flags and glFrontFace / glCullFace."""
+    front = ccw if state.front_face == FrontFace.CCW else ~ccw
+    if state.cull == CullMode.BACK:
+        return front, front
+    if state.cull == CullMode.FRONT:
+        return front, ~front
+    if state.cull == CullMode.FRONT_AND_BACK:
+        return front, np.zeros_like(front)
+    return front, np.ones_like(front)
 
 
 def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
             state: RenderState, stats: dict) -> ScreenTriangles:
     """Run the geometry stage; fills ``stats`` with triangle counts."""
-    tri_clip, degenerate = transform_scene(scene, view_proj)
-    n_faces = len(tri_clip)
-    stats["triangles_in"] = n_faces
-    stats["degenerate"] = int(degenerate.sum())
-    face_id = np.flatnonzero(~degenerate)
-    tri_clip = tri_clip[face_id]
-
+    pos_clip, faces, degenerate = scene_clip_vertices(scene, view_proj)
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
-    # Signed distance of every corner to every clip plane: (F, 3, 6).
-    dist = tri_clip @ planes.T
-    w = tri_clip[..., 3:4]
-    # Outside the view frustum proper (|x|, |y| <= w) or beyond near/far: cull whole.
-    frustum = np.concatenate([tri_clip[..., 0:2] + w, w - tri_clip[..., 0:2]], axis=-1)
-    outside = (dist[..., :2] < 0).all(axis=1).any(axis=1) | (frustum < 0).all(axis=1).any(axis=1)
-    needs_clip = (dist < 0).any(axis=(1, 2)) & ~outside
-    stats["outside"] = int(outside.sum())
-    stats["clipped"] = int(needs_clip.sum())
-
-    simple = ~outside & ~needs_clip
-    pos_parts = [tri_clip[simple]]
-    bary_parts = [np.broadcast_to(np.eye(3), (int(simple.sum()), 3, 3))]
-    face_parts = [face_id[simple]]
-    # Polygon id per output triangle: facing is decided per clipped polygon, as in GL.
-    poly_parts = [np.arange(int(simple.sum()))]
-    if needs_clip.any():
-        clip_idx = np.flatnonzero(needs_clip)
-        pos, bary, parent = clip_triangles(np.ascontiguousarray(tri_clip[clip_idx]), planes)
-        pos_parts.append(pos)
-        bary_parts.append(bary)
-        face_parts.append(face_id[clip_idx][parent])
-        poly_parts.append(int(simple.sum()) + parent)
-    pos_clip = np.concatenate(pos_parts)
-    bary_source = np.ascontiguousarray(np.concatenate(bary_parts))
-    tri_face = np.concatenate(face_parts)
-    polygon = np.concatenate(poly_parts)
-    # Restore submission order (clipped pieces were appended at the end); stable keeps
-    # the fan order of the pieces of one face.
-    if needs_clip.any():
-        order = np.argsort(tri_face, kind="stable")
-        pos_clip, bary_source, tri_face, polygon = (
-            pos_clip[order], bary_source[order], tri_face[order], polygon[order])
-
-    # Perspective divide and viewport transform.
-    inv_w = 1.0 / pos_clip[..., 3]
-    ndc = pos_clip[..., :3] * inv_w[..., None]
-    xy_window = np.empty(ndc.shape[:-1] + (2,))
-    xy_window[..., 0] = (ndc[..., 0] + 1.0) * (0.5 * width)
-    xy_window[..., 1] = (ndc[..., 1] + 1.0) * (0.5 * height)
     near, far = state.depth_range
-    depth_window = ndc[..., 2] * (0.5 * (far - near)) + 0.5 * (far + near)
+    depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
+    status, xy, depth, inv_w, area = classify_faces(
+        pos_clip, faces, degenerate, planes, width, height, depth_scale, depth_offset)
+    counts = np.bincount(status, minlength=4)
+    stats["triangles_in"] = len(faces)
+    stats["degenerate"] = int(counts[DEGENERATE])
+    stats["outside"] = int(counts[OUTSIDE])
+    stats["clipped"] = int(counts[NEEDS_CLIP])
 
-    # Facing from the signed window-space area of the whole (clipped) polygon.
-    d1 = xy_window[:, 1] - xy_window[:, 0]
-    d2 = xy_window[:, 2] - xy_window[:, 0]
-    area = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    if needs_clip.any():
-        area = np.bincount(polygon, weights=area)[polygon]
-    ccw = area > 0
-    front = ccw if state.front_face == FrontFace.CCW else ~ccw
-    keep = np.ones(len(front), dtype=bool)
-    if state.cull == CullMode.BACK:
-        keep = front
-    elif state.cull == CullMode.FRONT:
-        keep = ~front
-    elif state.cull == CullMode.FRONT_AND_BACK:
-        keep = np.zeros(len(front), dtype=bool)
-    culled_faces = np.unique(tri_face[~keep])
-    stats["culled"] = int(len(culled_faces))
-    screen = ScreenTriangles(np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window),
-                             np.ascontiguousarray(inv_w), bary_source, tri_face, front,
+    simple = status == SIMPLE
+    front, keep = _keep_mask(area > 0, state)
+    culled = simple & ~keep
+    chosen = np.flatnonzero(simple & keep)
+    parts = [(xy[chosen], depth[chosen], inv_w[chosen], chosen, front[chosen],
+              np.full(len(chosen), -1, dtype=np.int64))]
+    piece_bary = np.zeros((0, 3, 3))
+    n_culled = int(culled.sum())
+    if counts[NEEDS_CLIP]:
+        clip_faces = np.flatnonzero(status == NEEDS_CLIP)
+        tri_clip = np.ascontiguousarray(pos_clip[faces[clip_faces]])
+        pieces, piece_bary, parent = clip_triangles(tri_clip, planes)
+        p_xy, p_depth, p_inv_w, p_area = project_triangles(pieces, width, height, depth_scale,
+                                                           depth_offset)
+        # Facing is decided once per clipped polygon (sum of its fan's areas), as in GL.
+        poly_area = np.bincount(parent, weights=p_area, minlength=len(clip_faces))
+        poly_front, poly_keep = _keep_mask(poly_area > 0, state)
+        has_pieces = np.bincount(parent, minlength=len(clip_faces)) > 0
+        n_culled += int(np.count_nonzero(has_pieces & ~poly_keep))
+        p_front, p_keep = poly_front[parent], poly_keep[parent]
+        sel = np.flatnonzero(p_keep)
+        parts.append((p_xy[sel], p_depth[sel], p_inv_w[sel], clip_faces[parent[sel]],
+                      p_front[sel], sel))
+    stats["culled"] = n_culled
+    if len(parts) == 1:
+        xy_w, depth_w, inv_w_w, face_id, front_w, piece = parts[0]
+    else:
+        xy_w, depth_w, inv_w_w, face_id, front_w, piece = (
+            np.concatenate(column) for column in zip(*parts))
+        # Restore submission order; stable keeps a clipped face's fan in order.
+        order = np.argsort(face_id, kind="stable")
+        xy_w, depth_w, inv_w_w, face_id, front_w, piece = (
+            xy_w[order], depth_w[order], inv_w_w[order], face_id[order], front_w[order],
+            piece[order])
+    screen = ScreenTriangles(xy_w, depth_w, inv_w_w, face_id, front_w, piece, piece_bary,
                              width, height)
-    if not keep.all():
-        screen = screen.subset(keep)
     stats["screen_triangles"] = len(screen)
     return screen

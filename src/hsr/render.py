@@ -11,7 +11,7 @@ import numpy as np
 from .algorithms import ALGORITHMS
 from .camera import Camera
 from .errors import RenderError
-from .fragments import Fragments
+from .fragments import Fragments, lookup_ids
 from .mesh import as_scene
 from .pipeline import prepare
 from .shading import shade
@@ -124,9 +124,9 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     t_visibility = time.perf_counter()
 
     face_id = fragments.face_id
-    offsets = scene.face_offsets()
-    object_id = np.where(face_id >= 0, np.searchsorted(offsets, face_id, side="right") - 1, -1)
-    object_id = object_id.astype(np.int32)
+    object_of_face = np.repeat(np.arange(len(scene), dtype=np.int32),
+                               [inst.mesh.n_faces for inst in scene.instances])
+    object_id = lookup_ids(face_id, object_of_face)
     color = shade(shading, scene, camera, face_id, fragments.depth, background,
                   state.depth_range)
     if into is not None:

@@ -4,6 +4,7 @@ depth) into colours. Nothing here decides visibility."""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit, prange
 
 from .errors import RenderError
 
@@ -13,15 +14,47 @@ SHADING_MODES = ("flat", "normal", "random", "depth")
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
+@njit(cache=True, parallel=True)
+def _face_normals(positions, faces, linear):
+    """(F, 3) unit normals of faces after the linear map ``linear`` (3x3); zero if degenerate."""
+    n = faces.shape[0]
+    out = np.zeros((n, 3))
+    for f in prange(n):
+        p = np.empty((3, 3))
+        for k in range(3):
+            v = faces[f, k]
+            for r in range(3):
+                p[k, r] = (linear[r, 0] * positions[v, 0] + linear[r, 1] * positions[v, 1]
+                           + linear[r, 2] * positions[v, 2])
+        e1 = p[1] - p[0]
+        e2 = p[2] - p[0]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if length > 0.0:
+            out[f, 0], out[f, 1], out[f, 2] = nx / length, ny / length, nz / length
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _paint(face_id, face_rgb, image):
+    """image[r, c] = face_rgb[face_id[r, c]] where a face is visible."""
+    for r in prange(face_id.shape[0]):
+        for c in range(face_id.shape[1]):
+            f = face_id[r, c]
+            if f >= 0:
+                image[r, c, 0] = face_rgb[f, 0]
+                image[r, c, 1] = face_rgb[f, 1]
+                image[r, c, 2] = face_rgb[f, 2]
+
+
 def world_face_normals(scene) -> np.ndarray:
     """(F, 3) unit world-space face normals in submission order (zero for degenerate)."""
-    parts = []
-    for inst in scene.instances:
-        tri = inst.mesh.positions[inst.mesh.faces] @ inst.model[:3, :3].T
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        parts.append(np.divide(n, length, out=np.zeros_like(n), where=length > 0))
-    return np.concatenate(parts)
+    parts = [_face_normals(inst.mesh.positions, inst.mesh.faces,
+                           np.ascontiguousarray(inst.model[:3, :3]))
+             for inst in scene.instances]
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def face_base_colors(scene) -> np.ndarray:
@@ -64,17 +97,16 @@ def shade(mode: str, scene, camera, face_id: np.ndarray, depth: np.ndarray,
     covered = face_id >= 0
     if not covered.any():
         return image
-    ids = face_id[covered]
     if mode == "flat":
-        normals = world_face_normals(scene)[ids]
-        intensity = np.abs(normals @ camera.forward)
-        image[covered] = np.clip(face_base_colors(scene)[ids] * intensity[:, None], 0, 255).astype(
-            np.uint8)
+        intensity = np.abs(world_face_normals(scene) @ camera.forward)
+        face_rgb = np.clip(face_base_colors(scene) * intensity[:, None], 0, 255).astype(np.uint8)
     elif mode == "normal":
-        normals = world_face_normals(scene)[ids]
-        image[covered] = np.clip((normals * 0.5 + 0.5) * 255.0, 0, 255).astype(np.uint8)
+        face_rgb = np.clip((world_face_normals(scene) * 0.5 + 0.5) * 255.0, 0, 255).astype(
+            np.uint8)
     elif mode == "random":
-        image[covered] = face_random_colors(int(face_id.max()) + 1)[ids]
+        face_rgb = face_random_colors(scene.n_faces)
+    if mode != "depth":
+        _paint(face_id, face_rgb, image)
     else:
         eye_depth = linear_eye_depth(depth[covered], camera, depth_range)
         lo, hi = float(eye_depth.min()), float(eye_depth.max())

@@ -1,0 +1,194 @@
+"""The ``hsr`` command line. Bad input ends with one line on stderr and exit code 2."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+import numpy as np
+
+from .errors import HsrError
+
+EXIT_USAGE = 2
+
+
+class CliError(HsrError):
+    """A command-line argument is malformed."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but errors are one line (no usage block) and raise instead of exiting,
+    so every bad input goes through the same reporting path."""
+
+    def error(self, message):
+        raise CliError(message)
+
+
+def _floats(text: str, count: int, what: str) -> tuple:
+    parts = text.replace(" ", "").split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise CliError(f"{what} must be {count} comma-separated numbers, got {text!r}") from None
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise CliError(f"{what} must be {count} finite comma-separated numbers, got {text!r}")
+    return values
+
+
+def _size(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise CliError(f"--size must look like 800x600, got {text!r}") from None
+    return width, height
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .algorithms import ALGORITHMS
+    from .scenes import SCENES
+    from .shading import SHADING_MODES
+    from .state import CullMode, DepthFunc, FrontFace
+
+    parser = _Parser(prog="hsr", description="Hidden-surface removal: render meshes headless.")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    r = sub.add_parser("render", help="render meshes (or a built-in scene) to an image",
+                       description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
+                       "or a built-in scene when no MODEL is given.")
+    r.add_argument("models", nargs="*", metavar="MODEL", help="mesh files, drawn in order")
+    r.add_argument("-o", "--output", default="render.png", help="colour image (default %(default)s)")
+    r.add_argument("--scene", default="cubes", choices=list(SCENES),
+                   help="built-in scene when no MODEL is given (default %(default)s)")
+    r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
+    r.add_argument("--size", default="800x600", help="WxH in pixels (default %(default)s)")
+    r.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
+    r.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
+    r.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
+    r.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
+    r.add_argument("--near", type=float, help="near plane distance")
+    r.add_argument("--far", type=float, help="far plane distance")
+    r.add_argument("--ortho", type=float, metavar="HEIGHT",
+                   help="orthographic projection showing HEIGHT world units vertically")
+    r.add_argument("--cull", default="none", choices=[m.value for m in CullMode])
+    r.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
+    r.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc])
+    r.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
+    r.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
+    r.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
+    r.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
+    r.add_argument("--shading", default="flat", choices=list(SHADING_MODES))
+    r.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
+    r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
+    r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
+    r.add_argument("--quiet", action="store_true", help="print nothing on success")
+    return parser
+
+
+def _auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
+    """Near/far that enclose the box as seen from ``eye``."""
+    corners = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
+                        for z in bounds[:, 2]])
+    dist = np.linalg.norm(corners - eye, axis=1)
+    diag = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9)
+    far = float(dist.max()) * 1.05 + 1e-6 * diag
+    inside = np.all((eye >= bounds[0]) & (eye <= bounds[1]))
+    closest = 0.0 if inside else float(np.linalg.norm(np.clip(eye, bounds[0], bounds[1]) - eye))
+    near = max(closest * 0.9, far * 1e-4)
+    return near, far
+
+
+def _camera_from_args(args, scene, default_camera):
+    from .camera import Camera
+
+    up = _floats(args.up, 3, "--up")
+    if args.eye is None and args.target is None and default_camera is not None:
+        # A built-in scene: its own camera, with the user's lens settings applied.
+        cam = default_camera
+        near = args.near if args.near is not None else cam.near
+        far = args.far if args.far is not None else cam.far
+        if args.ortho is not None:
+            return Camera.orthographic(cam.eye, cam.target, cam.up, args.ortho, near, far)
+        fov = args.fov if args.fov != 45.0 else cam.fov_y
+        return Camera.look_at(cam.eye, cam.target, cam.up, fov, near, far)
+    bounds = scene.bounds()
+    target = np.array(_floats(args.target, 3, "--target")) if args.target else bounds.mean(axis=0)
+    if args.eye is None:
+        cam = Camera.frame(bounds, up=up, fov_y=args.fov, ortho_height=args.ortho)
+        eye = np.asarray(cam.eye) - np.asarray(cam.target) + target
+        near = args.near if args.near is not None else cam.near
+        far = args.far if args.far is not None else cam.far
+    else:
+        eye = np.array(_floats(args.eye, 3, "--eye"))
+        auto_near, auto_far = _auto_near_far(eye, bounds)
+        near = args.near if args.near is not None else auto_near
+        far = args.far if args.far is not None else auto_far
+    if args.ortho is not None:
+        return Camera.orthographic(eye, target, up, args.ortho, near, far)
+    return Camera.look_at(eye, target, up, args.fov, near, far)
+
+
+def _cmd_render(args) -> int:
+    from . import scenes
+    from .mesh import Scene, load
+    from .render import render
+    from .state import RenderState
+
+    width, height = _size(args.size)
+    default_camera = None
+    if args.models:
+        scene = Scene([load(path) for path in args.models])
+    else:
+        scene, default_camera = scenes.get(args.scene)
+    camera = _camera_from_args(args, scene, default_camera)
+    state = RenderState(depth_test=not args.no_depth_test, depth_func=args.depth_func,
+                        depth_mask=not args.no_depth_write, clear_depth=args.clear_depth,
+                        depth_range=_floats(args.depth_range, 2, "--depth-range"),
+                        cull=args.cull, front_face=args.front_face)
+    background = _floats(args.background, 3, "--background")
+    if not all(0 <= c <= 255 for c in background):
+        raise CliError(f"--background values must be in 0..255, got {args.background!r}")
+    frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
+                   shading=args.shading, background=tuple(int(c) for c in background))
+    frame.save(args.output)
+    if args.depth_out:
+        frame.save_depth(args.depth_out)
+    if args.ids_out:
+        frame.save_ids(args.ids_out)
+    if not args.quiet:
+        s = frame.stats
+        print(f"wrote {args.output} ({width}x{height}, {args.algorithm}): "
+              f"{s['triangles_in']} triangles, {s['degenerate']} degenerate, "
+              f"{s['culled']} culled, {s['clipped']} clipped, "
+              f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms")
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return EXIT_USAGE
+        if args.command == "render":
+            return _cmd_render(args)
+        raise CliError(f"unknown command {args.command!r}")
+    except HsrError as exc:
+        if debug:
+            raise
+        print(f"hsr: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("hsr: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print("hsr: error: out of memory (try a smaller --size or mesh)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
