@@ -151,12 +151,13 @@ def penetration():
     return Scene([mesh]), camera
 
 
-def spheres():
-    """Three intersecting spheres."""
+def spheres(detail: int = 24):
+    """Three intersecting spheres, ``detail`` latitude bands each."""
     scene = Scene()
-    scene.add(uv_sphere(1.0, 24, 48, (220, 80, 80)), translate(-0.7, 0.0, -6.0))
-    scene.add(uv_sphere(0.9, 24, 48, (80, 200, 90)), translate(0.6, 0.3, -6.4))
-    scene.add(uv_sphere(0.7, 24, 48, (90, 120, 230)), translate(0.0, -0.5, -5.3))
+    lon = 2 * detail
+    scene.add(uv_sphere(1.0, detail, lon, (220, 80, 80)), translate(-0.7, 0.0, -6.0))
+    scene.add(uv_sphere(0.9, detail, lon, (80, 200, 90)), translate(0.6, 0.3, -6.4))
+    scene.add(uv_sphere(0.7, detail, lon, (90, 120, 230)), translate(0.0, -0.5, -5.3))
     camera = Camera.look_at(eye=(0.0, 0.5, 0.0), target=(0.0, 0.0, -6.0), fov_y=40.0,
                             near=1.0, far=20.0)
     return scene, camera
