@@ -1,0 +1,91 @@
+"""Time hsr's z-buffer against OpenGL on Mesa llvmpipe, measured in the same run.
+
+    python benchmarks/bench_zbuffer.py [MODEL ...] [--sizes 1024x1024,1920x1080] [--repeat 7]
+
+For each model and size: hsr.render (warm; face_id + depth + flat colour) and moderngl
+(static vertex buffer; clear + draw + finish + read back face ids and depth), median of
+--repeat runs each, and the ratio hsr / llvmpipe (< 1 means hsr is faster). Runs on
+demand, never as part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+
+import hsr  # noqa: E402
+
+DEFAULT_MODEL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models",
+                             "stanford-bunny.obj")
+
+
+def progress(items, desc):
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        return tqdm(items, desc=desc, leave=False)
+    return items
+
+
+def median_ms(fn, repeat):
+    fn()  # warm: JIT caches, buffers, driver state
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1e3 * statistics.median(times)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("models", nargs="*", default=[DEFAULT_MODEL])
+    parser.add_argument("--sizes", default="1024x1024,1920x1080")
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--no-gl", action="store_true", help="skip the OpenGL peer")
+    args = parser.parse_args(argv)
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+
+    gl = None
+    if not args.no_gl:
+        try:
+            from gl_reference import GLRenderer
+
+            gl = GLRenderer()
+        except Exception as exc:  # moderngl or Mesa missing
+            print(f"# OpenGL peer unavailable ({exc}); timing hsr alone", file=sys.stderr)
+
+    print(f"{'model':24} {'triangles':>9} {'size':>10} {'hsr ms':>8} {'gl ms':>8} "
+          f"{'hsr/gl':>7} {'Mtri/s':>7}")
+    jobs = [(m, s) for m in args.models for s in sizes]
+    meshes = {}
+    for model, (width, height) in progress(jobs, "bench"):
+        if model not in meshes:
+            meshes[model] = hsr.load(model)
+        mesh = meshes[model]
+        cam = hsr.Camera.frame(mesh.bounds(), fov_y=45)
+        hsr_ms = median_ms(lambda: hsr.render(mesh, cam, width, height), args.repeat)
+        gl_ms = float("nan")
+        if gl is not None:
+            view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
+            vao, vbo = gl.upload(hsr.Scene([mesh]).world_triangles())
+            gl_ms = median_ms(lambda: gl.render(None, view_proj, width, height, vao=vao),
+                              args.repeat)
+            vao.release()
+            vbo.release()
+        ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")
+        print(f"{os.path.basename(model):24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
+              f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f}",
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

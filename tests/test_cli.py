@@ -1,0 +1,122 @@
+"""The command line: results on success; on bad input exit code 2 and exactly one line
+on stderr, never a traceback."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from hsr.cli import main
+
+GOOD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def run(args, capsys):
+    code = main(args)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def assert_one_line_error(code, err):
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("hsr: error: ")
+    assert "Traceback" not in err
+
+
+def test_render_builtin_scene(tmp_path, capsys):
+    out = tmp_path / "cubes.png"
+    code, stdout, _ = run(["render", "-o", str(out), "--size", "160x120"], capsys)
+    assert code == 0 and "wrote" in stdout
+    image = np.asarray(Image.open(out))
+    assert image.shape == (120, 160, 3)
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 5  # not blank
+
+
+def test_render_model_with_all_outputs(tmp_path, capsys, models_dir):
+    out, depth_png, depth_npy, ids = (str(tmp_path / n) for n in
+                                      ("b.png", "d.png", "d.npy", "ids.npy"))
+    args = ["render", os.path.join(models_dir, "suzanne.obj"), "-o", out, "--size", "120x90",
+            "--depth-out", depth_png, "--ids-out", ids, "--cull", "back", "--shading",
+            "normal", "--quiet"]
+    code, stdout, err = run(args, capsys)
+    assert code == 0 and stdout == "" and err == ""
+    face_id = np.load(ids)
+    assert face_id.shape == (90, 120) and face_id.dtype == np.int32
+    assert face_id.max() < 968 and (face_id >= 0).sum() > 1000
+    depth16 = np.asarray(Image.open(depth_png))
+    assert depth16.dtype in (np.uint16, np.int32) and depth16.max() == 65535
+    code, _, _ = run(args[:-1] + ["--depth-out", depth_npy], capsys)
+    depth = np.load(depth_npy)
+    assert depth.dtype == np.float32
+    assert np.array_equal(depth == 1.0, face_id < 0)
+
+
+def test_camera_options(tmp_path, capsys, models_dir):
+    model = os.path.join(models_dir, "cow.obj")
+    for extra in (["--eye", "0,0,5", "--target", "0,0,0", "--fov", "30"],
+                  ["--ortho", "2.0"], ["--eye", "1,1,1", "--near", "0.1", "--far", "20"],
+                  ["--depth-func", "greater", "--clear-depth", "0"],
+                  ["--no-depth-test"], ["--no-depth-write"], ["--depth-range", "0.2,0.8"],
+                  ["--front-face", "cw", "--cull", "front"]):
+        code, _, err = run(["render", model, "-o", str(tmp_path / "x.png"), "--size", "64x48",
+                            "--ids-out", str(tmp_path / "i.npy")] + extra, capsys)
+        assert code == 0, (extra, err)
+        assert (np.load(tmp_path / "i.npy") >= 0).any(), extra
+
+
+@pytest.mark.parametrize("contents,args", [
+    (None, ["{missing}"]),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", ["{model}"]),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", ["{model}"]),
+    ("v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n", ["{model}"]),
+    ("v 0 0 0\n", ["{model}"]),
+    (GOOD_OBJ, ["{model}", "--size", "0x10"]),
+    (GOOD_OBJ, ["{model}", "--size", "-5x10"]),
+    (GOOD_OBJ, ["{model}", "--size", "big"]),
+    (GOOD_OBJ, ["{model}", "--size", "100000x10"]),
+    (GOOD_OBJ, ["{model}", "--near", "0"]),
+    (GOOD_OBJ, ["{model}", "--near", "-1"]),
+    (GOOD_OBJ, ["{model}", "--near", "2", "--far", "1"]),
+    (GOOD_OBJ, ["{model}", "--fov", "0"]),
+    (GOOD_OBJ, ["{model}", "--fov", "180"]),
+    (GOOD_OBJ, ["{model}", "--fov", "nan"]),
+    (GOOD_OBJ, ["{model}", "--ortho", "-1"]),
+    (GOOD_OBJ, ["{model}", "--eye", "1,2"]),
+    (GOOD_OBJ, ["{model}", "--eye", "0,0,1", "--target", "0,0,1"]),
+    (GOOD_OBJ, ["{model}", "--up", "0,0,0"]),
+    (GOOD_OBJ, ["{model}", "--depth-range", "0,2"]),
+    (GOOD_OBJ, ["{model}", "--depth-func", "sometimes"]),
+    (GOOD_OBJ, ["{model}", "--cull", "sideways"]),
+    (GOOD_OBJ, ["{model}", "--algorithm", "magic"]),
+    (GOOD_OBJ, ["{model}", "-o", "/no/such/dir/x.png"]),
+    (GOOD_OBJ, ["{model}", "-o", "{tmp}/x.unknownext"]),
+    (GOOD_OBJ, ["{model}", "--depth-out", "{tmp}/d.txt"]),
+    (GOOD_OBJ, ["{model}", "--bogus-flag"]),
+])
+def test_errors_are_one_line_exit_2(tmp_path, capsys, contents, args):
+    model = tmp_path / "m.obj"
+    if contents is not None:
+        model.write_text(contents)
+    args = [a.format(model=model, missing=tmp_path / "missing.obj", tmp=tmp_path)
+            for a in args]
+    code, _, err = run(["render", "-o", str(tmp_path / "out.png")] + args, capsys)
+    assert_one_line_error(code, err)
+
+
+def test_installed_command_reports_errors_without_traceback(tmp_path):
+    for cmd in (["hsr"], [sys.executable, "-m", "hsr"]):
+        proc = subprocess.run(cmd + ["render", str(tmp_path / "nope.obj")],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2
+        assert proc.stderr.strip().splitlines() == [
+            f"hsr: error: file not found: {tmp_path / 'nope.obj'}"]
+
+
+def test_no_command_prints_help(capsys):
+    code, out, _ = run([], capsys)
+    assert code == 2 and "render" in out
