@@ -10,6 +10,7 @@ import pytest
 
 import hsr
 from conftest import MODELS_DIR
+from gl_reference import cameras_for, compare_gl
 
 MODEL_FILES = sorted(glob.glob(os.path.join(MODELS_DIR, "*.obj")))
 MODEL_NAMES = [os.path.basename(p) for p in MODEL_FILES] or ["(no shared models)"]
@@ -21,38 +22,6 @@ def mesh_of(name, models_dir):
     if name not in _MESHES:
         _MESHES[name] = hsr.load(os.path.join(models_dir, name))
     return _MESHES[name]
-
-
-def cameras_for(mesh):
-    """front (auto-framed), oblique from below-behind, inside the bounding box (near
-    plane crossing), orthographic."""
-    b = mesh.bounds()
-    center = b.mean(axis=0)
-    size = float(np.linalg.norm(b[1] - b[0]))
-    front = hsr.Camera.frame(b, fov_y=45)
-    oblique = hsr.Camera.frame(b, direction=(-0.8, -0.5, -1.0), fov_y=60)
-    inside_eye = center + (b[1] - center) * np.array([0.35, 0.2, 0.3])
-    inside = hsr.Camera.look_at(inside_eye, center - (b[1] - center) * 0.5, fov_y=75,
-                                near=size * 0.02, far=size * 3)
-    ortho = hsr.Camera.frame(b, direction=(1.0, 0.4, 0.2), ortho_height=size * 0.8)
-    return {"front": front, "oblique": oblique, "inside": inside, "ortho": ortho}
-
-
-def compare_gl(gl, mesh, cam, width, height, **state):
-    frame = hsr.render(mesh, cam, width, height, **state)
-    view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
-    gl_state = {k: v for k, v in state.items()}
-    gl_face, gl_depth = gl.render(hsr.Scene([mesh]).world_triangles(), view_proj, width,
-                                  height, **gl_state)
-    covered = (gl_face >= 0) | (frame.face_id >= 0)
-    agree = (gl_face == frame.face_id) & covered
-    n_cov = int(covered.sum())
-    share = agree.sum() / n_cov if n_cov else 1.0
-    both = agree & (gl_face >= 0)
-    diff = np.abs(gl_depth[both].astype(np.float64) - frame.depth[both])
-    p99 = float(np.percentile(diff, 99)) if diff.size else 0.0
-    worst = float(diff.max()) if diff.size else 0.0
-    return share, p99, worst, n_cov, frame
 
 
 @pytest.mark.parametrize("name", MODEL_NAMES)

@@ -11,10 +11,10 @@ import numpy as np
 from .algorithms import ALGORITHMS
 from .camera import Camera
 from .errors import RenderError
-from .fragments import Fragments, lookup_ids
+from .fragments import Fragments
 from .mesh import as_scene
 from .pipeline import prepare
-from .shading import shade
+from .shading import face_colors, resolve_pixels, shade_depth
 from .state import RenderState
 
 __all__ = ["Frame", "render", "MAX_SIZE"]
@@ -123,12 +123,16 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
         fragments = module.resolve(screen, state, counts=counts)
     t_visibility = time.perf_counter()
 
-    face_id = fragments.face_id
+    face_id = np.empty((height, width), dtype=np.int32)
+    object_id = np.empty((height, width), dtype=np.int32)
+    color = np.empty((height, width, 3), dtype=np.uint8)
     object_of_face = np.repeat(np.arange(len(scene), dtype=np.int32),
                                [inst.mesh.n_faces for inst in scene.instances])
-    object_id = lookup_ids(face_id, object_of_face)
-    color = shade(shading, scene, camera, face_id, fragments.depth, background,
-                  state.depth_range)
+    covered = resolve_pixels(fragments.tri_index, screen.face_id, object_of_face,
+                             face_colors(shading, scene, camera),
+                             np.asarray(background, dtype=np.uint8), face_id, object_id, color)
+    if shading == "depth":
+        shade_depth(color, face_id, fragments.depth, camera, state.depth_range)
     if into is not None:
         drawn = face_id >= 0
         color = np.where(drawn[..., None], color, into.color)
@@ -137,7 +141,7 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     t_end = time.perf_counter()
 
     stats.update(fragments.stats)
-    stats["pixels_covered"] = int(np.count_nonzero(face_id >= 0))
+    stats["pixels_covered"] = int(covered if into is None else np.count_nonzero(face_id >= 0))
     stats["timings_ms"] = {
         "geometry": 1e3 * (t_geometry - t_start),
         "visibility": 1e3 * (t_visibility - t_geometry),

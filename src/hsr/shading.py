@@ -1,5 +1,10 @@
 """The shading stage, shared by every algorithm: turns per-pixel visibility (face id,
-depth) into colours. Nothing here decides visibility."""
+depth) into colours. Nothing here decides visibility.
+
+Modes: ``flat`` (Lambert, light along the view direction: tinyrenderer's look; two-sided so
+back faces drawn with culling off are lit too), ``normal`` (world normal as RGB),
+``random`` (a hashed colour per face: Gambetta's look), ``depth`` (linear eye depth, near
+= bright)."""
 
 from __future__ import annotations
 
@@ -8,64 +13,110 @@ from numba import njit, prange
 
 from .errors import RenderError
 
-__all__ = ["SHADING_MODES", "shade", "face_random_colors", "world_face_normals"]
+__all__ = ["SHADING_MODES", "face_colors", "resolve_pixels", "shade_depth",
+           "face_random_colors", "linear_eye_depth"]
 
 SHADING_MODES = ("flat", "normal", "random", "depth")
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
-@njit(cache=True, parallel=True)
-def _face_normals(positions, faces, linear):
-    """(F, 3) unit normals of faces after the linear map ``linear`` (3x3); zero if degenerate."""
+@njit(cache=True)
+def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
+    """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
+
+    mode 0 (flat): ``base * |n . forward|``, Lambert with a light along the view direction,
+    two-sided. mode 1 (normal): ``(n * 0.5 + 0.5) * 255``. ``base_rgb`` is (F, 3) or (1, 3).
+    """
     n = faces.shape[0]
-    out = np.zeros((n, 3))
-    for f in prange(n):
-        p = np.empty((3, 3))
+    out = np.empty((n, 3), dtype=np.uint8)
+    per_face = base_rgb.shape[0] == n
+    p = np.empty((3, 3))
+    for f in range(n):
         for k in range(3):
             v = faces[f, k]
             for r in range(3):
                 p[k, r] = (linear[r, 0] * positions[v, 0] + linear[r, 1] * positions[v, 1]
                            + linear[r, 2] * positions[v, 2])
-        e1 = p[1] - p[0]
-        e2 = p[2] - p[0]
-        nx = e1[1] * e2[2] - e1[2] * e2[1]
-        ny = e1[2] * e2[0] - e1[0] * e2[2]
-        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        e1x, e1y, e1z = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
+        e2x, e2y, e2z = p[2, 0] - p[0, 0], p[2, 1] - p[0, 1], p[2, 2] - p[0, 2]
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
         length = np.sqrt(nx * nx + ny * ny + nz * nz)
         if length > 0.0:
-            out[f, 0], out[f, 1], out[f, 2] = nx / length, ny / length, nz / length
+            nx, ny, nz = nx / length, ny / length, nz / length
+        b = f if per_face else 0
+        if mode == 0:
+            shade = abs(nx * forward[0] + ny * forward[1] + nz * forward[2])
+            for c in range(3):
+                out[f, c] = np.uint8(min(255.0, base_rgb[b, c] * shade))
+        else:
+            out[f, 0] = np.uint8(min(255.0, (nx * 0.5 + 0.5) * 255.0))
+            out[f, 1] = np.uint8(min(255.0, (ny * 0.5 + 0.5) * 255.0))
+            out[f, 2] = np.uint8(min(255.0, (nz * 0.5 + 0.5) * 255.0))
     return out
 
 
 @njit(cache=True, parallel=True)
-def _paint(face_id, face_rgb, image):
-    """image[r, c] = face_rgb[face_id[r, c]] where a face is visible."""
-    for r in prange(face_id.shape[0]):
-        for c in range(face_id.shape[1]):
-            f = face_id[r, c]
-            if f >= 0:
+def resolve_pixels(tri_index, tri_face, face_object, face_rgb, background, face_out,
+                   object_out, image):
+    """One pass over the image: visible screen triangle -> face id, object id and colour
+    (``face_rgb`` may be empty: colours are then left to the caller). Returns the number
+    of covered pixels."""
+    height, width = tri_index.shape
+    paint = face_rgb.shape[0] > 0
+    covered_rows = np.zeros(height, dtype=np.int64)
+    for r in prange(height):
+        n_row = 0
+        for c in range(width):
+            t = tri_index[r, c]
+            f = -1
+            if t >= 0:
+                f = tri_face[t]
+                n_row += 1
+            face_out[r, c] = f
+            object_out[r, c] = face_object[f] if f >= 0 else -1
+            if f >= 0 and paint:
                 image[r, c, 0] = face_rgb[f, 0]
                 image[r, c, 1] = face_rgb[f, 1]
                 image[r, c, 2] = face_rgb[f, 2]
+            else:
+                image[r, c, 0] = background[0]
+                image[r, c, 1] = background[1]
+                image[r, c, 2] = background[2]
+        covered_rows[r] = n_row
+    return covered_rows.sum()
 
 
-def world_face_normals(scene) -> np.ndarray:
-    """(F, 3) unit world-space face normals in submission order (zero for degenerate)."""
-    parts = [_face_normals(inst.mesh.positions, inst.mesh.faces,
-                           np.ascontiguousarray(inst.model[:3, :3]))
-             for inst in scene.instances]
+def face_colors(mode: str, scene, camera) -> np.ndarray:
+    """(F, 3) uint8 colour of every face for the per-face shading modes; (0, 3) for
+    ``depth``, which is per pixel."""
+    if mode not in SHADING_MODES:
+        raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
+    if mode == "depth":
+        return np.zeros((0, 3), dtype=np.uint8)
+    if mode == "random":
+        return face_random_colors(scene.n_faces)
+    parts = []
+    for inst in scene.instances:
+        mesh = inst.mesh
+        base = (mesh.face_colors.astype(np.float64) if mesh.face_colors is not None
+                else _DEFAULT_BASE[None, :])
+        parts.append(_face_rgb(mesh.positions, mesh.faces,
+                               np.ascontiguousarray(inst.model[:3, :3]), camera.forward, base,
+                               0 if mode == "flat" else 1))
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
-def face_base_colors(scene) -> np.ndarray:
-    """(F, 3) float base colours: the meshes' face colours, light grey where none."""
-    parts = []
-    for inst in scene.instances:
-        if inst.mesh.face_colors is not None:
-            parts.append(inst.mesh.face_colors.astype(np.float64))
-        else:
-            parts.append(np.broadcast_to(_DEFAULT_BASE, (inst.mesh.n_faces, 3)))
-    return np.concatenate(parts)
+def shade_depth(image, face_id, depth, camera, depth_range=(0.0, 1.0)) -> None:
+    """Paint linear eye depth into ``image`` where a face is visible: near = bright (255),
+    far = dark (40), scaled over the visible range."""
+    covered = face_id >= 0
+    if not covered.any():
+        return
+    eye_depth = linear_eye_depth(depth[covered], camera, depth_range)
+    lo, hi = float(eye_depth.min()), float(eye_depth.max())
+    scale = (eye_depth - lo) / (hi - lo) if hi > lo else np.zeros_like(eye_depth)
+    gray = np.round(255.0 - 215.0 * scale).astype(np.uint8)
+    image[covered] = gray[:, None]
 
 
 def face_random_colors(n_faces: int) -> np.ndarray:
@@ -77,43 +128,6 @@ def face_random_colors(n_faces: int) -> np.ndarray:
     h ^= h >> np.uint64(32)
     rgb = np.stack([(h >> np.uint64(s)) & np.uint64(0xFF) for s in (0, 8, 16)], axis=1)
     return (64 + (rgb.astype(np.float64) * (191.0 / 255.0))).astype(np.uint8)
-
-
-def shade(mode: str, scene, camera, face_id: np.ndarray, depth: np.ndarray,
-          background=(0, 0, 0), depth_range=(0.0, 1.0)) -> np.ndarray:
-    """(H, W, 3) uint8 image.
-
-    flat   : Lambert with a directional light along the view direction (tinyrenderer's
-             look); two-sided, so back faces drawn with culling off are lit too.
-    normal : world-space face normal mapped to RGB (n * 0.5 + 0.5).
-    random : one hashed colour per face (Gambetta's look).
-    depth  : linear eye depth, near = bright, scaled over the visible range.
-    """
-    if mode not in SHADING_MODES:
-        raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
-    height, width = face_id.shape
-    image = np.empty((height, width, 3), dtype=np.uint8)
-    image[:] = np.asarray(background, dtype=np.uint8)
-    covered = face_id >= 0
-    if not covered.any():
-        return image
-    if mode == "flat":
-        intensity = np.abs(world_face_normals(scene) @ camera.forward)
-        face_rgb = np.clip(face_base_colors(scene) * intensity[:, None], 0, 255).astype(np.uint8)
-    elif mode == "normal":
-        face_rgb = np.clip((world_face_normals(scene) * 0.5 + 0.5) * 255.0, 0, 255).astype(
-            np.uint8)
-    elif mode == "random":
-        face_rgb = face_random_colors(scene.n_faces)
-    if mode != "depth":
-        _paint(face_id, face_rgb, image)
-    else:
-        eye_depth = linear_eye_depth(depth[covered], camera, depth_range)
-        lo, hi = float(eye_depth.min()), float(eye_depth.max())
-        scale = (eye_depth - lo) / (hi - lo) if hi > lo else np.zeros_like(eye_depth)
-        gray = np.round(255.0 - 215.0 * scale).astype(np.uint8)  # near 255, far 40
-        image[covered] = gray[:, None]
-    return image
 
 
 def linear_eye_depth(depth_window, camera, depth_range=(0.0, 1.0)) -> np.ndarray:
