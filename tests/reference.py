@@ -38,7 +38,8 @@ def world_triangles(scene) -> np.ndarray:
 
 def reference_render(scene, camera, width, height, *, depth_test=True, depth_func="less",
                      depth_mask=True, clear_depth=1.0, depth_range=(0.0, 1.0), cull="none",
-                     front_face="ccw", jitter=(0.0, 0.0), depth_buffer=None, tie_eps=1.2e-7):
+                     front_face="ccw", jitter=(0.0, 0.0), depth_buffer=None, tie_eps=1.2e-7,
+                     with_barycentrics=False):
     """Returns ``(face_id (H, W) int32, depth (H, W) float64)``, row 0 = top.
 
     ``jitter`` moves every sample point by that many pixels (to find pixels whose centre
@@ -67,6 +68,7 @@ def reference_render(scene, camera, width, height, *, depth_test=True, depth_fun
         depth = np.full(n_pix, float(clear_depth))
     else:
         depth = np.asarray(depth_buffer, dtype=np.float64).ravel().copy()
+    bary = np.zeros((n_pix, 3))
     d_near, d_far = depth_range
     test = _FUNCS[depth_func]
     for f, (v0, v1, v2) in enumerate(tris):
@@ -104,8 +106,12 @@ def reference_render(scene, camera, width, height, *, depth_test=True, depth_fun
         passed = test(z, depth[idx], tie_eps) if depth_test else np.ones(len(idx), bool)
         win = idx[passed]
         face[win] = f
+        bary[win] = np.c_[1 - u[win] - v[win], u[win], v[win]]
         if depth_test and depth_mask:
             depth[win] = z[passed]
+    if with_barycentrics:
+        return face.reshape(height, width), depth.reshape(height, width), bary.reshape(
+            height, width, 3)
     return face.reshape(height, width), depth.reshape(height, width)
 
 

@@ -6,6 +6,7 @@ import pytest
 
 import hsr
 from hsr import scenes
+from hsr.fragments import face_barycentrics
 from reference import ambiguous_pixels, compare, reference_render
 
 W, H = 96, 72
@@ -212,3 +213,21 @@ def test_multiple_instances_have_global_face_ids_and_object_ids():
     assert np.array_equal(frame.object_id[covered], frame.face_id[covered] // 12)
     assert (frame.object_id[~covered] == -1).all()
     assert len(np.unique(frame.object_id[covered])) == len(scene)
+
+
+@pytest.mark.parametrize("view", ["default", "inside"])
+def test_perspective_correct_barycentrics(view):
+    """Barycentrics on the source face, also for faces cut by the near plane."""
+    scene, cam = small_scene("cubes")
+    if view == "inside":
+        cam = hsr.Camera.look_at(eye=(-1.5, 0.2, -6.6), target=(1.0, 0.5, -10.0), fov_y=80,
+                                 near=0.2, far=30.0)
+    frame = hsr.render(scene, cam, W, H)
+    ref_face, _, ref_bary = reference_render(scene, cam, W, H, with_barycentrics=True)
+    amb = ambiguous_pixels(scene, cam, W, H)
+    same = (frame.face_id == ref_face) & (ref_face >= 0) & ~amb
+    bary = face_barycentrics(frame.fragments)
+    assert same.sum() > 1000
+    assert np.abs(bary[same] - ref_bary[same]).max() < 1e-6
+    if view == "inside":
+        assert frame.stats["clipped"] > 0

@@ -2,9 +2,9 @@
 
 Clipping happens before the perspective divide: a triangle whose corners lie on both sides
 of the eye plane (w of both signs) would otherwise project "through infinity" and wrap
-around the screen. Each plane is ``dot(plane, (x, y, z, w)) >= 0`` = inside. Every vertex
-carries its barycentric coordinates with respect to the source face, so fragments of a
-clipped triangle still know exactly where on the source face they are.
+around the screen. Each plane is ``dot(plane, (x, y, z, w)) >= 0`` = inside. The pieces
+keep the index of their source triangle; attributes are later interpolated on the source
+face itself (fragments.face_barycentrics), so the clipper carries positions only.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from numba import njit
 
 __all__ = ["clip_planes", "clip_triangles"]
 
-# Vertex record: x, y, z, w (clip space), b0, b1, b2 (barycentrics on the source face).
-_REC = 7
+# Vertex record: x, y, z, w (clip space).
+_REC = 4
 
 
 def clip_planes(width: int, height: int, guard_band_pixels: float) -> np.ndarray:
@@ -54,16 +54,15 @@ def clip_triangles(pos_clip, planes):
     """Clip triangles against ``planes`` and fan-triangulate the resulting polygons.
 
     Parameters: ``pos_clip`` (K, 3, 4) float64; ``planes`` (P, 4).
-    Returns ``(out_pos_clip (N, 3, 4), out_bary (N, 3, 3), parent (N,) int64)``: for each
-    output triangle, its clip-space corners, their barycentrics on the source triangle and
-    the index of the source triangle in ``pos_clip``. Fully clipped triangles vanish.
+    Returns ``(out_pos_clip (N, 3, 4), parent (N,) int64)``: for each output triangle its
+    clip-space corners and the index of its source triangle in ``pos_clip``. Fully clipped
+    triangles vanish.
     """
     n_in = pos_clip.shape[0]
     n_planes = planes.shape[0]
     max_verts = 3 + n_planes
     max_tris = max_verts - 2
     out_pos = np.empty((n_in * max_tris, 3, 4))
-    out_bary = np.empty((n_in * max_tris, 3, 3))
     parent = np.empty(n_in * max_tris, dtype=np.int64)
     poly = np.empty((max_verts, _REC))
     tmp = np.empty((max_verts, _REC))
@@ -73,8 +72,6 @@ def clip_triangles(pos_clip, planes):
         for k in range(3):
             for c in range(4):
                 poly[k, c] = pos_clip[t, k, c]
-            for c in range(3):
-                poly[k, 4 + c] = 1.0 if c == k else 0.0
         n = 3
         for p in range(n_planes):
             all_in = True
@@ -107,10 +104,6 @@ def clip_triangles(pos_clip, planes):
                 out_pos[n_out, 0, c] = poly[0, c]
                 out_pos[n_out, 1, c] = poly[k, c]
                 out_pos[n_out, 2, c] = poly[k + 1, c]
-            for c in range(3):
-                out_bary[n_out, 0, c] = poly[0, 4 + c]
-                out_bary[n_out, 1, c] = poly[k, 4 + c]
-                out_bary[n_out, 2, c] = poly[k + 1, 4 + c]
             parent[n_out] = t
             n_out += 1
-    return out_pos[:n_out].copy(), out_bary[:n_out].copy(), parent[:n_out].copy()
+    return out_pos[:n_out].copy(), parent[:n_out].copy()

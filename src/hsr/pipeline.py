@@ -37,10 +37,10 @@ class ScreenTriangles:
     inv_w : (N, 3) float64, 1 / w_clip per corner (for perspective-correct barycentrics).
     face_id : (N,) int64, index of the source face in the scene's global face list.
     front : (N,) bool, front-facing under the state's winding.
-    piece : (N,) int64, -1 for a whole face, else a row of ``piece_bary``.
-    piece_bary : (M, 3, 3) float64, barycentrics on the source face of the corners of
-        the pieces that clipping cut out of faces.
     width, height : viewport size in pixels.
+    pos_clip : (V, 4) float64 clip-space vertices of the whole scene and
+    faces : (F, 3) int64 their global faces, so that attributes can be interpolated on the
+        *source* face whatever clipping cut out of it (see fragments.face_barycentrics).
     """
 
     xy_window: np.ndarray
@@ -48,27 +48,18 @@ class ScreenTriangles:
     inv_w: np.ndarray
     face_id: np.ndarray
     front: np.ndarray
-    piece: np.ndarray
-    piece_bary: np.ndarray
     width: int
     height: int
+    pos_clip: np.ndarray
+    faces: np.ndarray
 
     def __len__(self):
         return len(self.face_id)
 
     def subset(self, keep) -> "ScreenTriangles":
         return ScreenTriangles(self.xy_window[keep], self.depth_window[keep], self.inv_w[keep],
-                               self.face_id[keep], self.front[keep], self.piece[keep],
-                               self.piece_bary, self.width, self.height)
-
-    def corner_barycentrics(self, index) -> np.ndarray:
-        """(K, 3, 3) barycentrics on the source face of the corners of triangles ``index``."""
-        index = np.asarray(index)
-        out = np.broadcast_to(np.eye(3), index.shape + (3, 3)).copy()
-        piece = self.piece[index]
-        cut = piece >= 0
-        out[cut] = self.piece_bary[piece[cut]]
-        return out
+                               self.face_id[keep], self.front[keep], self.width, self.height,
+                               self.pos_clip, self.faces)
 
 
 @njit(cache=True, inline="always")
@@ -219,16 +210,17 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
 
     simple = status == SIMPLE
     front, keep = _keep_mask(area > 0, state)
-    culled = simple & ~keep
-    chosen = np.flatnonzero(simple & keep)
-    parts = [(xy[chosen], depth[chosen], inv_w[chosen], chosen, front[chosen],
-              np.full(len(chosen), -1, dtype=np.int64))]
-    piece_bary = np.zeros((0, 3, 3))
-    n_culled = int(culled.sum())
+    chosen_mask = simple & keep
+    n_culled = int(np.count_nonzero(simple & ~keep))
+    if counts[SIMPLE] == len(faces) and n_culled == 0:  # the common case: no copies
+        parts = [(xy, depth, inv_w, np.arange(len(faces)), front)]
+    else:
+        chosen = np.flatnonzero(chosen_mask)
+        parts = [(xy[chosen], depth[chosen], inv_w[chosen], chosen, front[chosen])]
     if counts[NEEDS_CLIP]:
         clip_faces = np.flatnonzero(status == NEEDS_CLIP)
         tri_clip = np.ascontiguousarray(pos_clip[faces[clip_faces]])
-        pieces, piece_bary, parent = clip_triangles(tri_clip, planes)
+        pieces, parent = clip_triangles(tri_clip, planes)
         p_xy, p_depth, p_inv_w, p_area = project_triangles(pieces, width, height, depth_scale,
                                                            depth_offset)
         # Facing is decided once per clipped polygon (sum of its fan's areas), as in GL.
@@ -236,22 +228,19 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
         poly_front, poly_keep = _keep_mask(poly_area > 0, state)
         has_pieces = np.bincount(parent, minlength=len(clip_faces)) > 0
         n_culled += int(np.count_nonzero(has_pieces & ~poly_keep))
-        p_front, p_keep = poly_front[parent], poly_keep[parent]
-        sel = np.flatnonzero(p_keep)
+        sel = np.flatnonzero(poly_keep[parent])
         parts.append((p_xy[sel], p_depth[sel], p_inv_w[sel], clip_faces[parent[sel]],
-                      p_front[sel], sel))
+                      poly_front[parent[sel]]))
     stats["culled"] = n_culled
     if len(parts) == 1:
-        xy_w, depth_w, inv_w_w, face_id, front_w, piece = parts[0]
+        xy_w, depth_w, inv_w_w, face_id, front_w = parts[0]
     else:
-        xy_w, depth_w, inv_w_w, face_id, front_w, piece = (
-            np.concatenate(column) for column in zip(*parts))
+        xy_w, depth_w, inv_w_w, face_id, front_w = (np.concatenate(c) for c in zip(*parts))
         # Restore submission order; stable keeps a clipped face's fan in order.
         order = np.argsort(face_id, kind="stable")
-        xy_w, depth_w, inv_w_w, face_id, front_w, piece = (
-            xy_w[order], depth_w[order], inv_w_w[order], face_id[order], front_w[order],
-            piece[order])
-    screen = ScreenTriangles(xy_w, depth_w, inv_w_w, face_id, front_w, piece, piece_bary,
-                             width, height)
+        xy_w, depth_w, inv_w_w, face_id, front_w = (
+            xy_w[order], depth_w[order], inv_w_w[order], face_id[order], front_w[order])
+    screen = ScreenTriangles(xy_w, depth_w, inv_w_w, face_id, front_w, width, height,
+                             pos_clip, faces)
     stats["screen_triangles"] = len(screen)
     return screen

@@ -137,19 +137,31 @@ def depth_passes(func, z, stored):
 
 
 @njit(cache=True, parallel=True)
-def fill_tiles(vert_fixed, edge_bias, bbox, zplane, tile_start, tile_tris, tile, tiles_x,
-               width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
-               depth_buf, tri_buf, count_tested, count_written, want_counts):
-    """Z-buffer fill of binned triangles into ``depth_buf`` / ``tri_buf`` (image rows,
-    row 0 = top). ``depth_write`` is the depth mask (ignored when the test is off: OpenGL
-    does not write depth then). Returns per-tile (tested, written) fragment counts."""
+def fill_tiles(vert_fixed, edge_bias, bbox, zplane, tri_face, tile_start, tile_tris, tile,
+               tiles_x, width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
+               clear_depth, depth_buf, face_buf, count_tested, count_written, want_counts):
+    """Z-buffer fill of binned triangles into ``depth_buf`` / ``face_buf`` (image rows,
+    row 0 = top); ``face_buf`` receives ``tri_face[t]`` of the winning triangle t.
+
+    Each tile first clears its own part of ``face_buf`` to -1 and, when ``clear_depth``
+    is not NaN, of ``depth_buf`` to it (cleared where it is filled, in parallel).
+    ``depth_write`` is the depth mask (ignored when the test is off: OpenGL does not
+    write depth then). Returns per-tile (tested, written) fragment counts."""
     n_tiles = tile_start.shape[0] - 1
     tile_counts = np.zeros((n_tiles, 2), dtype=np.int64)
     write_depth = depth_test and depth_write
+    do_clear_depth = not np.isnan(clear_depth)
+    clear_value = np.float32(clear_depth)
     for k in prange(n_tiles):
         ty, tx = k // tiles_x, k % tiles_x
         tx0, ty0 = tx * tile, ty * tile
         tx1, ty1 = min(tx0 + tile, width) - 1, min(ty0 + tile, height) - 1
+        for j in range(ty0, ty1 + 1):
+            row = height - 1 - j
+            for i in range(tx0, tx1 + 1):
+                face_buf[row, i] = -1
+                if do_clear_depth:
+                    depth_buf[row, i] = clear_value
         n_tested = 0
         n_written = 0
         for s in range(tile_start[k], tile_start[k + 1]):
@@ -186,7 +198,7 @@ def fill_tiles(vert_fixed, edge_bias, bbox, zplane, tile_start, tile_tris, tile,
                         if want_counts:
                             count_tested[row, i] += 1
                         if (not depth_test) or depth_passes(depth_func, zf, depth_buf[row, i]):
-                            tri_buf[row, i] = t
+                            face_buf[row, i] = tri_face[t]
                             if write_depth:
                                 depth_buf[row, i] = zf
                             n_written += 1

@@ -14,7 +14,7 @@ from .errors import RenderError
 from .fragments import Fragments
 from .mesh import as_scene
 from .pipeline import prepare
-from .shading import face_colors, resolve_pixels, shade_depth
+from .shading import face_colors, paint_faces, shade_depth
 from .state import RenderState
 
 __all__ = ["Frame", "render", "MAX_SIZE"]
@@ -41,9 +41,20 @@ class Frame:
     color: np.ndarray
     depth: np.ndarray
     face_id: np.ndarray
-    object_id: np.ndarray
     stats: dict = field(default_factory=dict)
     fragments: Fragments | None = None
+    face_offsets: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def object_id(self) -> np.ndarray:
+        """(H, W) int32 instance index of the visible face, -1 for background (derived
+        from ``face_id`` on first use)."""
+        if getattr(self, "_object_id", None) is None:
+            offsets = self.face_offsets if self.face_offsets is not None else np.array([0])
+            object_id = np.searchsorted(offsets, self.face_id, side="right").astype(np.int32) - 1
+            object_id[self.face_id < 0] = -1
+            self._object_id = object_id
+        return self._object_id
 
     @property
     def width(self) -> int:
@@ -123,29 +134,25 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
         fragments = module.resolve(screen, state, counts=counts)
     t_visibility = time.perf_counter()
 
-    face_id = np.empty((height, width), dtype=np.int32)
-    object_id = np.empty((height, width), dtype=np.int32)
+    face_id = fragments.face_id
     color = np.empty((height, width, 3), dtype=np.uint8)
-    object_of_face = np.repeat(np.arange(len(scene), dtype=np.int32),
-                               [inst.mesh.n_faces for inst in scene.instances])
-    covered = resolve_pixels(fragments.tri_index, screen.face_id, object_of_face,
-                             face_colors(shading, scene, camera),
-                             np.asarray(background, dtype=np.uint8), face_id, object_id, color)
+    covered = paint_faces(face_id, face_colors(shading, scene, camera),
+                          np.asarray(background, dtype=np.uint8), color)
     if shading == "depth":
         shade_depth(color, face_id, fragments.depth, camera, state.depth_range)
     if into is not None:
         drawn = face_id >= 0
         color = np.where(drawn[..., None], color, into.color)
         face_id = np.where(drawn, face_id, into.face_id).astype(np.int32)
-        object_id = np.where(drawn, object_id, into.object_id).astype(np.int32)
+        covered = int(np.count_nonzero(face_id >= 0))
     t_end = time.perf_counter()
 
     stats.update(fragments.stats)
-    stats["pixels_covered"] = int(covered if into is None else np.count_nonzero(face_id >= 0))
+    stats["pixels_covered"] = int(covered)
     stats["timings_ms"] = {
         "geometry": 1e3 * (t_geometry - t_start),
         "visibility": 1e3 * (t_visibility - t_geometry),
         "shading": 1e3 * (t_end - t_visibility),
         "total": 1e3 * (t_end - t_start),
     }
-    return Frame(color, fragments.depth, face_id, object_id, stats, fragments)
+    return Frame(color, fragments.depth, face_id, stats, fragments, scene.face_offsets())

@@ -13,7 +13,7 @@ from numba import njit, prange
 
 from .errors import RenderError
 
-__all__ = ["SHADING_MODES", "face_colors", "resolve_pixels", "shade_depth",
+__all__ = ["SHADING_MODES", "face_colors", "paint_faces", "shade_depth",
            "face_random_colors", "linear_eye_depth"]
 
 SHADING_MODES = ("flat", "normal", "random", "depth")
@@ -56,24 +56,19 @@ def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
 
 
 @njit(cache=True, parallel=True)
-def resolve_pixels(tri_index, tri_face, face_object, face_rgb, background, face_out,
-                   object_out, image):
-    """One pass over the image: visible screen triangle -> face id, object id and colour
-    (``face_rgb`` may be empty: colours are then left to the caller). Returns the number
-    of covered pixels."""
-    height, width = tri_index.shape
+def paint_faces(face_id, face_rgb, background, image):
+    """One pass over the image: ``face_rgb[face]`` where a face is visible, else the
+    background (``face_rgb`` may be empty: every pixel gets the background). Returns the
+    number of covered pixels."""
+    height, width = face_id.shape
     paint = face_rgb.shape[0] > 0
     covered_rows = np.zeros(height, dtype=np.int64)
     for r in prange(height):
         n_row = 0
         for c in range(width):
-            t = tri_index[r, c]
-            f = -1
-            if t >= 0:
-                f = tri_face[t]
+            f = face_id[r, c]
+            if f >= 0:
                 n_row += 1
-            face_out[r, c] = f
-            object_out[r, c] = face_object[f] if f >= 0 else -1
             if f >= 0 and paint:
                 image[r, c, 0] = face_rgb[f, 0]
                 image[r, c, 1] = face_rgb[f, 1]

@@ -18,13 +18,15 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
             counts: bool = False) -> Fragments:
     """Z-buffer visibility of ``screen``. The depth buffer starts cleared to
     ``state.clear_depth``, or is ``depth_buffer`` ((H, W) float32, updated in place: draws
-    accumulate as in OpenGL without glClear). ``tri_index`` marks what this draw wrote."""
+    accumulate as in OpenGL without glClear). ``face_id`` marks what this draw wrote."""
     width, height = screen.width, screen.height
     if depth_buffer is None:
-        depth = np.full((height, width), state.clear_depth, dtype=np.float32)
+        depth = np.empty((height, width), dtype=np.float32)
+        clear = state.clear_depth
     else:
         depth = depth_buffer
-    tri = np.full((height, width), -1, dtype=np.int32)
+        clear = np.nan
+    face = np.empty((height, width), dtype=np.int32)
     shape = (height, width) if counts else (1, 1)
     count_tested = np.zeros(shape, dtype=np.int32)
     count_written = np.zeros(shape, dtype=np.int32)
@@ -35,14 +37,14 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     tile_start, tile_tris = bin_triangles(bbox, TILE, tiles_x, tiles_y)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     tile_counts = fill_tiles(
-        vert_fixed, edge_bias, bbox, zplane, tile_start, tile_tris, TILE, tiles_x, width,
-        height, state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi,
-        depth, tri, count_tested, count_written, counts)
+        vert_fixed, edge_bias, bbox, zplane, screen.face_id, tile_start, tile_tris, TILE,
+        tiles_x, width, height, state.depth_test, state.depth_func.code, state.depth_mask,
+        z_lo, z_hi, clear, depth, face, count_tested, count_written, counts)
     stats = {
         "triangles_binned": int(np.count_nonzero(bbox[:, 0] <= bbox[:, 1])),
         "tile_entries": int(len(tile_tris)),
         "fragments_tested": int(tile_counts[:, 0].sum()),
         "fragments_written": int(tile_counts[:, 1].sum()),
     }
-    return Fragments(tri, depth, screen, stats,
+    return Fragments(face, depth, screen, stats,
                      count_tested if counts else None, count_written if counts else None)
