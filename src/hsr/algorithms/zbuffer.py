@@ -3,11 +3,12 @@ against what is stored. Follows OpenGL's depth state exactly, in submission orde
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from ..fragments import Fragments
 from ..pipeline import ScreenTriangles
-from ..raster import TILE, bin_triangles, fill_tiles, setup_triangles
+from ..raster import band_split, fill_bands, setup_triangles
 from ..state import RenderState
 
 NAME = "zbuffer"
@@ -32,19 +33,18 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     count_written = np.zeros(shape, dtype=np.int32)
     vert_fixed, edge_bias, bbox, zplane = setup_triangles(
         screen.xy_window, screen.depth_window, width, height)
-    tiles_x = -(-width // TILE)
-    tiles_y = -(-height // TILE)
-    tile_start, tile_tris = bin_triangles(bbox, TILE, tiles_x, tiles_y)
+    bands = band_split(bbox, height, 4 * numba.get_num_threads())
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    tile_counts = fill_tiles(
-        vert_fixed, edge_bias, bbox, zplane, screen.face_id, tile_start, tile_tris, TILE,
-        tiles_x, width, height, state.depth_test, state.depth_func.code, state.depth_mask,
-        z_lo, z_hi, clear, depth, face, count_tested, count_written, counts)
+    band_counts = fill_bands(
+        bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id, width, height,
+        state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi, clear, depth,
+        face, count_tested, count_written, counts)
     stats = {
-        "triangles_binned": int(np.count_nonzero(bbox[:, 0] <= bbox[:, 1])),
-        "tile_entries": int(len(tile_tris)),
-        "fragments_tested": int(tile_counts[:, 0].sum()),
-        "fragments_written": int(tile_counts[:, 1].sum()),
+        "triangles_rasterized": int(np.count_nonzero((bbox[:, 0] <= bbox[:, 1])
+                                                     & (bbox[:, 2] <= bbox[:, 3]))),
+        "bands": len(bands) - 1,
+        "fragments_tested": int(band_counts[:, 0].sum()),
+        "fragments_written": int(band_counts[:, 1].sum()),
     }
     return Fragments(face, depth, screen, stats,
                      count_tested if counts else None, count_written if counts else None)
