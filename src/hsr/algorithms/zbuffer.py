@@ -33,7 +33,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     count_written = np.zeros(shape, dtype=np.int32)
     vert_fixed, edge_bias, bbox, zplane = setup_triangles(
         screen.xy_window, screen.depth_window, width, height)
-    bands = band_split(bbox, height, 4 * numba.get_num_threads())
+    # One band per thread: the split balances estimated work, and every extra band costs
+    # a walk over all triangles.
+    bands = band_split(bbox, height, numba.get_num_threads())
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     band_counts = fill_bands(
         bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id, width, height,
