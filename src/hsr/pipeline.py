@@ -14,11 +14,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .clip import clip_planes, clip_triangles
 from .conventions import GUARD_BAND_PIXELS
 from .mesh import Scene
+from .parallel import Workers
 from .state import CullMode, FrontFace, RenderState
 
 __all__ = ["ScreenTriangles", "prepare", "scene_clip_vertices"]
@@ -62,14 +63,14 @@ class ScreenTriangles:
                                self.pos_clip, self.faces)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset):
     inv_w = 1.0 / w
     return ((x * inv_w + 1.0) * half_w, (y * inv_w + 1.0) * half_h,
             z * inv_w * depth_scale + depth_offset, inv_w)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _is_degenerate(positions, a, b, c):
     # Repeated index, or zero area relative to the edge lengths (collinear corners): such
     # a face covers no pixel in OpenGL either, so it is skipped and counted.
@@ -85,18 +86,17 @@ def _is_degenerate(positions, a, b, c):
     return area2_sq <= 1e-24 * scale * scale
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def degenerate_faces(positions, faces):
     """(F,) bool: faces with a repeated vertex or zero area (see ``_is_degenerate``)."""
     n = faces.shape[0]
     out = np.empty(n, dtype=np.bool_)
-    for f in prange(n):
+    for f in range(n):
         out[f] = _is_degenerate(positions, faces[f, 0], faces[f, 1], faces[f, 2])
     return out
 
 
-@njit(cache=True, parallel=True)
-def classify_faces(pos_clip, faces, degenerate, planes, width, height, depth_scale,
+def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, depth_scale,
                    depth_offset):
     """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
     window coordinates, depth, 1/w and twice the signed window area (y up)."""
@@ -106,10 +106,18 @@ def classify_faces(pos_clip, faces, degenerate, planes, width, height, depth_sca
     depth = np.empty((n, 3))
     inv_w = np.empty((n, 3))
     area = np.zeros(n)
+    workers.run_range(_classify_range, n, pos_model, pos_clip, faces, planes, width, height,
+                      depth_scale, depth_offset, status, xy, depth, inv_w, area)
+    return status, xy, depth, inv_w, area
+
+
+@njit(cache=True, nogil=True)
+def _classify_range(lo, hi, pos_model, pos_clip, faces, planes, width, height, depth_scale,
+                    depth_offset, status, xy, depth, inv_w, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     n_planes = planes.shape[0]
-    for f in prange(n):
-        if degenerate[f]:
+    for f in range(lo, hi):
+        if _is_degenerate(pos_model, faces[f, 0], faces[f, 1], faces[f, 2]):
             status[f] = DEGENERATE
             continue
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -142,7 +150,6 @@ def classify_faces(pos_clip, faces, degenerate, planes, width, height, depth_sca
                 depth_scale, depth_offset)
         area[f] = ((xy[f, 1, 0] - xy[f, 0, 0]) * (xy[f, 2, 1] - xy[f, 0, 1])
                    - (xy[f, 2, 0] - xy[f, 0, 0]) * (xy[f, 1, 1] - xy[f, 0, 1]))
-    return status, xy, depth, inv_w, area
 
 
 @njit(cache=True)
@@ -165,20 +172,21 @@ def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
 
 
 def scene_clip_vertices(scene: Scene, view_proj: np.ndarray):
-    """Clip-space vertices of all instances and their faces re-indexed into them:
-    ``(pos_clip (V, 4), faces (F, 3), degenerate (F,))`` in submission order."""
-    pos, faces, degenerate = [], [], []
+    """Model-space and clip-space vertices of all instances and their faces re-indexed
+    into them: ``(pos_model (V, 3), pos_clip (V, 4), faces (F, 3))``, submission order.
+    (Degeneracy is judged in model space, where a model matrix cannot hide it.)"""
+    model, clip, faces = [], [], []
     base = 0
     for inst in scene.instances:
         mvp = view_proj @ inst.model
         mesh = inst.mesh
-        pos.append(mesh.positions @ mvp[:, :3].T + mvp[:, 3])
+        model.append(mesh.positions)
+        clip.append(mesh.positions @ mvp[:, :3].T + mvp[:, 3])
         faces.append(mesh.faces + base if base else mesh.faces)
-        degenerate.append(degenerate_faces(mesh.positions, mesh.faces))
         base += len(mesh.positions)
-    if len(pos) == 1:
-        return np.ascontiguousarray(pos[0]), faces[0], degenerate[0]
-    return np.concatenate(pos), np.concatenate(faces), np.concatenate(degenerate)
+    if len(clip) == 1:
+        return model[0], np.ascontiguousarray(clip[0]), faces[0]
+    return np.concatenate(model), np.concatenate(clip), np.concatenate(faces)
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
@@ -194,14 +202,15 @@ def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndar
 
 
 def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
-            state: RenderState, stats: dict) -> ScreenTriangles:
+            state: RenderState, stats: dict, workers=None) -> ScreenTriangles:
     """Run the geometry stage; fills ``stats`` with triangle counts."""
-    pos_clip, faces, degenerate = scene_clip_vertices(scene, view_proj)
+    workers = workers or Workers()
+    pos_model, pos_clip, faces = scene_clip_vertices(scene, view_proj)
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
     near, far = state.depth_range
     depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
     status, xy, depth, inv_w, area = classify_faces(
-        pos_clip, faces, degenerate, planes, width, height, depth_scale, depth_offset)
+        workers, pos_model, pos_clip, faces, planes, width, height, depth_scale, depth_offset)
     counts = np.bincount(status, minlength=4)
     stats["triangles_in"] = len(faces)
     stats["degenerate"] = int(counts[DEGENERATE])

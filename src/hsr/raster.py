@@ -8,7 +8,7 @@ Depth: a plane through the *unsnapped* window-space corners, evaluated at the pi
 in float64, clamped to the depth range and rounded to float32 (the buffer format).
 
 Parallelism: the viewport is cut into horizontal bands of about equal work; bands are
-filled in parallel (``prange``), each thread owning whole bands and walking the triangles
+filled in parallel (:mod:`hsr.parallel`), each thread owning whole bands and walking the triangles
 in submission order, so there are no races and the result does not depend on the number
 of threads. (Square tiles with per-tile triangle lists were measured 2.5x slower on meshes
 of small triangles: the binning and per-tile set-up cost more than they save.)
@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .conventions import SUBPIXEL_BITS
 
@@ -29,8 +29,7 @@ _ONE = 1 << SUBPIXEL_BITS
 _HALF = _ONE >> 1
 
 
-@njit(cache=True, parallel=True)
-def setup_triangles(xy_window, depth_window, width, height):
+def setup_triangles(xy_window, depth_window, width, height, workers):
     """Per-triangle set-up shared by every fill.
 
     Returns
@@ -48,45 +47,55 @@ def setup_triangles(xy_window, depth_window, width, height):
     edge_bias = np.empty((n, 3), dtype=np.int64)
     bbox = np.empty((n, 4), dtype=np.int64)
     zplane = np.zeros((n, 5))
-    for t in prange(n):
-        xs = np.empty(3, dtype=np.int64)
-        ys = np.empty(3, dtype=np.int64)
-        for k in range(3):
-            xs[k] = np.int64(math.floor(xy_window[t, k, 0] * _ONE + 0.5))
-            ys[k] = np.int64(math.floor(xy_window[t, k, 1] * _ONE + 0.5))
-        area = (xs[1] - xs[0]) * (ys[2] - ys[0]) - (xs[2] - xs[0]) * (ys[1] - ys[0])
+    workers.run_range(_setup_range, n, xy_window, depth_window, width, height, vert_fixed,
+                      edge_bias, bbox, zplane)
+    return vert_fixed, edge_bias, bbox, zplane
+
+
+@njit(cache=True, nogil=True)
+def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edge_bias,
+                 bbox, zplane):
+    for t in range(lo, hi):
+        x0 = np.int64(math.floor(xy_window[t, 0, 0] * _ONE + 0.5))
+        y0 = np.int64(math.floor(xy_window[t, 0, 1] * _ONE + 0.5))
+        x1 = np.int64(math.floor(xy_window[t, 1, 0] * _ONE + 0.5))
+        y1 = np.int64(math.floor(xy_window[t, 1, 1] * _ONE + 0.5))
+        x2 = np.int64(math.floor(xy_window[t, 2, 0] * _ONE + 0.5))
+        y2 = np.int64(math.floor(xy_window[t, 2, 1] * _ONE + 0.5))
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         if area < 0:  # make the corner order counter-clockwise
-            xs[1], xs[2] = xs[2], xs[1]
-            ys[1], ys[2] = ys[2], ys[1]
-        for k in range(3):
-            vert_fixed[t, 2 * k] = xs[k]
-            vert_fixed[t, 2 * k + 1] = ys[k]
-            dx = xs[(k + 1) % 3] - xs[k]
-            dy = ys[(k + 1) % 3] - ys[k]
-            edge_bias[t, k] = 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
+            x1, x2 = x2, x1
+            y1, y2 = y2, y1
+        vert_fixed[t, 0], vert_fixed[t, 1] = x0, y0
+        vert_fixed[t, 2], vert_fixed[t, 3] = x1, y1
+        vert_fixed[t, 4], vert_fixed[t, 5] = x2, y2
+        edge_bias[t, 0] = _bias(x1 - x0, y1 - y0)
+        edge_bias[t, 1] = _bias(x2 - x1, y2 - y1)
+        edge_bias[t, 2] = _bias(x0 - x2, y0 - y2)
         if area == 0:  # covers no pixel centre
             bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = 0, -1, 0, -1
             continue
         # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
-        x_min = -((-(min(xs[0], xs[1], xs[2]) - _HALF)) // _ONE)
-        x_max = (max(xs[0], xs[1], xs[2]) - _HALF) // _ONE
-        y_min = -((-(min(ys[0], ys[1], ys[2]) - _HALF)) // _ONE)
-        y_max = (max(ys[0], ys[1], ys[2]) - _HALF) // _ONE
-        bbox[t, 0] = max(x_min, 0)
-        bbox[t, 1] = min(x_max, width - 1)
-        bbox[t, 2] = max(y_min, 0)
-        bbox[t, 3] = min(y_max, height - 1)
+        bbox[t, 0] = max(-((-(min(x0, x1, x2) - _HALF)) // _ONE), 0)
+        bbox[t, 1] = min((max(x0, x1, x2) - _HALF) // _ONE, width - 1)
+        bbox[t, 2] = max(-((-(min(y0, y1, y2) - _HALF)) // _ONE), 0)
+        bbox[t, 3] = min((max(y0, y1, y2) - _HALF) // _ONE, height - 1)
         # Depth plane from the unsnapped positions.
-        x0, y0, z0 = xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0]
-        ax, ay = xy_window[t, 1, 0] - x0, xy_window[t, 1, 1] - y0
-        bx, by = xy_window[t, 2, 0] - x0, xy_window[t, 2, 1] - y0
-        az, bz = depth_window[t, 1] - z0, depth_window[t, 2] - z0
+        fx0, fy0, fz0 = xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0]
+        ax, ay = xy_window[t, 1, 0] - fx0, xy_window[t, 1, 1] - fy0
+        bx, by = xy_window[t, 2, 0] - fx0, xy_window[t, 2, 1] - fy0
+        az, bz = depth_window[t, 1] - fz0, depth_window[t, 2] - fz0
         det = ax * by - bx * ay
-        zplane[t, 0], zplane[t, 1], zplane[t, 2] = x0, y0, z0
+        zplane[t, 0], zplane[t, 1], zplane[t, 2] = fx0, fy0, fz0
         if det != 0.0:
             zplane[t, 3] = (az * by - bz * ay) / det
             zplane[t, 4] = (ax * bz - bx * az) / det
-    return vert_fixed, edge_bias, bbox, zplane
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bias(dx, dy):
+    # Top-left rule in image orientation = left or bottom edge in y-up window space.
+    return 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
 
 
 def band_split(bbox: np.ndarray, height: int, n_bands: int) -> np.ndarray:
@@ -104,7 +113,7 @@ def band_split(bbox: np.ndarray, height: int, n_bands: int) -> np.ndarray:
     return np.concatenate([[0], cuts, [height]]).astype(np.int64)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def depth_passes(func, z, stored):
     """glDepthFunc comparison ``z OP stored``; codes in DepthFunc order."""
     if func == 1:
@@ -124,83 +133,90 @@ def depth_passes(func, z, stored):
     return True
 
 
-@njit(cache=True, parallel=True)
-def fill_bands(band_rows, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
+def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
                depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
                face_buf, count_tested, count_written, want_counts):
+    """Fill on ``workers``, one call of :func:`fill_band` per band; returns (tested,
+    written) fragment counts summed over the bands."""
+    counts = workers.run(fill_band, bands, vert_fixed, edge_bias, bbox, zplane, tri_face,
+                         width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
+                         clear_depth, depth_buf, face_buf, count_tested, count_written,
+                         want_counts)
+    return sum(c[0] for c in counts), sum(c[1] for c in counts)
+
+
+@njit(cache=True, nogil=True)
+def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
+              depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
+              face_buf, count_tested, count_written, want_counts):
     """Fill triangles, in submission order, into ``depth_buf`` / ``face_buf`` (image rows,
     row 0 = top); ``face_buf`` receives ``tri_face[t]`` of the triangle t that passes.
 
-    The window is cut into horizontal bands (``band_rows``, y up), filled in parallel: each
-    thread owns whole bands and walks every triangle overlapping them in order, so no two
-    threads touch a pixel and the result does not depend on the band layout or the
-    number of threads. Each band first clears its rows of ``face_buf`` to -1 and, when
-    ``clear_depth`` is not NaN, of ``depth_buf`` (cleared where it is filled, in
-    parallel). ``depth_write`` is the depth mask (ignored when the test is off: OpenGL
-    does not write depth then). Returns per-band (tested, written) fragment counts.
+    This call fills window rows ``b_lo <= y < b_end`` (y up) only: a thread owns whole
+    bands and walks every triangle overlapping them in order, so no two threads touch a
+    pixel and the result does not depend on the band layout or the number of threads.
+    The band first clears its rows of ``face_buf`` to -1 and, when ``clear_depth`` is not
+    NaN, of ``depth_buf`` (cleared where it is filled, in parallel). ``depth_write`` is the
+    depth mask (ignored when the test is off: OpenGL does not write depth then). Returns
+    (fragments tested, fragments written).
     """
-    n_bands = band_rows.shape[0] - 1
     n = bbox.shape[0]
-    band_counts = np.zeros((n_bands, 2), dtype=np.int64)
     write_depth = depth_test and depth_write
     do_clear_depth = not np.isnan(clear_depth)
     clear_value = np.float32(clear_depth)
-    for b in prange(n_bands):
-        b_lo, b_hi = band_rows[b], band_rows[b + 1] - 1
-        for j in range(b_lo, b_hi + 1):
+    b_hi = b_end - 1
+    for j in range(b_lo, b_hi + 1):
+        row = height - 1 - j
+        for i in range(width):
+            face_buf[row, i] = -1
+            if do_clear_depth:
+                depth_buf[row, i] = clear_value
+    n_tested = 0
+    n_written = 0
+    for t in range(n):
+        y0, y1 = max(bbox[t, 2], b_lo), min(bbox[t, 3], b_hi)
+        x0, x1 = bbox[t, 0], bbox[t, 1]
+        if y0 > y1 or x0 > x1:
+            continue
+        X0, Y0 = vert_fixed[t, 0], vert_fixed[t, 1]
+        X1, Y1 = vert_fixed[t, 2], vert_fixed[t, 3]
+        X2, Y2 = vert_fixed[t, 4], vert_fixed[t, 5]
+        px = x0 * _ONE + _HALF
+        py = y0 * _ONE + _HALF
+        # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
+        # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
+        e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + edge_bias[t, 0]
+        e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + edge_bias[t, 1]
+        e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + edge_bias[t, 2]
+        step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
+        step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
+        step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE
+        zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
+        dzdx, dzdy = zplane[t, 3], zplane[t, 4]
+        face = tri_face[t]
+        for j in range(y0, y1 + 1):
+            e0, e1, e2 = e0_row, e1_row, e2_row
             row = height - 1 - j
-            for i in range(width):
-                face_buf[row, i] = -1
-                if do_clear_depth:
-                    depth_buf[row, i] = clear_value
-        n_tested = 0
-        n_written = 0
-        for t in range(n):
-            y0, y1 = max(bbox[t, 2], b_lo), min(bbox[t, 3], b_hi)
-            x0, x1 = bbox[t, 0], bbox[t, 1]
-            if y0 > y1 or x0 > x1:
-                continue
-            X0, Y0 = vert_fixed[t, 0], vert_fixed[t, 1]
-            X1, Y1 = vert_fixed[t, 2], vert_fixed[t, 3]
-            X2, Y2 = vert_fixed[t, 4], vert_fixed[t, 5]
-            px = x0 * _ONE + _HALF
-            py = y0 * _ONE + _HALF
-            # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
-            # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
-            e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + edge_bias[t, 0]
-            e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + edge_bias[t, 1]
-            e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + edge_bias[t, 2]
-            step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
-            step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
-            step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE
-            zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
-            dzdx, dzdy = zplane[t, 3], zplane[t, 4]
-            face = tri_face[t]
-            for j in range(y0, y1 + 1):
-                e0, e1, e2 = e0_row, e1_row, e2_row
-                row = height - 1 - j
-                z_row = zz0 + dzdy * (j + 0.5 - zy0)
-                for i in range(x0, x1 + 1):
-                    if (e0 | e1 | e2) >= 0:
-                        z = z_row + dzdx * (i + 0.5 - zx0)
-                        z = min(max(z, z_lo), z_hi)
-                        zf = np.float32(z)
-                        n_tested += 1
+            z_row = zz0 + dzdy * (j + 0.5 - zy0)
+            for i in range(x0, x1 + 1):
+                if (e0 | e1 | e2) >= 0:
+                    z = z_row + dzdx * (i + 0.5 - zx0)
+                    z = min(max(z, z_lo), z_hi)
+                    zf = np.float32(z)
+                    n_tested += 1
+                    if want_counts:
+                        count_tested[row, i] += 1
+                    if (not depth_test) or depth_passes(depth_func, zf, depth_buf[row, i]):
+                        face_buf[row, i] = face
+                        if write_depth:
+                            depth_buf[row, i] = zf
+                        n_written += 1
                         if want_counts:
-                            count_tested[row, i] += 1
-                        if (not depth_test) or depth_passes(depth_func, zf, depth_buf[row, i]):
-                            face_buf[row, i] = face
-                            if write_depth:
-                                depth_buf[row, i] = zf
-                            n_written += 1
-                            if want_counts:
-                                count_written[row, i] += 1
-                    e0 += step_x0
-                    e1 += step_x1
-                    e2 += step_x2
-                e0_row += step_y0
-                e1_row += step_y1
-                e2_row += step_y2
-        band_counts[b, 0] = n_tested
-        band_counts[b, 1] = n_written
-    return band_counts
+                            count_written[row, i] += 1
+                e0 += step_x0
+                e1 += step_x1
+                e2 += step_x2
+            e0_row += step_y0
+            e1_row += step_y1
+            e2_row += step_y2
+    return n_tested, n_written

@@ -13,6 +13,7 @@ from .camera import Camera
 from .errors import RenderError
 from .fragments import Fragments
 from .mesh import as_scene
+from .parallel import Workers
 from .pipeline import prepare
 from .shading import face_colors, paint_faces, shade_depth
 from .state import RenderState
@@ -94,7 +95,7 @@ def _check_size(width, height):
 def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
            shading: str = "flat", background=(0, 0, 0), counts: bool = False,
-           into: Frame | None = None, **state_fields) -> Frame:
+           into: Frame | None = None, threads: int | None = None, **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame.
 
@@ -102,7 +103,9 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     ``depth_func="lequal"``) sets the OpenGL depth and culling state. ``counts=True``
     also records per-pixel fragment counts (overdraw). ``into=frame`` draws on top of an
     earlier frame without clearing it (its depth buffer, colours and ids are kept where
-    this draw writes nothing), like a second draw call in OpenGL.
+    this draw writes nothing), like a second draw call in OpenGL. ``threads`` sets how
+    many threads run the kernels (default: numba's thread count); results never depend
+    on it.
     """
     t_start = time.perf_counter()
     _check_size(width, height)
@@ -122,21 +125,29 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
 
     stats: dict = {"algorithm": algorithm, "width": width, "height": height}
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
-    screen = prepare(scene, view_proj, width, height, state, stats)
+    with Workers(threads) as workers:
+        return _render(scene, camera, width, height, algorithm, state, shading, background,
+                       counts, into, stats, t_start, view_proj, workers)
+
+
+def _render(scene, camera, width, height, algorithm, state, shading, background, counts,
+            into, stats, t_start, view_proj, workers):
+    screen = prepare(scene, view_proj, width, height, state, stats, workers)
     t_geometry = time.perf_counter()
 
     module = ALGORITHMS[algorithm]
     if into is not None:
         if algorithm != "zbuffer":
             raise RenderError("into= (drawing without a clear) needs the zbuffer algorithm")
-        fragments = module.resolve(screen, state, depth_buffer=into.depth.copy(), counts=counts)
+        fragments = module.resolve(screen, state, depth_buffer=into.depth.copy(), counts=counts,
+                                   workers=workers)
     else:
-        fragments = module.resolve(screen, state, counts=counts)
+        fragments = module.resolve(screen, state, counts=counts, workers=workers)
     t_visibility = time.perf_counter()
 
     face_id = fragments.face_id
     color = np.empty((height, width, 3), dtype=np.uint8)
-    covered = paint_faces(face_id, face_colors(shading, scene, camera),
+    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera),
                           np.asarray(background, dtype=np.uint8), color)
     if shading == "depth":
         shade_depth(color, face_id, fragments.depth, camera, state.depth_range)

@@ -9,7 +9,7 @@ back faces drawn with culling off are lit too), ``normal`` (world normal as RGB)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .errors import RenderError
 
@@ -20,7 +20,7 @@ SHADING_MODES = ("flat", "normal", "random", "depth")
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
     """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
 
@@ -55,20 +55,23 @@ def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
     return out
 
 
-@njit(cache=True, parallel=True)
-def paint_faces(face_id, face_rgb, background, image):
-    """One pass over the image: ``face_rgb[face]`` where a face is visible, else the
-    background (``face_rgb`` may be empty: every pixel gets the background). Returns the
-    number of covered pixels."""
-    height, width = face_id.shape
+def paint_faces(workers, face_id, face_rgb, background, image):
+    """``image = face_rgb[face_id]`` where a face is visible, else the background
+    (``face_rgb`` may be empty: every pixel gets the background). Returns the number of
+    covered pixels."""
+    return sum(workers.run_range(_paint_rows, face_id.shape[0], face_id, face_rgb,
+                                 background, image))
+
+
+@njit(cache=True, nogil=True)
+def _paint_rows(lo, hi, face_id, face_rgb, background, image):
     paint = face_rgb.shape[0] > 0
-    covered_rows = np.zeros(height, dtype=np.int64)
-    for r in prange(height):
-        n_row = 0
-        for c in range(width):
+    covered = 0
+    for r in range(lo, hi):
+        for c in range(face_id.shape[1]):
             f = face_id[r, c]
             if f >= 0:
-                n_row += 1
+                covered += 1
             if f >= 0 and paint:
                 image[r, c, 0] = face_rgb[f, 0]
                 image[r, c, 1] = face_rgb[f, 1]
@@ -77,8 +80,7 @@ def paint_faces(face_id, face_rgb, background, image):
                 image[r, c, 0] = background[0]
                 image[r, c, 1] = background[1]
                 image[r, c, 2] = background[2]
-        covered_rows[r] = n_row
-    return covered_rows.sum()
+    return covered
 
 
 def face_colors(mode: str, scene, camera) -> np.ndarray:

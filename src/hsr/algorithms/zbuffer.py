@@ -3,10 +3,10 @@ against what is stored. Follows OpenGL's depth state exactly, in submission orde
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ..fragments import Fragments
+from ..parallel import Workers
 from ..pipeline import ScreenTriangles
 from ..raster import band_split, fill_bands, setup_triangles
 from ..state import RenderState
@@ -16,10 +16,11 @@ DESCRIPTION = "depth buffer with OpenGL depth state (test, func, mask, clear, ra
 
 
 def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarray | None = None,
-            counts: bool = False) -> Fragments:
+            counts: bool = False, workers: Workers | None = None) -> Fragments:
     """Z-buffer visibility of ``screen``. The depth buffer starts cleared to
     ``state.clear_depth``, or is ``depth_buffer`` ((H, W) float32, updated in place: draws
     accumulate as in OpenGL without glClear). ``face_id`` marks what this draw wrote."""
+    workers = workers or Workers()
     width, height = screen.width, screen.height
     if depth_buffer is None:
         depth = np.empty((height, width), dtype=np.float32)
@@ -32,21 +33,21 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     count_tested = np.zeros(shape, dtype=np.int32)
     count_written = np.zeros(shape, dtype=np.int32)
     vert_fixed, edge_bias, bbox, zplane = setup_triangles(
-        screen.xy_window, screen.depth_window, width, height)
+        screen.xy_window, screen.depth_window, width, height, workers)
     # One band per thread: the split balances estimated work, and every extra band costs
     # a walk over all triangles.
-    bands = band_split(bbox, height, numba.get_num_threads())
+    bands = band_split(bbox, height, workers.threads)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    band_counts = fill_bands(
-        bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id, width, height,
+    tested, written = fill_bands(
+        workers, bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id, width, height,
         state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi, clear, depth,
         face, count_tested, count_written, counts)
     stats = {
         "triangles_rasterized": int(np.count_nonzero((bbox[:, 0] <= bbox[:, 1])
                                                      & (bbox[:, 2] <= bbox[:, 3]))),
         "bands": len(bands) - 1,
-        "fragments_tested": int(band_counts[:, 0].sum()),
-        "fragments_written": int(band_counts[:, 1].sum()),
+        "fragments_tested": int(tested),
+        "fragments_written": int(written),
     }
     return Fragments(face, depth, screen, stats,
                      count_tested if counts else None, count_written if counts else None)
