@@ -34,14 +34,19 @@ def progress(items, desc):
     return items
 
 
-def median_ms(fn, repeat):
-    fn()  # warm: JIT caches, buffers, driver state
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
+def median_ms(fns, repeat, rounds=3):
+    """Median milliseconds of each function. Each peer runs in blocks of ``repeat`` calls
+    (so neither pays for the other's cache and page state inside a block), and the blocks
+    alternate for ``rounds`` rounds so both see the same machine load over time."""
+    times = [[] for _ in fns]
+    for _ in range(rounds):
+        for fn, bucket in zip(fns, times):
+            fn()  # warm: JIT caches, buffers, driver state
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                fn()
+                bucket.append(time.perf_counter() - t0)
+    return [1e3 * statistics.median(t) for t in times]
 
 
 def main(argv=None):
@@ -71,13 +76,15 @@ def main(argv=None):
             meshes[model] = hsr.load(model)
         mesh = meshes[model]
         cam = hsr.Camera.frame(mesh.bounds(), fov_y=45)
-        hsr_ms = median_ms(lambda: hsr.render(mesh, cam, width, height), args.repeat)
-        gl_ms = float("nan")
-        if gl is not None:
+        run_hsr = lambda: hsr.render(mesh, cam, width, height)  # noqa: E731
+        if gl is None:
+            hsr_ms, gl_ms = median_ms([run_hsr], args.repeat)[0], float("nan")
+        else:
             view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
             vao, vbo = gl.upload(hsr.Scene([mesh]).world_triangles())
-            gl_ms = median_ms(lambda: gl.render(None, view_proj, width, height, vao=vao),
-                              args.repeat)
+            hsr_ms, gl_ms = median_ms(
+                [run_hsr, lambda: gl.render(None, view_proj, width, height, vao=vao)],
+                args.repeat)
             vao.release()
             vbo.release()
         ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")

@@ -35,7 +35,6 @@ class ScreenTriangles:
 
     xy_window : (N, 3, 2) float64, window x, y (pixels, y up, origin bottom-left).
     depth_window : (N, 3) float64, window depth in the depth range.
-    inv_w : (N, 3) float64, 1 / w_clip per corner (for perspective-correct barycentrics).
     face_id : (N,) int64, index of the source face in the scene's global face list.
     front : (N,) bool, front-facing under the state's winding.
     width, height : viewport size in pixels.
@@ -46,7 +45,6 @@ class ScreenTriangles:
 
     xy_window: np.ndarray
     depth_window: np.ndarray
-    inv_w: np.ndarray
     face_id: np.ndarray
     front: np.ndarray
     width: int
@@ -58,7 +56,7 @@ class ScreenTriangles:
         return len(self.face_id)
 
     def subset(self, keep) -> "ScreenTriangles":
-        return ScreenTriangles(self.xy_window[keep], self.depth_window[keep], self.inv_w[keep],
+        return ScreenTriangles(self.xy_window[keep], self.depth_window[keep],
                                self.face_id[keep], self.front[keep], self.width, self.height,
                                self.pos_clip, self.faces)
 
@@ -67,7 +65,7 @@ class ScreenTriangles:
 def _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset):
     inv_w = 1.0 / w
     return ((x * inv_w + 1.0) * half_w, (y * inv_w + 1.0) * half_h,
-            z * inv_w * depth_scale + depth_offset, inv_w)
+            z * inv_w * depth_scale + depth_offset)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -99,21 +97,20 @@ def degenerate_faces(positions, faces):
 def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, depth_scale,
                    depth_offset):
     """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
-    window coordinates, depth, 1/w and twice the signed window area (y up)."""
+    window coordinates, depth and twice the signed window area (y up)."""
     n = faces.shape[0]
     status = np.empty(n, dtype=np.int8)
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
-    inv_w = np.empty((n, 3))
     area = np.zeros(n)
     workers.run_range(_classify_range, n, pos_model, pos_clip, faces, planes, width, height,
-                      depth_scale, depth_offset, status, xy, depth, inv_w, area)
-    return status, xy, depth, inv_w, area
+                      depth_scale, depth_offset, status, xy, depth, area)
+    return status, xy, depth, area
 
 
 @njit(cache=True, nogil=True)
 def _classify_range(lo, hi, pos_model, pos_clip, faces, planes, width, height, depth_scale,
-                    depth_offset, status, xy, depth, inv_w, area):
+                    depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     n_planes = planes.shape[0]
     for f in range(lo, hi):
@@ -145,7 +142,7 @@ def _classify_range(lo, hi, pos_model, pos_clip, faces, planes, width, height, d
         status[f] = SIMPLE
         for k in range(3):
             v = faces[f, k]
-            xy[f, k, 0], xy[f, k, 1], depth[f, k], inv_w[f, k] = _to_window(
+            xy[f, k, 0], xy[f, k, 1], depth[f, k] = _to_window(
                 pos_clip[v, 0], pos_clip[v, 1], pos_clip[v, 2], pos_clip[v, 3], half_w, half_h,
                 depth_scale, depth_offset)
         area[f] = ((xy[f, 1, 0] - xy[f, 0, 0]) * (xy[f, 2, 1] - xy[f, 0, 1])
@@ -154,21 +151,20 @@ def _classify_range(lo, hi, pos_model, pos_clip, faces, planes, width, height, d
 
 @njit(cache=True)
 def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
-    """(N, 3, 4) clip-space triangles -> window xy, depth, 1/w and twice the signed area."""
+    """(N, 3, 4) clip-space triangles -> window xy, depth and twice the signed area."""
     n = pos_clip.shape[0]
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
-    inv_w = np.empty((n, 3))
     area = np.empty(n)
     half_w, half_h = 0.5 * width, 0.5 * height
     for t in range(n):
         for k in range(3):
-            xy[t, k, 0], xy[t, k, 1], depth[t, k], inv_w[t, k] = _to_window(
+            xy[t, k, 0], xy[t, k, 1], depth[t, k] = _to_window(
                 pos_clip[t, k, 0], pos_clip[t, k, 1], pos_clip[t, k, 2], pos_clip[t, k, 3],
                 half_w, half_h, depth_scale, depth_offset)
         area[t] = ((xy[t, 1, 0] - xy[t, 0, 0]) * (xy[t, 2, 1] - xy[t, 0, 1])
                    - (xy[t, 2, 0] - xy[t, 0, 0]) * (xy[t, 1, 1] - xy[t, 0, 1]))
-    return xy, depth, inv_w, area
+    return xy, depth, area
 
 
 def scene_clip_vertices(scene: Scene, view_proj: np.ndarray):
@@ -209,7 +205,7 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
     near, far = state.depth_range
     depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
-    status, xy, depth, inv_w, area = classify_faces(
+    status, xy, depth, area = classify_faces(
         workers, pos_model, pos_clip, faces, planes, width, height, depth_scale, depth_offset)
     counts = np.bincount(status, minlength=4)
     stats["triangles_in"] = len(faces)
@@ -222,15 +218,15 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     chosen_mask = simple & keep
     n_culled = int(np.count_nonzero(simple & ~keep))
     if counts[SIMPLE] == len(faces) and n_culled == 0:  # the common case: no copies
-        parts = [(xy, depth, inv_w, np.arange(len(faces)), front)]
+        parts = [(xy, depth, np.arange(len(faces)), front)]
     else:
         chosen = np.flatnonzero(chosen_mask)
-        parts = [(xy[chosen], depth[chosen], inv_w[chosen], chosen, front[chosen])]
+        parts = [(xy[chosen], depth[chosen], chosen, front[chosen])]
     if counts[NEEDS_CLIP]:
         clip_faces = np.flatnonzero(status == NEEDS_CLIP)
         tri_clip = np.ascontiguousarray(pos_clip[faces[clip_faces]])
         pieces, parent = clip_triangles(tri_clip, planes)
-        p_xy, p_depth, p_inv_w, p_area = project_triangles(pieces, width, height, depth_scale,
+        p_xy, p_depth, p_area = project_triangles(pieces, width, height, depth_scale,
                                                            depth_offset)
         # Facing is decided once per clipped polygon (sum of its fan's areas), as in GL.
         poly_area = np.bincount(parent, weights=p_area, minlength=len(clip_faces))
@@ -238,18 +234,18 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
         has_pieces = np.bincount(parent, minlength=len(clip_faces)) > 0
         n_culled += int(np.count_nonzero(has_pieces & ~poly_keep))
         sel = np.flatnonzero(poly_keep[parent])
-        parts.append((p_xy[sel], p_depth[sel], p_inv_w[sel], clip_faces[parent[sel]],
+        parts.append((p_xy[sel], p_depth[sel], clip_faces[parent[sel]],
                       poly_front[parent[sel]]))
     stats["culled"] = n_culled
     if len(parts) == 1:
-        xy_w, depth_w, inv_w_w, face_id, front_w = parts[0]
+        xy_w, depth_w, face_id, front_w = parts[0]
     else:
-        xy_w, depth_w, inv_w_w, face_id, front_w = (np.concatenate(c) for c in zip(*parts))
+        xy_w, depth_w, face_id, front_w = (np.concatenate(c) for c in zip(*parts))
         # Restore submission order; stable keeps a clipped face's fan in order.
         order = np.argsort(face_id, kind="stable")
-        xy_w, depth_w, inv_w_w, face_id, front_w = (
-            xy_w[order], depth_w[order], inv_w_w[order], face_id[order], front_w[order])
-    screen = ScreenTriangles(xy_w, depth_w, inv_w_w, face_id, front_w, width, height,
+        xy_w, depth_w, face_id, front_w = (
+            xy_w[order], depth_w[order], face_id[order], front_w[order])
+    screen = ScreenTriangles(xy_w, depth_w, face_id, front_w, width, height,
                              pos_clip, faces)
     stats["screen_triangles"] = len(screen)
     return screen

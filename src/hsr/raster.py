@@ -102,15 +102,27 @@ def band_split(bbox: np.ndarray, height: int, n_bands: int) -> np.ndarray:
     """Row boundaries (n_bands + 1,) of horizontal bands (window rows, y up) holding about
     equal work, estimated as the bounding-box pixels of the triangles in each row plus a
     share for clearing the row."""
-    valid = (bbox[:, 0] <= bbox[:, 1]) & (bbox[:, 2] <= bbox[:, 3])
-    lo, hi = bbox[valid, 2], bbox[valid, 3]
-    widths = (bbox[valid, 1] - bbox[valid, 0] + 1).astype(np.float64)
-    delta = (np.bincount(lo, weights=widths, minlength=height + 1)[: height + 1]
-             - np.bincount(hi + 1, weights=widths, minlength=height + 1)[: height + 1])
-    per_row = np.cumsum(delta)[:height] + 0.05 * max(1, int(bbox[:, 1].max(initial=0)) + 1)
-    total = np.cumsum(per_row)
+    total = np.cumsum(_row_work(bbox, height))
     cuts = np.searchsorted(total, total[-1] * np.arange(1, n_bands) / n_bands)
     return np.concatenate([[0], cuts, [height]]).astype(np.int64)
+
+
+@njit(cache=True, nogil=True)
+def _row_work(bbox, height):
+    delta = np.zeros(height + 1)
+    widest = 1
+    for t in range(bbox.shape[0]):
+        if bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]:
+            w = bbox[t, 1] - bbox[t, 0] + 1
+            delta[bbox[t, 2]] += w
+            delta[bbox[t, 3] + 1] -= w
+            widest = max(widest, bbox[t, 1] + 1)
+    work = np.empty(height)
+    running = 0.0
+    for j in range(height):
+        running += delta[j]
+        work[j] = running + 0.05 * widest
+    return work
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -147,7 +147,7 @@ def _render(scene, camera, width, height, algorithm, state, shading, background,
 
     face_id = fragments.face_id
     color = np.empty((height, width, 3), dtype=np.uint8)
-    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera),
+    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera, workers),
                           np.asarray(background, dtype=np.uint8), color)
     if shading == "depth":
         shade_depth(color, face_id, fragments.depth, camera, state.depth_range)

@@ -21,17 +21,15 @@ _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
 @njit(cache=True, nogil=True)
-def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
+def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, out):
     """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
 
     mode 0 (flat): ``base * |n . forward|``, Lambert with a light along the view direction,
     two-sided. mode 1 (normal): ``(n * 0.5 + 0.5) * 255``. ``base_rgb`` is (F, 3) or (1, 3).
     """
-    n = faces.shape[0]
-    out = np.empty((n, 3), dtype=np.uint8)
-    per_face = base_rgb.shape[0] == n
+    per_face = base_rgb.shape[0] == faces.shape[0]
     p = np.empty((3, 3))
-    for f in range(n):
+    for f in range(lo, hi):
         for k in range(3):
             v = faces[f, k]
             for r in range(3):
@@ -52,7 +50,6 @@ def _face_rgb(positions, faces, linear, forward, base_rgb, mode):
             out[f, 0] = np.uint8(min(255.0, (nx * 0.5 + 0.5) * 255.0))
             out[f, 1] = np.uint8(min(255.0, (ny * 0.5 + 0.5) * 255.0))
             out[f, 2] = np.uint8(min(255.0, (nz * 0.5 + 0.5) * 255.0))
-    return out
 
 
 def paint_faces(workers, face_id, face_rgb, background, image):
@@ -83,7 +80,7 @@ def _paint_rows(lo, hi, face_id, face_rgb, background, image):
     return covered
 
 
-def face_colors(mode: str, scene, camera) -> np.ndarray:
+def face_colors(mode: str, scene, camera, workers) -> np.ndarray:
     """(F, 3) uint8 colour of every face for the per-face shading modes; (0, 3) for
     ``depth``, which is per pixel."""
     if mode not in SHADING_MODES:
@@ -97,9 +94,11 @@ def face_colors(mode: str, scene, camera) -> np.ndarray:
         mesh = inst.mesh
         base = (mesh.face_colors.astype(np.float64) if mesh.face_colors is not None
                 else _DEFAULT_BASE[None, :])
-        parts.append(_face_rgb(mesh.positions, mesh.faces,
-                               np.ascontiguousarray(inst.model[:3, :3]), camera.forward, base,
-                               0 if mode == "flat" else 1))
+        out = np.empty((mesh.n_faces, 3), dtype=np.uint8)
+        workers.run_range(_face_rgb, mesh.n_faces, mesh.positions, mesh.faces,
+                          np.ascontiguousarray(inst.model[:3, :3]), camera.forward, base,
+                          0 if mode == "flat" else 1, out)
+        parts.append(out)
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
