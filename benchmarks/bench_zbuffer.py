@@ -2,16 +2,19 @@
 
     python benchmarks/bench_zbuffer.py [MODEL ...] [--sizes 1024x1024,1920x1080] [--repeat 7]
 
-For each model and size: hsr.render (warm; face_id + depth + flat colour) and moderngl
-(static vertex buffer; clear + draw + finish + read back face ids and depth), median of
---repeat runs each, and the ratio hsr / llvmpipe (< 1 means hsr is faster). Runs on
-demand, never as part of the test suite.
+MODEL is a mesh file or ``terrain:N``, a generated displaced grid of N triangles (e.g.
+``terrain:1000000``, ``terrain:10000000``). For each model and size: hsr.render (warm;
+face_id + depth + flat colour) and moderngl (static vertex buffer; clear + draw + finish
++ read back face ids and depth), median over alternating blocks of --repeat runs, the
+ratio hsr / llvmpipe (< 1 means hsr is faster), triangles per second and the process's
+peak resident memory so far. Runs on demand, never as part of the test suite.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import sys
 import time
@@ -22,8 +25,16 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 import hsr  # noqa: E402
 
-DEFAULT_MODEL = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models",
-                             "stanford-bunny.obj")
+MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
+DEFAULT_MODELS = [os.path.join(MODELS, name) for name in ("african_head.obj", "spot.obj",
+                                                          "stanford-bunny.obj")]
+
+
+def load_model(spec: str):
+    if spec.startswith("terrain:"):
+        n = int(float(spec.split(":", 1)[1]))
+        return hsr.scenes.terrain(n)[0].instances[0].mesh, f"terrain {n:.0e}"
+    return hsr.load(spec), os.path.basename(spec)
 
 
 def progress(items, desc):
@@ -51,8 +62,8 @@ def median_ms(fns, repeat, rounds=3):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("models", nargs="*", default=[DEFAULT_MODEL])
-    parser.add_argument("--sizes", default="1024x1024,1920x1080")
+    parser.add_argument("models", nargs="*", default=DEFAULT_MODELS)
+    parser.add_argument("--sizes", default="1024x1024,1920x1080,3840x2160")
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--no-gl", action="store_true", help="skip the OpenGL peer")
     args = parser.parse_args(argv)
@@ -68,13 +79,14 @@ def main(argv=None):
             print(f"# OpenGL peer unavailable ({exc}); timing hsr alone", file=sys.stderr)
 
     print(f"{'model':24} {'triangles':>9} {'size':>10} {'hsr ms':>8} {'gl ms':>8} "
-          f"{'hsr/gl':>7} {'Mtri/s':>7}")
+          f"{'hsr/gl':>7} {'Mtri/s':>7} {'peak GB':>8}")
     jobs = [(m, s) for m in args.models for s in sizes]
     meshes = {}
     for model, (width, height) in progress(jobs, "bench"):
         if model not in meshes:
-            meshes[model] = hsr.load(model)
-        mesh = meshes[model]
+            meshes.clear()  # keep one large mesh in memory at a time
+            meshes[model] = load_model(model)
+        mesh, label = meshes[model]
         cam = hsr.Camera.frame(mesh.bounds(), fov_y=45)
         run_hsr = lambda: hsr.render(mesh, cam, width, height)  # noqa: E731
         if gl is None:
@@ -88,9 +100,10 @@ def main(argv=None):
             vao.release()
             vbo.release()
         ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")
-        print(f"{os.path.basename(model):24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
-              f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f}",
-              flush=True)
+        peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+        print(f"{label:24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
+              f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f} "
+              f"{peak_gb:8.2f}", flush=True)
     return 0
 
 

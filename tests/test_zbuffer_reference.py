@@ -14,8 +14,13 @@ FUNCS = ["never", "less", "equal", "lequal", "greater", "notequal", "gequal", "a
 
 
 def small_scene(name):
+    """The built-in scenes, the large ones made small enough for the brute-force reference."""
     if name == "spheres":
         return scenes.spheres(detail=8)
+    if name == "terrain":
+        return scenes.terrain(1500)
+    if name == "city":
+        return scenes.city(blocks=3, segments=2)
     return scenes.get(name)
 
 

@@ -83,8 +83,10 @@ class Mesh:
 
     def bounds(self) -> np.ndarray:
         """(2, 3) array: min and max corner of the vertices that faces use."""
-        used = self.positions[np.unique(self.faces)]
-        return np.stack([used.min(axis=0), used.max(axis=0)])
+        used = np.zeros(len(self.positions), dtype=bool)
+        used[self.faces.ravel()] = True
+        pos = self.positions if used.all() else self.positions[used]
+        return np.stack([pos.min(axis=0), pos.max(axis=0)])
 
 
 def _validate_arrays(positions, faces, name):

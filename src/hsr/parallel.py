@@ -49,6 +49,8 @@ class Workers:
         futures = [self._pool.submit(kernel, lo, hi, *args) for lo, hi in chunks]
         return [f.result() for f in futures]
 
-    def run_range(self, kernel, n: int, *args) -> list:
-        """Split ``range(n)`` into one chunk per thread and run ``kernel`` on each."""
-        return self.run(kernel, split_range(n, self.threads), *args)
+    def run_range(self, kernel, n: int, *args, min_chunk: int = 4096) -> list:
+        """Split ``range(n)`` into one chunk per thread (none smaller than ``min_chunk``:
+        below that a thread hand-off costs more than it saves) and run ``kernel``."""
+        parts = min(self.threads, max(1, n // min_chunk))
+        return self.run(kernel, split_range(n, parts), *args)

@@ -147,41 +147,44 @@ def depth_passes(func, z, stored):
 
 def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
                depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
-               face_buf, count_tested, count_written, want_counts):
+               face_buf, count_tested, count_written, want_counts, tie_by_face=False):
     """Fill on ``workers``, one call of :func:`fill_band` per band; returns (tested,
     written) fragment counts summed over the bands."""
     counts = workers.run(fill_band, bands, vert_fixed, edge_bias, bbox, zplane, tri_face,
                          width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
                          clear_depth, depth_buf, face_buf, count_tested, count_written,
-                         want_counts)
+                         want_counts, tie_by_face)
     return sum(c[0] for c in counts), sum(c[1] for c in counts)
 
 
 @njit(cache=True, nogil=True)
 def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
               depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
-              face_buf, count_tested, count_written, want_counts):
+              face_buf, count_tested, count_written, want_counts, tie_by_face):
     """Fill triangles, in submission order, into ``depth_buf`` / ``face_buf`` (image rows,
     row 0 = top); ``face_buf`` receives ``tri_face[t]`` of the triangle t that passes.
 
     This call fills window rows ``b_lo <= y < b_end`` (y up) only: a thread owns whole
     bands and walks every triangle overlapping them in order, so no two threads touch a
     pixel and the result does not depend on the band layout or the number of threads.
-    The band first clears its rows of ``face_buf`` to -1 and, when ``clear_depth`` is not
-    NaN, of ``depth_buf`` (cleared where it is filled, in parallel). ``depth_write`` is the
-    depth mask (ignored when the test is off: OpenGL does not write depth then). Returns
-    (fragments tested, fragments written).
+    Unless ``clear_depth`` is NaN the band first clears its rows: ``face_buf`` to -1 and
+    ``depth_buf`` to ``clear_depth`` (cleared where it is filled, in parallel).
+    ``depth_write`` is the depth mask (ignored when the test is off: OpenGL does not write
+    depth then). With ``tie_by_face`` (LESS / LEQUAL only) equal depths are decided by
+    face id as submission order would decide them (LESS: the lower id wins, LEQUAL: the
+    higher), which makes the result independent of the drawing order (occlusion culling
+    draws objects front to back). Returns (fragments tested, fragments written).
     """
     n = bbox.shape[0]
     write_depth = depth_test and depth_write
     do_clear_depth = not np.isnan(clear_depth)
     clear_value = np.float32(clear_depth)
     b_hi = b_end - 1
-    for j in range(b_lo, b_hi + 1):
-        row = height - 1 - j
-        for i in range(width):
-            face_buf[row, i] = -1
-            if do_clear_depth:
+    if do_clear_depth:
+        for j in range(b_lo, b_hi + 1):
+            row = height - 1 - j
+            for i in range(width):
+                face_buf[row, i] = -1
                 depth_buf[row, i] = clear_value
     n_tested = 0
     n_written = 0
@@ -218,7 +221,15 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width,
                     n_tested += 1
                     if want_counts:
                         count_tested[row, i] += 1
-                    if (not depth_test) or depth_passes(depth_func, zf, depth_buf[row, i]):
+                    if tie_by_face:
+                        stored = depth_buf[row, i]
+                        passed = zf < stored or (zf == stored and (
+                            face < face_buf[row, i] if depth_func == 1 else
+                            face > face_buf[row, i]))
+                    else:
+                        passed = (not depth_test) or depth_passes(depth_func, zf,
+                                                                  depth_buf[row, i])
+                    if passed:
                         face_buf[row, i] = face
                         if write_depth:
                             depth_buf[row, i] = zf

@@ -13,6 +13,7 @@ from .camera import Camera
 from .errors import RenderError
 from .fragments import Fragments
 from .mesh import as_scene
+from .occlusion import object_bounds
 from .parallel import Workers
 from .pipeline import prepare
 from .shading import face_colors, paint_faces, shade_depth
@@ -95,7 +96,8 @@ def _check_size(width, height):
 def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
            shading: str = "flat", background=(0, 0, 0), counts: bool = False,
-           into: Frame | None = None, threads: int | None = None, **state_fields) -> Frame:
+           into: Frame | None = None, threads: int | None = None,
+           occlusion_cull: bool = False, **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame.
 
@@ -105,7 +107,9 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     earlier frame without clearing it (its depth buffer, colours and ids are kept where
     this draw writes nothing), like a second draw call in OpenGL. ``threads`` sets how
     many threads run the kernels (default: numba's thread count); results never depend
-    on it.
+    on it. ``occlusion_cull=True`` (z-buffer, depth func less or lequal) draws the scene's
+    objects front to back and skips those hidden behind what is already drawn; the
+    result is identical, ``stats`` counts objects tested and culled.
     """
     t_start = time.perf_counter()
     _check_size(width, height)
@@ -127,27 +131,34 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
         return _render(scene, camera, width, height, algorithm, state, shading, background,
-                       counts, into, stats, t_start, view_proj, workers)
+                       counts, into, stats, t_start, view_proj, workers, occlusion_cull)
 
 
 def _render(scene, camera, width, height, algorithm, state, shading, background, counts,
-            into, stats, t_start, view_proj, workers):
+            into, stats, t_start, view_proj, workers, occlusion_cull):
     screen = prepare(scene, view_proj, width, height, state, stats, workers)
     t_geometry = time.perf_counter()
 
     module = ALGORITHMS[algorithm]
+    extra = {}
+    if occlusion_cull:
+        if algorithm != "zbuffer":
+            raise RenderError("occlusion culling works with the zbuffer algorithm")
+        if counts:
+            raise RenderError("occlusion culling does not record per-pixel counts")
+        extra["occlusion"] = object_bounds(scene, view_proj)
     if into is not None:
         if algorithm != "zbuffer":
             raise RenderError("into= (drawing without a clear) needs the zbuffer algorithm")
         fragments = module.resolve(screen, state, depth_buffer=into.depth.copy(), counts=counts,
-                                   workers=workers)
+                                   workers=workers, **extra)
     else:
-        fragments = module.resolve(screen, state, counts=counts, workers=workers)
+        fragments = module.resolve(screen, state, counts=counts, workers=workers, **extra)
     t_visibility = time.perf_counter()
 
     face_id = fragments.face_id
     color = np.empty((height, width, 3), dtype=np.uint8)
-    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera, workers),
+    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera, workers, face_id),
                           np.asarray(background, dtype=np.uint8), color)
     if shading == "depth":
         shade_depth(color, face_id, fragments.depth, camera, state.depth_range)

@@ -6,6 +6,8 @@ with no files. Each entry of :data:`SCENES` builds ``(Scene, Camera)``.
   no back-to-front order of whole triangles exists, painter's algorithm must fail.
 - ``penetration``: two triangles piercing each other (seed 001's hard case).
 - ``spheres``: intersecting spheres (curved, closed, many small triangles).
+- ``terrain``: a displaced grid of 1M triangles (``terrain(n)`` for other sizes).
+- ``city``: 256 buildings of 3072 triangles seen from street level (occlusion culling).
 """
 
 from __future__ import annotations
@@ -163,7 +165,80 @@ def spheres(detail: int = 24):
     return scene, camera
 
 
-SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres": spheres}
+def terrain_mesh(n_triangles: int = 1_000_000, name: str = "terrain") -> Mesh:
+    """A displaced grid of about ``n_triangles`` triangles over [-1, 1]^2 (for scaling
+    benchmarks: 1M, 10M ...). Heights are a few sine waves, so it has hills that hide
+    each other."""
+    n = max(2, int(round(math.sqrt(n_triangles / 2.0))) + 1)
+    u = np.linspace(-1.0, 1.0, n)
+    gx, gz = np.meshgrid(u, u)
+    height = (0.12 * np.sin(5.0 * gx) * np.cos(4.0 * gz) + 0.05 * np.sin(17.0 * gx + 3.0 * gz)
+              + 0.02 * np.cos(31.0 * gz - 7.0 * gx))
+    positions = np.stack([gx.ravel(), height.ravel(), gz.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="xy")
+    a = (j * n + i).ravel()
+    quads = np.stack([a, a + n, a + n + 1, a + 1], axis=1)
+    # Two counter-clockwise triangles per cell, seen from above (+y).
+    faces = np.empty((2 * len(quads), 3), dtype=np.int64)
+    faces[0::2] = quads[:, [0, 1, 2]]
+    faces[1::2] = quads[:, [0, 2, 3]]
+    return Mesh(positions, faces, name=name)
+
+
+def terrain(n_triangles: int = 1_000_000):
+    """The terrain mesh seen from a low oblique angle."""
+    camera = Camera.look_at(eye=(0.0, 0.9, 2.2), target=(0.0, -0.1, 0.0), fov_y=50.0,
+                            near=0.3, far=6.0)
+    return Scene([terrain_mesh(n_triangles)]), camera
+
+
+def tessellated_cube(segments: int = 8) -> Mesh:
+    """The cube [-1, 1]^3 with every side cut into segments x segments quads (closed,
+    counter-clockwise from outside): a cheap way to give an object many triangles."""
+    u = np.linspace(-1.0, 1.0, segments + 1)
+    ga, gb = np.meshgrid(u, u, indexing="ij")
+    positions, faces = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            p = np.zeros((segments + 1, segments + 1, 3))
+            p[..., axis] = sign
+            p[..., (axis + 1) % 3] = ga
+            p[..., (axis + 2) % 3] = gb
+            base = sum(len(x) for x in positions)
+            positions.append(p.reshape(-1, 3))
+            i, j = np.meshgrid(np.arange(segments), np.arange(segments), indexing="ij")
+            a = (base + i * (segments + 1) + j).ravel()
+            quad = np.stack([a, a + segments + 1, a + segments + 2, a + 1], axis=1)
+            if sign < 0:
+                quad = quad[:, ::-1]
+            faces += [quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]
+    return Mesh(np.concatenate(positions), np.concatenate(faces), name="tessellated cube")
+
+
+def city(blocks: int = 16, segments: int = 16, seed: int = 7):
+    """A grid of ``blocks`` x ``blocks`` buildings (tessellated boxes of random heights) on
+    a ground plane, seen from street level: the first rows hide most of the city, which
+    is where occlusion culling pays."""
+    rng = np.random.default_rng(seed)
+    scene = Scene()
+    ground = Mesh(np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], float) * 60.0,
+                  np.array([[0, 2, 1], [0, 3, 2]]), face_colors=np.full((2, 3), 90), name="ground")
+    scene.add(ground)
+    box = tessellated_cube(segments)
+    spacing = 6.0
+    for bx in range(blocks):
+        for bz in range(blocks):
+            h = rng.uniform(2.0, 9.0)
+            model = translate((bx - blocks / 2) * spacing, h, -(bz + 1) * spacing) @ np.diag(
+                [2.0, h, 2.0, 1.0])
+            scene.add(box, model)
+    camera = Camera.look_at(eye=(-1.0, 1.7, 4.0), target=(2.0, 3.0, -20.0), fov_y=60.0,
+                            near=0.5, far=200.0)
+    return scene, camera
+
+
+SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres": spheres,
+          "terrain": terrain, "city": city}
 
 
 def get(name: str):

@@ -21,15 +21,18 @@ _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
 @njit(cache=True, nogil=True)
-def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, out):
+def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, visible, out):
     """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
 
     mode 0 (flat): ``base * |n . forward|``, Lambert with a light along the view direction,
     two-sided. mode 1 (normal): ``(n * 0.5 + 0.5) * 255``. ``base_rgb`` is (F, 3) or (1, 3).
+    Only faces with ``visible[f]`` are computed (the others are never looked up).
     """
     per_face = base_rgb.shape[0] == faces.shape[0]
     p = np.empty((3, 3))
     for f in range(lo, hi):
+        if not visible[f]:
+            continue
         for k in range(3):
             v = faces[f, k]
             for r in range(3):
@@ -80,26 +83,40 @@ def _paint_rows(lo, hi, face_id, face_rgb, background, image):
     return covered
 
 
-def face_colors(mode: str, scene, camera, workers) -> np.ndarray:
-    """(F, 3) uint8 colour of every face for the per-face shading modes; (0, 3) for
-    ``depth``, which is per pixel."""
+@njit(cache=True, nogil=True)
+def visible_faces(face_id, n_faces):
+    """(F,) bool: faces that appear in the image."""
+    seen = np.zeros(n_faces, dtype=np.bool_)
+    for r in range(face_id.shape[0]):
+        for c in range(face_id.shape[1]):
+            if face_id[r, c] >= 0:
+                seen[face_id[r, c]] = True
+    return seen
+
+
+def face_colors(mode: str, scene, camera, workers, face_id) -> np.ndarray:
+    """(F, 3) uint8 colour of the faces visible in ``face_id`` for the per-face shading
+    modes (other rows are left unset); (0, 3) for ``depth``, which is per pixel."""
     if mode not in SHADING_MODES:
         raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
     if mode == "depth":
         return np.zeros((0, 3), dtype=np.uint8)
     if mode == "random":
         return face_random_colors(scene.n_faces)
-    parts = []
-    for inst in scene.instances:
+    visible = visible_faces(face_id, scene.n_faces)
+    out = np.empty((scene.n_faces, 3), dtype=np.uint8)
+    offsets = scene.face_offsets()
+    for k, inst in enumerate(scene.instances):
+        lo, hi = offsets[k], offsets[k + 1]
+        if not visible[lo:hi].any():
+            continue
         mesh = inst.mesh
         base = (mesh.face_colors.astype(np.float64) if mesh.face_colors is not None
                 else _DEFAULT_BASE[None, :])
-        out = np.empty((mesh.n_faces, 3), dtype=np.uint8)
         workers.run_range(_face_rgb, mesh.n_faces, mesh.positions, mesh.faces,
                           np.ascontiguousarray(inst.model[:3, :3]), camera.forward, base,
-                          0 if mode == "flat" else 1, out)
-        parts.append(out)
-    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+                          0 if mode == "flat" else 1, visible[lo:hi], out[lo:hi])
+    return out
 
 
 def shade_depth(image, face_id, depth, camera, depth_range=(0.0, 1.0)) -> None:
