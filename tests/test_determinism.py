@@ -53,3 +53,16 @@ def test_scene_builtin_spheres_identical_across_threads():
     a = render_with_threads(1, scene, cam, 333, 217)
     b = render_with_threads(2, scene, cam, 333, 217)
     assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
+
+
+def test_face_ids_beyond_float32_range_are_exact():
+    """Global face ids past 2**24 (where float32 stops counting integers) stay exact."""
+    n_pad = 2**24 + 5
+    pad = hsr.Mesh(np.zeros((3, 3)), np.zeros((n_pad, 3), dtype=np.int64))  # all degenerate
+    tri = hsr.Mesh(np.array([[-1, -1, -5], [1, -1, -5], [0, 1, -5.0]]), np.array([[0, 1, 2]]))
+    scene = hsr.Scene().add(pad).add(tri)
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=40, near=1, far=10)
+    frame = hsr.render(scene, cam, 32, 24)
+    assert frame.stats["degenerate"] == n_pad
+    assert set(np.unique(frame.face_id)) == {-1, n_pad}
+    assert set(np.unique(frame.object_id)) == {-1, 1}

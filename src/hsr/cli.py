@@ -82,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
     r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
+    r.add_argument("--occlusion-cull", action="store_true",
+                   help="skip objects hidden behind nearer ones (same result, less work)")
+    r.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
     r.add_argument("--quiet", action="store_true", help="print nothing on success")
     return parser
 
@@ -149,8 +152,11 @@ def _cmd_render(args) -> int:
     background = _floats(args.background, 3, "--background")
     if not all(0 <= c <= 255 for c in background):
         raise CliError(f"--background values must be in 0..255, got {args.background!r}")
+    if args.threads is not None and args.threads < 1:
+        raise CliError(f"--threads must be >= 1, got {args.threads}")
     frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
-                   shading=args.shading, background=tuple(int(c) for c in background))
+                   shading=args.shading, background=tuple(int(c) for c in background),
+                   occlusion_cull=args.occlusion_cull, threads=args.threads)
     frame.save(args.output)
     if args.depth_out:
         frame.save_depth(args.depth_out)

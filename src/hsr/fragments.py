@@ -21,6 +21,8 @@ class Fragments:
     screen : the ScreenTriangles the algorithm worked on.
     stats : algorithm-specific counts (fragments tested / written, ...).
     count_tested, count_written : (H, W) int32 per-pixel fragment counts, when requested.
+    buffers : further per-pixel results an algorithm offers (the ray caster's
+        ``distance`` and ``barycentrics``).
     """
 
     face_id: np.ndarray
@@ -29,6 +31,7 @@ class Fragments:
     stats: dict = field(default_factory=dict)
     count_tested: np.ndarray | None = None
     count_written: np.ndarray | None = None
+    buffers: dict = field(default_factory=dict)
 
 
 def face_barycentrics(fragments: Fragments) -> np.ndarray:

@@ -19,11 +19,21 @@ from .pipeline import prepare
 from .shading import face_colors, paint_faces, shade_depth
 from .state import RenderState
 
-__all__ = ["Frame", "render", "MAX_SIZE"]
+__all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
 # Largest image side: keeps snapped window coordinates well inside int64 edge arithmetic
 # and buffers of a sane size.
 MAX_SIZE = 32768
+
+
+@dataclass
+class View:
+    """What an algorithm that works in world space (the ray caster) needs besides the
+    screen triangles."""
+
+    scene: object
+    camera: Camera
+    view_proj: np.ndarray
 
 
 @dataclass
@@ -97,7 +107,8 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
            shading: str = "flat", background=(0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
-           occlusion_cull: bool = False, **state_fields) -> Frame:
+           occlusion_cull: bool = False, options: dict | None = None,
+           **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame.
 
@@ -109,7 +120,8 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     many threads run the kernels (default: numba's thread count); results never depend
     on it. ``occlusion_cull=True`` (z-buffer, depth func less or lequal) draws the scene's
     objects front to back and skips those hidden behind what is already drawn; the
-    result is identical, ``stats`` counts objects tested and culled.
+    result is identical, ``stats`` counts objects tested and culled. ``options`` go to the
+    algorithm (e.g. ``{"accel": "none"}`` or ``{"bvh": tree}`` for ``raycast``).
     """
     t_start = time.perf_counter()
     _check_size(width, height)
@@ -131,16 +143,17 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
         return _render(scene, camera, width, height, algorithm, state, shading, background,
-                       counts, into, stats, t_start, view_proj, workers, occlusion_cull)
+                       counts, into, stats, t_start, view_proj, workers, occlusion_cull,
+                       dict(options or {}))
 
 
 def _render(scene, camera, width, height, algorithm, state, shading, background, counts,
-            into, stats, t_start, view_proj, workers, occlusion_cull):
+            into, stats, t_start, view_proj, workers, occlusion_cull, options):
     screen = prepare(scene, view_proj, width, height, state, stats, workers)
     t_geometry = time.perf_counter()
 
     module = ALGORITHMS[algorithm]
-    extra = {}
+    extra = dict(options, view=View(scene, camera, view_proj))
     if occlusion_cull:
         if algorithm != "zbuffer":
             raise RenderError("occlusion culling works with the zbuffer algorithm")

@@ -4,8 +4,8 @@ and the CLI read."""
 
 from __future__ import annotations
 
-from . import zbuffer
+from . import raycast, scanline, zbuffer
 
-ALGORITHMS = {module.NAME: module for module in (zbuffer,)}
+ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast)}
 
 __all__ = ["ALGORITHMS"]

@@ -20,7 +20,7 @@ _NO_COUNTS = np.zeros((1, 1), dtype=np.int32)
 
 def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarray | None = None,
             counts: bool = False, workers: Workers | None = None,
-            occlusion: ObjectBounds | None = None) -> Fragments:
+            occlusion: ObjectBounds | None = None, **_) -> Fragments:
     """Z-buffer visibility of ``screen``. The depth buffer starts cleared to
     ``state.clear_depth``, or is ``depth_buffer`` ((H, W) float32, updated in place: draws
     accumulate as in OpenGL without glClear). ``face_id`` marks what this draw wrote.

@@ -1,0 +1,53 @@
+"""Ray casting: one primary ray per pixel centre through the camera, nearest hit wins
+(seed 004). ``accel="bvh"`` (default) walks a bounding volume hierarchy; ``accel="none"``
+is the literal O(pixels x triangles) loop, for small scenes and teaching."""
+
+from __future__ import annotations
+
+from ..errors import RenderError
+from ..fragments import Fragments
+from ..parallel import Workers
+from ..pipeline import ScreenTriangles
+from ..raycast import BVH, build, cast
+from ..state import DepthFunc, RenderState
+
+NAME = "raycast"
+DESCRIPTION = "one ray per pixel in world space; BVH (binned SAH) or naive; watertight test"
+NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" without force
+
+
+def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
+            counts: bool = False, view=None, accel: str = "bvh", bvh: BVH | None = None,
+            force: bool = False, **_) -> Fragments:
+    if view is None:
+        raise RenderError("raycast needs the scene and camera (call it through hsr.render)")
+    if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
+        raise RenderError("raycast implements the depth test with func less or lequal")
+    if counts:
+        raise RenderError("raycast does not record per-pixel fragment counts")
+    if accel not in ("bvh", "none"):
+        raise RenderError(f"raycast accel must be 'bvh' or 'none', got {accel!r}")
+    workers = workers or Workers()
+    width, height = screen.width, screen.height
+    stats = {"accel": accel}
+    if accel == "none":
+        triangles = view.scene.world_triangles()
+        if width * height * len(triangles) > NAIVE_LIMIT and not force:
+            raise RenderError(
+                f"naive ray casting would run {width * height * len(triangles):.2e} ray-triangle "
+                f"tests (limit {NAIVE_LIMIT:.0e}); use accel='bvh' or force=True")
+        used = None
+    else:
+        if bvh is None:
+            bvh = build(view.scene)
+        elif len(bvh.triangles) != view.scene.n_faces:
+            raise RenderError("the BVH was built for another scene")
+        triangles = bvh.triangles
+        used = bvh
+        stats.update(bvh_nodes=bvh.n_nodes, bvh_build_ms=bvh.build_ms)
+    face, depth, distance, bary, tests = cast(triangles, view.camera, width, height, state,
+                                              workers, used)
+    stats["ray_triangle_tests"] = tests
+    fragments = Fragments(face, depth, screen, stats)
+    fragments.buffers = {"distance": distance, "barycentrics": bary}
+    return fragments

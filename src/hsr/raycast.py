@@ -1,0 +1,411 @@
+"""Ray casting (seed 004): one primary ray per pixel centre, nearest hit wins.
+
+- ``cast(..., bvh=None)``: the literal O(pixels x triangles) method.
+- :func:`build` makes a bounding volume hierarchy (binned surface-area heuristic, flat
+  arrays, built once per scene and reused across views); traversal is a stack walk,
+  nearer child first, pruned by the best hit so far.
+
+Intersection is the watertight test of Woop, Benthin & Wald (2013): the ray is made the
++z axis by a permutation and a shear, and the three 2-D edge functions are evaluated so
+that an edge shared by two triangles gives exactly opposite values in both, so no ray
+slips between them. Rays run from the near plane to the far plane (the parameter t in
+[0, 1]), which is exactly the depth range the rasterizer's clipping keeps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .mesh import Scene, as_scene
+from .parallel import split_range
+
+__all__ = ["BVH", "build", "world_triangles", "cast"]
+
+LEAF_SIZE = 4
+N_BINS = 16
+
+
+def world_triangles(scene: Scene) -> np.ndarray:
+    """(F, 3, 3) float64 world-space corners in submission order."""
+    return as_scene(scene).world_triangles()
+
+
+@dataclass
+class BVH:
+    """A bounding volume hierarchy over a scene's world-space triangles.
+
+    node_min, node_max : (N, 3) boxes; node_left : (N,) first child (the second is
+    ``node_left + 1``) or -1 for a leaf; node_start, node_count : (N,) a leaf's range in
+    ``tri_index``; tri_index : (T,) face ids (degenerate faces are left out);
+    triangles : (F, 3, 3) the world-space corners, indexed by face id.
+    """
+
+    node_min: np.ndarray
+    node_max: np.ndarray
+    node_left: np.ndarray
+    node_start: np.ndarray
+    node_count: np.ndarray
+    tri_index: np.ndarray
+    triangles: np.ndarray
+    build_ms: float = 0.0
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.node_left)
+
+
+def build(scene) -> BVH:
+    """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space."""
+    import time
+
+    t0 = time.perf_counter()
+    tris = world_triangles(scene)
+    e1 = tris[:, 1] - tris[:, 0]
+    e2 = tris[:, 2] - tris[:, 0]
+    area = np.linalg.norm(np.cross(e1, e2), axis=1)
+    keep = np.flatnonzero(area > 0)
+    arrays = _build(np.ascontiguousarray(tris), keep.astype(np.int64))
+    return BVH(*arrays, triangles=tris, build_ms=1e3 * (time.perf_counter() - t0))
+
+
+@njit(cache=True, nogil=True)
+def _build(tris, tri_index):
+    n = tri_index.shape[0]
+    max_nodes = max(1, 2 * n)
+    node_min = np.empty((max_nodes, 3))
+    node_max = np.empty((max_nodes, 3))
+    node_left = np.full(max_nodes, -1, dtype=np.int64)
+    node_start = np.zeros(max_nodes, dtype=np.int64)
+    node_count = np.zeros(max_nodes, dtype=np.int64)
+    centroid = np.empty((n, 3))
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for k in range(n):
+        t = tri_index[k]
+        for a in range(3):
+            lo[k, a] = min(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
+            hi[k, a] = max(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
+            centroid[k, a] = 0.5 * (lo[k, a] + hi[k, a])
+    order = np.arange(n)
+    n_nodes = 1
+    node_start[0], node_count[0] = 0, n
+    stack = np.empty(max_nodes, dtype=np.int64)
+    stack[0] = 0
+    top = 1
+    bin_lo = np.empty((N_BINS, 3))
+    bin_hi = np.empty((N_BINS, 3))
+    bin_n = np.empty(N_BINS, dtype=np.int64)
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        s, c = node_start[node], node_count[node]
+        for a in range(3):
+            node_min[node, a] = np.inf
+            node_max[node, a] = -np.inf
+        c_lo = np.full(3, np.inf)
+        c_hi = np.full(3, -np.inf)
+        for k in range(s, s + c):
+            i = order[k]
+            for a in range(3):
+                node_min[node, a] = min(node_min[node, a], lo[i, a])
+                node_max[node, a] = max(node_max[node, a], hi[i, a])
+                c_lo[a] = min(c_lo[a], centroid[i, a])
+                c_hi[a] = max(c_hi[a], centroid[i, a])
+        if c <= LEAF_SIZE:
+            continue
+        # Binned SAH over all three axes: cost = area(L) n(L) + area(R) n(R).
+        best_axis, best_split, best_cost = -1, -1, np.inf
+        for a in range(3):
+            extent = c_hi[a] - c_lo[a]
+            if extent <= 0.0:
+                continue
+            bin_n[:] = 0
+            bin_lo[:] = np.inf
+            bin_hi[:] = -np.inf
+            for k in range(s, s + c):
+                i = order[k]
+                b = min(int((centroid[i, a] - c_lo[a]) / extent * N_BINS), N_BINS - 1)
+                bin_n[b] += 1
+                for d in range(3):
+                    bin_lo[b, d] = min(bin_lo[b, d], lo[i, d])
+                    bin_hi[b, d] = max(bin_hi[b, d], hi[i, d])
+            for split in range(1, N_BINS):
+                cost = _side_cost(bin_lo, bin_hi, bin_n, 0, split) + _side_cost(
+                    bin_lo, bin_hi, bin_n, split, N_BINS)
+                if cost < best_cost:
+                    best_axis, best_split, best_cost = a, split, cost
+        mid = s
+        if best_axis >= 0:
+            a = best_axis
+            extent = c_hi[a] - c_lo[a]
+            j = s + c - 1
+            while mid <= j:
+                i = order[mid]
+                b = min(int((centroid[i, a] - c_lo[a]) / extent * N_BINS), N_BINS - 1)
+                if b < best_split:
+                    mid += 1
+                else:
+                    order[mid], order[j] = order[j], order[mid]
+                    j -= 1
+        if mid == s or mid == s + c:  # no useful split: halve in index order
+            mid = s + c // 2
+        left = n_nodes
+        n_nodes += 2
+        node_left[node] = left
+        node_start[left], node_count[left] = s, mid - s
+        node_start[left + 1], node_count[left + 1] = mid, s + c - mid
+        stack[top] = left
+        stack[top + 1] = left + 1
+        top += 2
+    leaf_tris = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        leaf_tris[k] = tri_index[order[k]]
+    return (node_min[:n_nodes].copy(), node_max[:n_nodes].copy(), node_left[:n_nodes].copy(),
+            node_start[:n_nodes].copy(), node_count[:n_nodes].copy(), leaf_tris)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _side_cost(bin_lo, bin_hi, bin_n, b0, b1):
+    count = 0
+    lx = ly = lz = np.inf
+    hx = hy = hz = -np.inf
+    for b in range(b0, b1):
+        if bin_n[b] == 0:
+            continue
+        count += bin_n[b]
+        lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
+        hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
+    if count == 0:
+        return 0.0
+    dx, dy, dz = hx - lx, hy - ly, hz - lz
+    return (dx * dy + dy * dz + dz * dx) * count
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
+               dz):
+    """Woop-Benthin-Wald watertight ray/triangle test. Returns (t, u, v, w) with t = -1
+    for a miss; (u, v, w) are barycentrics of corners (0, 1, 2)."""
+    ax = tris[f, 0, kx] - (ox, oy, oz)[kx]
+    ay = tris[f, 0, ky] - (ox, oy, oz)[ky]
+    az = tris[f, 0, kz] - (ox, oy, oz)[kz]
+    bx = tris[f, 1, kx] - (ox, oy, oz)[kx]
+    by = tris[f, 1, ky] - (ox, oy, oz)[ky]
+    bz = tris[f, 1, kz] - (ox, oy, oz)[kz]
+    cx = tris[f, 2, kx] - (ox, oy, oz)[kx]
+    cy = tris[f, 2, ky] - (ox, oy, oz)[ky]
+    cz = tris[f, 2, kz] - (ox, oy, oz)[kz]
+    # Shear so the ray becomes the +z axis.
+    ax, ay = ax - sx * az, ay - sy * az
+    bx, by = bx - sx * bz, by - sy * bz
+    cx, cy = cx - sx * cz, cy - sy * cz
+    # 2-D edge functions; the same edge in a neighbour gives exactly the opposite value.
+    u = cx * by - cy * bx
+    v = ax * cy - ay * cx
+    w = bx * ay - by * ax
+    if (u < 0.0 or v < 0.0 or w < 0.0) and (u > 0.0 or v > 0.0 or w > 0.0):
+        return -1.0, 0.0, 0.0, 0.0
+    det = u + v + w
+    if det == 0.0:
+        return -1.0, 0.0, 0.0, 0.0
+    # Facing: the ray meets the counter-clockwise (front) side when the normal opposes it.
+    e1x, e1y, e1z = (tris[f, 1, 0] - tris[f, 0, 0], tris[f, 1, 1] - tris[f, 0, 1],
+                     tris[f, 1, 2] - tris[f, 0, 2])
+    e2x, e2y, e2z = (tris[f, 2, 0] - tris[f, 0, 0], tris[f, 2, 1] - tris[f, 0, 1],
+                     tris[f, 2, 2] - tris[f, 0, 2])
+    facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
+        e1x * e2y - e1y * e2x) * dz
+    front = (facing < 0.0) == front_ccw
+    if (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3:
+        return -1.0, 0.0, 0.0, 0.0
+    t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det
+    return t, u / det, v / det, w / det
+
+
+@njit(cache=True, nogil=True)
+def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_scale,
+               depth_offset, cull_code, front_ccw, lequal, eye, ortho, forward, use_bvh,
+               node_min, node_max, node_left, node_start, node_count, leaf_tris, face_buf,
+               depth_buf, dist_buf, bary_buf, clear_depth):
+    n_tris = tris.shape[0]
+    stack = np.empty(128, dtype=np.int64)
+    tests = 0
+    for r in range(r_lo, r_hi):
+        y_ndc = 1.0 - (r + 0.5) * 2.0 / height
+        for c in range(width):
+            x_ndc = (c + 0.5) * 2.0 / width - 1.0
+            # Un-project the pixel centre at the near (z = -1) and far (z = 1) planes.
+            ox, oy, oz = _unproject(inv_view_proj, x_ndc, y_ndc, -1.0)
+            fx, fy, fz = _unproject(inv_view_proj, x_ndc, y_ndc, 1.0)
+            dx, dy, dz = fx - ox, fy - oy, fz - oz
+            # Woop et al.: kz = dominant axis, keep winding with the swap of kx, ky.
+            ad = (abs(dx), abs(dy), abs(dz))
+            kz = 0
+            if ad[1] > ad[kz]:
+                kz = 1
+            if ad[2] > ad[kz]:
+                kz = 2
+            kx, ky = (kz + 1) % 3, (kz + 2) % 3
+            dk = (dx, dy, dz)
+            if dk[kz] < 0.0:
+                kx, ky = ky, kx
+            sz = 1.0 / dk[kz]
+            sx, sy = dk[kx] * sz, dk[ky] * sz
+            # Clip z and w are linear along the ray: z_clip(t) = zc0 + t zc1, same for w.
+            zc0 = view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz + view_proj[2, 3]
+            zc1 = view_proj[2, 0] * dx + view_proj[2, 1] * dy + view_proj[2, 2] * dz
+            wc0 = view_proj[3, 0] * ox + view_proj[3, 1] * oy + view_proj[3, 2] * oz + view_proj[3, 3]
+            wc1 = view_proj[3, 0] * dx + view_proj[3, 1] * dy + view_proj[3, 2] * dz
+            # Hits are ranked as the z-buffer ranks fragments: by float32 window depth,
+            # equal depths by submission order (coplanar faces resolve alike).
+            best_t = np.inf
+            best_z = np.float32(np.inf)
+            best_f = -1
+            t_bound = 1.0  # no box entered beyond this can hold a hit at least as good
+            bu = bv = bw = 0.0
+            if use_bvh:
+                inv_dx = 1.0 / dx if dx != 0.0 else np.inf
+                inv_dy = 1.0 / dy if dy != 0.0 else np.inf
+                inv_dz = 1.0 / dz if dz != 0.0 else np.inf
+                top = 1
+                stack[0] = 0
+                while top > 0:
+                    top -= 1
+                    node = stack[top]
+                    t_near = _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz)
+                    if t_near > t_bound:
+                        continue
+                    left = node_left[node]
+                    if left < 0:
+                        for k in range(node_start[node], node_start[node] + node_count[node]):
+                            f = leaf_tris[k]
+                            tests += 1
+                            t, u, v, w = _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy,
+                                                    sz, cull_code, front_ccw, dx, dy, dz)
+                            if 0.0 <= t <= 1.0:
+                                z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
+                                if best_f < 0 or z < best_z or (z == best_z and (
+                                        f > best_f if lequal else f < best_f)):
+                                    best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
+                                    t_bound = _t_bound(z, zc0, zc1, wc0, wc1, depth_scale,
+                                                       depth_offset)
+                    else:
+                        tl = _box_entry(node_min, node_max, left, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz)
+                        tr = _box_entry(node_min, node_max, left + 1, ox, oy, oz, inv_dx,
+                                        inv_dy, inv_dz)
+                        if top + 2 > stack.shape[0]:
+                            bigger = np.empty(2 * stack.shape[0], dtype=np.int64)
+                            bigger[:top] = stack[:top]
+                            stack = bigger
+                        if tl < tr:  # nearer child on top of the stack
+                            stack[top], stack[top + 1] = left + 1, left
+                        else:
+                            stack[top], stack[top + 1] = left, left + 1
+                        top += 2
+            else:
+                for f in range(n_tris):
+                    tests += 1
+                    t, u, v, w = _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy, sz,
+                                            cull_code, front_ccw, dx, dy, dz)
+                    if 0.0 <= t <= 1.0:
+                        z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
+                        if best_f < 0 or z < best_z or (z == best_z and (
+                                f > best_f if lequal else f < best_f)):
+                            best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
+            face_buf[r, c] = -1
+            depth_buf[r, c] = clear_depth
+            dist_buf[r, c] = np.inf
+            bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
+            if best_f < 0:
+                continue
+            px, py, pz = ox + best_t * dx, oy + best_t * dy, oz + best_t * dz
+            z = best_z
+            if not (z < clear_depth or (lequal and z == clear_depth)):
+                continue
+            face_buf[r, c] = best_f
+            depth_buf[r, c] = z
+            if ortho:
+                dist_buf[r, c] = ((px - eye[0]) * forward[0] + (py - eye[1]) * forward[1]
+                                  + (pz - eye[2]) * forward[2])
+            else:
+                dist_buf[r, c] = np.sqrt((px - eye[0]) ** 2 + (py - eye[1]) ** 2
+                                         + (pz - eye[2]) ** 2)
+            bary_buf[r, c, 0], bary_buf[r, c, 1], bary_buf[r, c, 2] = bu, bv, bw
+    return tests
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
+    """float32 window depth of the point at parameter t of the ray."""
+    return np.float32((zc0 + t * zc1) / (wc0 + t * wc1) * depth_scale + depth_offset)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
+    """The ray parameter past which window depth exceeds the next float32 above ``z``
+    (window depth grows monotonically along the ray): a hit beyond it cannot tie."""
+    if depth_scale == 0.0:
+        return 1.0
+    z_next = np.nextafter(z, np.float32(np.inf))
+    zn = (np.float64(z_next) - depth_offset) / depth_scale
+    denom = zn * wc1 - zc1
+    if denom == 0.0:
+        return 1.0
+    t = (zc0 - zn * wc0) / denom
+    return min(1.0, t * (1.0 + 1e-9) + 1e-12) if t == t else 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _unproject(m, x, y, z):
+    hx = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]
+    hy = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]
+    hz = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
+    hw = m[3, 0] * x + m[3, 1] * y + m[3, 2] * z + m[3, 3]
+    return hx / hw, hy / hw, hz / hw
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy, inv_dz):
+    """Ray parameter where the ray enters the node's box (inf when it misses)."""
+    t0x, t1x = (node_min[node, 0] - ox) * inv_dx, (node_max[node, 0] - ox) * inv_dx
+    t0y, t1y = (node_min[node, 1] - oy) * inv_dy, (node_max[node, 1] - oy) * inv_dy
+    t0z, t1z = (node_min[node, 2] - oz) * inv_dz, (node_max[node, 2] - oz) * inv_dz
+    t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
+    t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
+    # NaN from 0 * inf (origin on a slab plane, ray parallel) must not reject the box.
+    if t_in != t_in or t_out != t_out:
+        return 0.0
+    if t_in > t_out * (1.0 + 4e-16) + 1e-300:
+        return np.inf
+    return t_in
+
+
+def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None):
+    """Cast one ray per pixel. Returns (face_id, depth, distance, barycentrics, tests)."""
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    inv = np.linalg.inv(view_proj)
+    near, far = state.depth_range
+    cull_code = ["none", "back", "front", "front_and_back"].index(state.cull.value)
+    face = np.empty((height, width), dtype=np.int32)
+    depth = np.empty((height, width), dtype=np.float32)
+    distance = np.empty((height, width), dtype=np.float64)
+    bary = np.empty((height, width, 3), dtype=np.float64)
+    if bvh is None:
+        nodes = (np.zeros((1, 3)), np.zeros((1, 3)), np.full(1, -1), np.zeros(1, np.int64),
+                 np.zeros(1, np.int64), np.zeros(0, np.int64))
+    else:
+        nodes = (bvh.node_min, bvh.node_max, bvh.node_left, bvh.node_start, bvh.node_count,
+                 bvh.tri_index)
+    # Many row chunks, handed out as threads free up: rays cost unevenly across the image.
+    tests = workers.run(
+        _cast_rows, split_range(height, 8 * workers.threads), triangles, inv, view_proj, width, height, 0.5 * (far - near),
+        0.5 * (far + near), cull_code, state.front_face.value == "ccw",
+        state.depth_func.value == "lequal", np.asarray(camera.eye, dtype=np.float64),
+        camera.is_orthographic, camera.forward, bvh is not None, *nodes, face, depth,
+        distance, bary, np.float32(state.clear_depth))
+    return face, depth, distance, bary, int(sum(tests))

@@ -1,0 +1,182 @@
+"""Every visibility algorithm against the brute-force reference, and against the z-buffer
+on the shared models. An algorithm registered later joins these tests by name."""
+
+import os
+
+import numpy as np
+import pytest
+
+import hsr
+import hsr.raycast as rc
+from hsr.fragments import face_barycentrics
+from hsr import scenes
+from hsr.algorithms import ALGORITHMS
+from reference import ambiguous_pixels, compare, reference_render
+from test_zbuffer_reference import small_scene
+
+W, H = 96, 72
+# Algorithms that must equal the reference wherever a pixel centre is not on an edge.
+EXACT = ["zbuffer", "scanline", "raycast"]
+
+
+def cameras(cam):
+    eye = np.asarray(cam.target) + np.array([2.5, 1.5, 4.0])
+    yield "default", cam
+    yield "oblique", hsr.Camera.look_at(eye, cam.target, cam.up, cam.fov_y, cam.near, cam.far)
+    yield "ortho", hsr.Camera.orthographic(cam.eye, cam.target, cam.up, 4.0, cam.near, cam.far)
+
+
+def test_registry_lists_the_algorithms():
+    assert set(EXACT) <= set(ALGORITHMS)
+    for module in ALGORITHMS.values():
+        assert module.NAME and module.DESCRIPTION and callable(module.resolve)
+
+
+@pytest.mark.parametrize("algorithm", EXACT)
+@pytest.mark.parametrize("name", ["cubes", "cyclic", "penetration", "spheres", "city"])
+def test_exact_algorithms_match_reference(algorithm, name):
+    scene, cam0 = small_scene(name)
+    for view, cam in cameras(cam0):
+        frame = hsr.render(scene, cam, W, H, algorithm=algorithm)
+        ref_face, ref_depth = reference_render(scene, cam, W, H)
+        amb = ambiguous_pixels(scene, cam, W, H)
+        face_bad, depth_bad, compared = compare(frame.face_id, frame.depth, ref_face,
+                                                ref_depth, amb)
+        assert face_bad == 0, f"{view}: {face_bad} of {compared} pixels differ"
+        assert depth_bad == 0, f"{view}: {depth_bad} depths differ"
+
+
+@pytest.mark.parametrize("algorithm", EXACT)
+@pytest.mark.parametrize("state", [dict(cull="back"), dict(cull="front", front_face="cw"),
+                                   dict(depth_func="lequal"), dict(depth_range=(0.2, 0.6))])
+def test_exact_algorithms_follow_state(algorithm, state):
+    scene, cam = small_scene("cubes")
+    frame = hsr.render(scene, cam, W, H, algorithm=algorithm, **state)
+    ref_face, ref_depth = reference_render(scene, cam, W, H, **state)
+    amb = ambiguous_pixels(scene, cam, W, H, **state)
+    assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+
+
+@pytest.mark.parametrize("algorithm", ["scanline", "raycast"])
+def test_near_plane_crossing(algorithm):
+    scene, _ = small_scene("cubes")
+    cam = hsr.Camera.look_at(eye=(-1.5, 0.2, -6.6), target=(1.0, 0.5, -10.0), fov_y=80,
+                             near=0.2, far=30.0)
+    frame = hsr.render(scene, cam, W, H, algorithm=algorithm)
+    ref_face, ref_depth = reference_render(scene, cam, W, H)
+    amb = ambiguous_pixels(scene, cam, W, H)
+    assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+
+
+def test_scanline_equals_zbuffer_bit_for_bit_on_coplanar_ties():
+    rng = np.random.default_rng(3)
+    n = 200
+    corners = rng.uniform(-1, 1, size=(n, 3, 2))
+    verts = np.concatenate([corners, np.full((n, 3, 1), -5.0)], axis=2).reshape(-1, 3)
+    mesh = hsr.Mesh(verts, np.arange(3 * n).reshape(-1, 3))
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=30, near=1, far=10)
+    for func in ("less", "lequal"):
+        a = hsr.render(mesh, cam, 200, 150, depth_func=func)
+        b = hsr.render(mesh, cam, 200, 150, depth_func=func, algorithm="scanline")
+        assert np.array_equal(a.face_id, b.face_id)
+        assert np.array_equal(a.depth, b.depth)
+
+
+MODELS = ["stanford-bunny.obj", "spot.obj", "teapot.obj", "fandisk.obj", "suzanne.obj"]
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_scanline_agrees_with_zbuffer_on_shared_models(models_dir, model):
+    mesh = hsr.load(os.path.join(models_dir, model))
+    for direction in ((0, 0, 1), (1, 0.5, -0.7)):
+        cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
+        a = hsr.render(mesh, cam, 400, 300)
+        b = hsr.render(mesh, cam, 400, 300, algorithm="scanline")
+        covered = (a.face_id >= 0) | (b.face_id >= 0)
+        assert (a.face_id == b.face_id)[covered].mean() >= 0.9999
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_raycast_agrees_with_zbuffer_on_shared_models(models_dir, model):
+    """The rasterizer snaps corners to 1/256 pixel (as OpenGL does), the ray caster does
+    not: they may differ only where a pixel centre lies on an edge the two faces share."""
+    mesh = hsr.load(os.path.join(models_dir, model))
+    for direction in ((0, 0, 1), (1, 0.5, -0.7)):
+        cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
+        a = hsr.render(mesh, cam, 1024, 768)
+        b = hsr.render(mesh, cam, 1024, 768, algorithm="raycast")
+        covered = (a.face_id >= 0) | (b.face_id >= 0)
+        differ = a.face_id != b.face_id
+        assert (~differ)[covered].mean() >= 0.998
+        both = differ & (a.face_id >= 0) & (b.face_id >= 0)
+        shared = [len(set(p) & set(q)) >= 2 for p, q in
+                  zip(mesh.faces[a.face_id[both]], mesh.faces[b.face_id[both]])]
+        # ... or the centre is within a sliver of an edge of either face (snapping moves
+        # edges by up to 1/512 pixel).
+        near_edge = (b.fragments.buffers["barycentrics"][both].min(axis=1) < 0.02) | (
+            face_barycentrics(a.fragments)[both].min(axis=1) < 0.02)
+        assert np.all(np.array(shared) | near_edge), "a difference away from any edge"
+        assert np.count_nonzero(differ & ~both) <= 0.0005 * covered.sum()  # silhouette
+
+
+def test_naive_and_bvh_ray_casting_are_identical(models_dir):
+    mesh = hsr.load(os.path.join(models_dir, "suzanne.obj"))
+    cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
+    a = hsr.render(mesh, cam, 120, 90, algorithm="raycast", options={"accel": "none"})
+    b = hsr.render(mesh, cam, 120, 90, algorithm="raycast")
+    assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
+    da, db = a.fragments.buffers["distance"], b.fragments.buffers["distance"]
+    assert np.array_equal(da, db)
+    assert a.stats["ray_triangle_tests"] > 20 * b.stats["ray_triangle_tests"]
+
+
+def test_naive_ray_casting_refuses_huge_jobs():
+    scene, cam = scenes.terrain(100_000)
+    with pytest.raises(hsr.RenderError, match="accel='bvh'"):
+        hsr.render(scene, cam, 640, 480, algorithm="raycast", options={"accel": "none"})
+
+
+def test_ray_distance_and_barycentrics():
+    """A triangle facing the camera at distance 5: distance 5 at the centre, barycentrics
+    equal to the reference's."""
+    mesh = hsr.Mesh(np.array([[-2, -2, -5], [2, -2, -5], [0, 2, -5.0]]), np.array([[0, 1, 2]]))
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=60, near=1, far=10)
+    frame = hsr.render(mesh, cam, 64, 64, algorithm="raycast")
+    dist = frame.fragments.buffers["distance"]
+    offset = (0.5 / 32) * np.tan(np.radians(30))  # pixel centre (32.5, 32.5) off the axis
+    assert abs(dist[32, 32] - 5.0 * np.sqrt(1.0 + 2.0 * offset**2)) < 1e-9
+    _, _, ref_bary = reference_render(mesh, cam, 64, 64, with_barycentrics=True)
+    covered = frame.face_id >= 0
+    assert np.abs(frame.fragments.buffers["barycentrics"][covered] - ref_bary[covered]).max() < 1e-9
+
+
+def test_bvh_invariants(models_dir):
+    mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
+    bvh = rc.build(mesh)
+    leaves = bvh.node_left < 0
+    # Every non-degenerate triangle in exactly one leaf.
+    in_leaves = np.concatenate([bvh.tri_index[s:s + c] for s, c in
+                                zip(bvh.node_start[leaves], bvh.node_count[leaves])])
+    assert np.array_equal(np.sort(in_leaves), np.sort(bvh.tri_index))
+    assert len(np.unique(bvh.tri_index)) == mesh.n_faces - int(mesh.degenerate_mask().sum())
+    # Boxes contain their children and their triangles.
+    for node in np.flatnonzero(~leaves):
+        for child in (bvh.node_left[node], bvh.node_left[node] + 1):
+            assert (bvh.node_min[child] >= bvh.node_min[node]).all()
+            assert (bvh.node_max[child] <= bvh.node_max[node]).all()
+    for node in np.flatnonzero(leaves):
+        tris = bvh.triangles[bvh.tri_index[bvh.node_start[node]:bvh.node_start[node]
+                                           + bvh.node_count[node]]]
+        assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
+
+
+def test_bvh_reused_across_views(models_dir):
+    mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
+    bvh = rc.build(mesh)
+    for direction in ((0, 0, 1), (1, 0, 0), (0, 1, 0.1)):
+        cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
+        a = hsr.render(mesh, cam, 80, 60, algorithm="raycast", options={"bvh": bvh})
+        b = hsr.render(mesh, cam, 80, 60, algorithm="raycast")
+        assert np.array_equal(a.face_id, b.face_id)
+    with pytest.raises(hsr.RenderError, match="another scene"):
+        hsr.render(scenes.cube(), cam, 8, 8, algorithm="raycast", options={"bvh": bvh})
