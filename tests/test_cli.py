@@ -120,3 +120,28 @@ def test_installed_command_reports_errors_without_traceback(tmp_path):
 def test_no_command_prints_help(capsys):
     code, out, _ = run([], capsys)
     assert code == 2 and "render" in out
+
+
+def test_compare_prints_table_and_montage(tmp_path, capsys):
+    out = tmp_path / "m.png"
+    code, stdout, _ = run(["compare", "--scene", "penetration", "--size", "64x48",
+                           "--montage", str(out)], capsys)
+    assert code == 0
+    lines = stdout.strip().splitlines()
+    assert lines[0].split()[:2] == ["algorithm", "ms"]
+    from hsr.algorithms import ALGORITHMS
+    names = [line.split()[0] for line in lines[1:] if line.split()[0] in ALGORITHMS]
+    assert names == list(ALGORITHMS)
+    assert "100.000%" in lines[1]
+    image = Image.open(out)
+    assert image.size[0] == 64 * len(ALGORITHMS)
+
+
+@pytest.mark.parametrize("args", [["compare", "--algorithms", "bogus"],
+                                  ["render", "--option", "novalue"],
+                                  ["render", "--threads", "0"],
+                                  ["render", "--algorithm", "raycast", "--option", "accel=warp"]])
+def test_more_errors_are_one_line(tmp_path, capsys, args):
+    code, _, err = run(args + ["--size", "32x24"] + (["-o", str(tmp_path / "x.png")]
+                                                     if args[0] == "render" else []), capsys)
+    assert_one_line_error(code, err)

@@ -45,47 +45,62 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
+def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
+    """Arguments shared by every command that renders: scene, camera, state, shading."""
+    p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files, drawn in order")
+    p.add_argument("--scene", default="cubes", choices=list(SCENES),
+                   help="built-in scene when no MODEL is given (default %(default)s)")
+    p.add_argument("--size", default="800x600", help="WxH in pixels (default %(default)s)")
+    p.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
+    p.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
+    p.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
+    p.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
+    p.add_argument("--near", type=float, help="near plane distance")
+    p.add_argument("--far", type=float, help="far plane distance")
+    p.add_argument("--ortho", type=float, metavar="HEIGHT",
+                   help="orthographic projection showing HEIGHT world units vertically")
+    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode])
+    p.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
+    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc])
+    p.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
+    p.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
+    p.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
+    p.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
+    p.add_argument("--shading", default="flat", choices=list(SHADING_MODES))
+    p.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
+    p.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="algorithm option, e.g. accel=none (raycast); repeatable")
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .algorithms import ALGORITHMS
     from .scenes import SCENES
     from .shading import SHADING_MODES
     from .state import CullMode, DepthFunc, FrontFace
 
+    shared = (SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES)
     parser = _Parser(prog="hsr", description="Hidden-surface removal: render meshes headless.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     r = sub.add_parser("render", help="render meshes (or a built-in scene) to an image",
                        description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
                        "or a built-in scene when no MODEL is given.")
-    r.add_argument("models", nargs="*", metavar="MODEL", help="mesh files, drawn in order")
+    _add_scene_args(r, *shared)
     r.add_argument("-o", "--output", default="render.png", help="colour image (default %(default)s)")
-    r.add_argument("--scene", default="cubes", choices=list(SCENES),
-                   help="built-in scene when no MODEL is given (default %(default)s)")
     r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
-    r.add_argument("--size", default="800x600", help="WxH in pixels (default %(default)s)")
-    r.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
-    r.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
-    r.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
-    r.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
-    r.add_argument("--near", type=float, help="near plane distance")
-    r.add_argument("--far", type=float, help="far plane distance")
-    r.add_argument("--ortho", type=float, metavar="HEIGHT",
-                   help="orthographic projection showing HEIGHT world units vertically")
-    r.add_argument("--cull", default="none", choices=[m.value for m in CullMode])
-    r.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
-    r.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc])
-    r.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
-    r.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
-    r.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
-    r.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
-    r.add_argument("--shading", default="flat", choices=list(SHADING_MODES))
-    r.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
     r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
     r.add_argument("--occlusion-cull", action="store_true",
                    help="skip objects hidden behind nearer ones (same result, less work)")
-    r.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
-    r.add_argument("--quiet", action="store_true", help="print nothing on success")
+    c = sub.add_parser("compare", help="render one scene with every algorithm and compare",
+                       description="Render the scene with each algorithm and print time, "
+                       "agreement with the z-buffer and algorithm-specific counts.")
+    _add_scene_args(c, *shared)
+    c.add_argument("--algorithms", default=",".join(ALGORITHMS),
+                   help="comma-separated algorithms (default: all: %(default)s)")
+    c.add_argument("--montage", help="write the images side by side with difference maps")
     return parser
 
 
@@ -132,10 +147,31 @@ def _camera_from_args(args, scene, default_camera):
     return Camera.look_at(eye, target, up, args.fov, near, far)
 
 
-def _cmd_render(args) -> int:
+def _options(pairs) -> dict:
+    """--option KEY=VALUE pairs; numbers and true/false are converted."""
+    options = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise CliError(f"--option must look like KEY=VALUE, got {pair!r}")
+        key, value = pair.split("=", 1)
+        low = value.lower()
+        if low in ("true", "false"):
+            options[key] = low == "true"
+        else:
+            try:
+                options[key] = int(value)
+            except ValueError:
+                try:
+                    options[key] = float(value)
+                except ValueError:
+                    options[key] = value
+    return options
+
+
+def _setup(args):
+    """Scene, camera, size, state, background and options from the shared arguments."""
     from . import scenes
     from .mesh import Scene, load
-    from .render import render
     from .state import RenderState
 
     width, height = _size(args.size)
@@ -154,9 +190,17 @@ def _cmd_render(args) -> int:
         raise CliError(f"--background values must be in 0..255, got {args.background!r}")
     if args.threads is not None and args.threads < 1:
         raise CliError(f"--threads must be >= 1, got {args.threads}")
+    return scene, camera, width, height, state, tuple(int(c) for c in background), _options(
+        args.option)
+
+
+def _cmd_render(args) -> int:
+    from .render import render
+
+    scene, camera, width, height, state, background, options = _setup(args)
     frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
-                   shading=args.shading, background=tuple(int(c) for c in background),
-                   occlusion_cull=args.occlusion_cull, threads=args.threads)
+                   shading=args.shading, background=background,
+                   occlusion_cull=args.occlusion_cull, threads=args.threads, options=options)
     frame.save(args.output)
     if args.depth_out:
         frame.save_depth(args.depth_out)
@@ -171,6 +215,29 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _cmd_compare(args) -> int:
+    from .algorithms import ALGORITHMS
+    from .compare import compare_algorithms, montage
+
+    names = [n.strip() for n in args.algorithms.split(",") if n.strip()]
+    unknown = [n for n in names if n not in ALGORITHMS]
+    if unknown or not names:
+        raise CliError(f"unknown algorithm {', '.join(unknown) or '(none)'}; choose from "
+                       f"{', '.join(ALGORITHMS)}")
+    scene, camera, width, height, state, background, options = _setup(args)
+    results = compare_algorithms(scene, camera, width, height, names, state=state,
+                                 shading=args.shading, background=background,
+                                 threads=args.threads, options=options,
+                                 progress=not args.quiet and sys.stderr.isatty())
+    if not args.quiet:
+        print(results.table())
+    if args.montage:
+        montage(results).save(args.montage)
+        if not args.quiet:
+            print(f"wrote {args.montage}")
+    return 0
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
@@ -182,6 +249,8 @@ def main(argv=None) -> int:
             return EXIT_USAGE
         if args.command == "render":
             return _cmd_render(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
         raise CliError(f"unknown command {args.command!r}")
     except HsrError as exc:
         if debug:
