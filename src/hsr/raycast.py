@@ -185,23 +185,21 @@ def _side_cost(bin_lo, bin_hi, bin_n, b0, b1):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
+def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
                dz):
-    """Woop-Benthin-Wald watertight ray/triangle test. Returns (t, u, v, w) with t = -1
-    for a miss; (u, v, w) are barycentrics of corners (0, 1, 2)."""
-    ax = tris[f, 0, kx] - (ox, oy, oz)[kx]
-    ay = tris[f, 0, ky] - (ox, oy, oz)[ky]
-    az = tris[f, 0, kz] - (ox, oy, oz)[kz]
-    bx = tris[f, 1, kx] - (ox, oy, oz)[kx]
-    by = tris[f, 1, ky] - (ox, oy, oz)[ky]
-    bz = tris[f, 1, kz] - (ox, oy, oz)[kz]
-    cx = tris[f, 2, kx] - (ox, oy, oz)[kx]
-    cy = tris[f, 2, ky] - (ox, oy, oz)[ky]
-    cz = tris[f, 2, kz] - (ox, oy, oz)[kz]
+    """Woop-Benthin-Wald watertight ray/triangle test (``ok*`` are the ray origin's
+    coordinates on the permuted axes). Returns (t, u, v, w) with t = -1 for a miss;
+    (u, v, w) are barycentrics of corners (0, 1, 2)."""
+    az = tris[f, 0, kz] - okz
+    bz = tris[f, 1, kz] - okz
+    cz = tris[f, 2, kz] - okz
     # Shear so the ray becomes the +z axis.
-    ax, ay = ax - sx * az, ay - sy * az
-    bx, by = bx - sx * bz, by - sy * bz
-    cx, cy = cx - sx * cz, cy - sy * cz
+    ax = tris[f, 0, kx] - okx - sx * az
+    ay = tris[f, 0, ky] - oky - sy * az
+    bx = tris[f, 1, kx] - okx - sx * bz
+    by = tris[f, 1, ky] - oky - sy * bz
+    cx = tris[f, 2, kx] - okx - sx * cz
+    cy = tris[f, 2, ky] - oky - sy * cz
     # 2-D edge functions; the same edge in a neighbour gives exactly the opposite value.
     u = cx * by - cy * bx
     v = ax * cy - ay * cx
@@ -211,16 +209,18 @@ def _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw
     det = u + v + w
     if det == 0.0:
         return -1.0, 0.0, 0.0, 0.0
-    # Facing: the ray meets the counter-clockwise (front) side when the normal opposes it.
-    e1x, e1y, e1z = (tris[f, 1, 0] - tris[f, 0, 0], tris[f, 1, 1] - tris[f, 0, 1],
-                     tris[f, 1, 2] - tris[f, 0, 2])
-    e2x, e2y, e2z = (tris[f, 2, 0] - tris[f, 0, 0], tris[f, 2, 1] - tris[f, 0, 1],
-                     tris[f, 2, 2] - tris[f, 0, 2])
-    facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
-        e1x * e2y - e1y * e2x) * dz
-    front = (facing < 0.0) == front_ccw
-    if (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3:
-        return -1.0, 0.0, 0.0, 0.0
+    if cull_code != 0:
+        # Facing: the ray meets the counter-clockwise (front) side when the normal
+        # opposes it.
+        e1x, e1y, e1z = (tris[f, 1, 0] - tris[f, 0, 0], tris[f, 1, 1] - tris[f, 0, 1],
+                         tris[f, 1, 2] - tris[f, 0, 2])
+        e2x, e2y, e2z = (tris[f, 2, 0] - tris[f, 0, 0], tris[f, 2, 1] - tris[f, 0, 1],
+                         tris[f, 2, 2] - tris[f, 0, 2])
+        facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
+            e1x * e2y - e1y * e2x) * dz
+        front = (facing < 0.0) == front_ccw
+        if (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3:
+            return -1.0, 0.0, 0.0, 0.0
     t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det
     return t, u / det, v / det, w / det
 
@@ -254,6 +254,8 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                 kx, ky = ky, kx
             sz = 1.0 / dk[kz]
             sx, sy = dk[kx] * sz, dk[ky] * sz
+            ok = (ox, oy, oz)
+            okx, oky, okz = ok[kx], ok[ky], ok[kz]
             # Clip z and w are linear along the ray: z_clip(t) = zc0 + t zc1, same for w.
             zc0 = view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz + view_proj[2, 3]
             zc1 = view_proj[2, 0] * dx + view_proj[2, 1] * dy + view_proj[2, 2] * dz
@@ -284,8 +286,8 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                         for k in range(node_start[node], node_start[node] + node_count[node]):
                             f = leaf_tris[k]
                             tests += 1
-                            t, u, v, w = _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy,
-                                                    sz, cull_code, front_ccw, dx, dy, dz)
+                            t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx,
+                                                    sy, sz, cull_code, front_ccw, dx, dy, dz)
                             if 0.0 <= t <= 1.0:
                                 z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
                                 if best_f < 0 or z < best_z or (z == best_z and (
@@ -310,7 +312,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
             else:
                 for f in range(n_tris):
                     tests += 1
-                    t, u, v, w = _intersect(tris, f, ox, oy, oz, kx, ky, kz, sx, sy, sz,
+                    t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
                                             cull_code, front_ccw, dx, dy, dz)
                     if 0.0 <= t <= 1.0:
                         z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
