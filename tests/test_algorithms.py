@@ -16,7 +16,7 @@ from test_zbuffer_reference import small_scene
 
 W, H = 96, 72
 # Algorithms that must equal the reference wherever a pixel centre is not on an edge.
-EXACT = ["zbuffer", "scanline", "raycast"]
+EXACT = ["zbuffer", "scanline", "raycast", "bsp"]
 
 
 def cameras(cam):
@@ -48,7 +48,7 @@ def test_exact_algorithms_match_reference(algorithm, name):
 
 @pytest.mark.parametrize("algorithm", EXACT)
 @pytest.mark.parametrize("state", [dict(cull="back"), dict(cull="front", front_face="cw"),
-                                   dict(depth_func="lequal"), dict(depth_range=(0.2, 0.6))])
+                                   dict(depth_range=(0.2, 0.6))])
 def test_exact_algorithms_follow_state(algorithm, state):
     scene, cam = small_scene("cubes")
     frame = hsr.render(scene, cam, W, H, algorithm=algorithm, **state)
@@ -57,7 +57,7 @@ def test_exact_algorithms_follow_state(algorithm, state):
     assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
 
 
-@pytest.mark.parametrize("algorithm", ["scanline", "raycast"])
+@pytest.mark.parametrize("algorithm", ["scanline", "raycast", "bsp"])
 def test_near_plane_crossing(algorithm):
     scene, _ = small_scene("cubes")
     cam = hsr.Camera.look_at(eye=(-1.5, 0.2, -6.6), target=(1.0, 0.5, -10.0), fov_y=80,
@@ -180,3 +180,12 @@ def test_bvh_reused_across_views(models_dir):
         assert np.array_equal(a.face_id, b.face_id)
     with pytest.raises(hsr.RenderError, match="another scene"):
         hsr.render(scenes.cube(), cam, 8, 8, algorithm="raycast", options={"bvh": bvh})
+
+
+@pytest.mark.parametrize("algorithm", ["zbuffer", "scanline", "raycast"])
+def test_lequal_state(algorithm):
+    scene, cam = small_scene("cubes")
+    frame = hsr.render(scene, cam, W, H, algorithm=algorithm, depth_func="lequal")
+    ref_face, ref_depth = reference_render(scene, cam, W, H, depth_func="lequal")
+    amb = ambiguous_pixels(scene, cam, W, H)
+    assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)

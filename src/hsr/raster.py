@@ -23,9 +23,12 @@ from numba import njit
 
 from .conventions import SUBPIXEL_BITS
 
-__all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes"]
+__all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes", "FIRST_WINS"]
 
 _ONE = 1 << SUBPIXEL_BITS
+# Pseudo depth function for front-to-back filling with a coverage mask: a pixel takes the
+# first fragment that reaches it (BSP front-to-back traversal).
+FIRST_WINS = 8
 _HALF = _ONE >> 1
 
 
@@ -221,7 +224,9 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width,
                     n_tested += 1
                     if want_counts:
                         count_tested[row, i] += 1
-                    if tie_by_face:
+                    if depth_func == FIRST_WINS:
+                        passed = face_buf[row, i] < 0
+                    elif tie_by_face:
                         stored = depth_buf[row, i]
                         passed = zf < stored or (zf == stored and (
                             face < face_buf[row, i] if depth_func == 1 else

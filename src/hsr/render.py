@@ -28,12 +28,14 @@ MAX_SIZE = 32768
 
 @dataclass
 class View:
-    """What an algorithm that works in world space (the ray caster) needs besides the
+    """What an algorithm that works in world space (ray casting, BSP) needs besides the
     screen triangles."""
 
     scene: object
     camera: Camera
     view_proj: np.ndarray
+    width: int
+    height: int
 
 
 @dataclass
@@ -153,7 +155,7 @@ def _render(scene, camera, width, height, algorithm, state, shading, background,
     t_geometry = time.perf_counter()
 
     module = ALGORITHMS[algorithm]
-    extra = dict(options, view=View(scene, camera, view_proj))
+    extra = dict(options, view=View(scene, camera, view_proj, width, height))
     if occlusion_cull:
         if algorithm != "zbuffer":
             raise RenderError("occlusion culling works with the zbuffer algorithm")

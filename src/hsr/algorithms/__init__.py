@@ -4,8 +4,8 @@ and the CLI read."""
 
 from __future__ import annotations
 
-from . import raycast, scanline, zbuffer
+from . import bsp, painter, raycast, scanline, zbuffer
 
-ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast)}
+ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast, painter, bsp)}
 
 __all__ = ["ALGORITHMS"]

@@ -1,0 +1,72 @@
+"""BSP-tree visibility (Fuchs, Kedem & Naylor 1980): build once in world space
+(:mod:`hsr.bsp`), then for each view walk the tree back to front and paint through the
+shared fill with no depth test; or walk it front to back and fill only pixels not yet
+covered (a coverage mask), which writes each pixel once."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import bsp as bsp_tree
+from ..errors import RenderError
+from ..fragments import Fragments
+from ..mesh import Mesh, Scene
+from ..parallel import Workers
+from ..pipeline import ScreenTriangles, prepare
+from ..raster import FIRST_WINS, band_split, fill_bands, setup_triangles
+from ..state import RenderState
+
+NAME = "bsp"
+DESCRIPTION = "Fuchs-Kedem-Naylor BSP tree: split by planes, walk back to front, paint"
+TRAVERSALS = ("back_to_front", "front_to_back")
+ALWAYS = 7
+
+
+def ordered_screen(tree, view, state, workers, traversal):
+    """The tree's polygons in traversal order, through the shared geometry stage.
+    Returns (screen, source face of each screen triangle)."""
+    walk = bsp_tree.back_to_front if traversal == "back_to_front" else bsp_tree.front_to_back
+    order = walk(tree, view.camera)
+    soup = tree.triangles[order]
+    mesh = Mesh(soup.reshape(-1, 3), np.arange(3 * len(soup)).reshape(-1, 3), name="bsp")
+    stats: dict = {}
+    screen = prepare(Scene([mesh]), view.view_proj, view.width, view.height, state, stats,
+                     workers)
+    return screen, tree.face_id[order][screen.face_id], stats
+
+
+def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
+            counts: bool = False, view=None, tree=None, heuristic: str = "balanced",
+            traversal: str = "back_to_front", **_) -> Fragments:
+    if view is None:
+        raise RenderError("bsp needs the scene and camera (call it through hsr.render)")
+    if traversal not in TRAVERSALS:
+        raise RenderError(f"bsp traversal must be one of {', '.join(TRAVERSALS)}")
+    workers = workers or Workers()
+    stats = {"traversal": traversal}
+    if tree is None:
+        tree = bsp_tree.build(view.scene, heuristic)
+        stats["bsp_build_ms"] = tree.build_ms
+    elif tree.n_faces != view.scene.n_faces:
+        raise RenderError("the BSP tree was built for another scene")
+    stats.update(bsp_nodes=tree.n_nodes, splits=tree.splits, bsp_depth=tree.depth())
+    pieces, source, _ = ordered_screen(tree, view, state, workers, traversal)
+    width, height = screen.width, screen.height
+    face = np.empty((height, width), dtype=np.int32)
+    depth = np.empty((height, width), dtype=np.float32)
+    shape = (height, width) if counts else (1, 1)
+    count_tested = np.zeros(shape, dtype=np.int32)
+    count_written = np.zeros(shape, dtype=np.int32)
+    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+        pieces.xy_window, pieces.depth_window, width, height, workers)
+    bands = band_split(bbox, height, workers.threads)
+    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
+    func = ALWAYS if traversal == "back_to_front" else FIRST_WINS
+    tested, written = fill_bands(
+        workers, bands, vert_fixed, edge_bias, bbox, zplane, source, width, height, True,
+        func, True, z_lo, z_hi, state.clear_depth, depth, face, count_tested, count_written,
+        counts)
+    stats.update(fragments_tested=int(tested), fragments_written=int(written),
+                 pieces_drawn=len(pieces))
+    return Fragments(face, depth, screen, stats, count_tested if counts else None,
+                     count_written if counts else None)

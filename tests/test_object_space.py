@@ -1,0 +1,147 @@
+"""Object-space algorithms: painter's (and its known failures) and BSP trees."""
+
+import numpy as np
+import pytest
+
+import hsr
+import hsr.bsp as bsp
+from hsr import scenes
+from reference import ambiguous_pixels, reference_render
+from test_zbuffer_reference import small_scene
+
+W, H = 96, 72
+
+
+@pytest.mark.parametrize("name", ["cyclic", "penetration"])
+@pytest.mark.parametrize("key", ["max", "centroid", "min"])
+def test_painter_fails_where_the_textbooks_say(name, key):
+    """No back-to-front order of whole triangles exists here: painting must be wrong on
+    many pixels, and stats must say so (a 'fix' by a depth buffer is caught)."""
+    scene, cam = scenes.get(name)
+    frame = hsr.render(scene, cam, W, H, algorithm="painter", options={"key": key})
+    ref, _ = reference_render(scene, cam, W, H)
+    amb = ambiguous_pixels(scene, cam, W, H)
+    wrong = (frame.face_id != ref) & ~amb
+    assert wrong.sum() > 20
+    assert frame.stats["pixels_wrong"] >= wrong.sum() - amb.sum()
+    assert np.array_equal(frame.fragments.buffers["wrong"],
+                          frame.face_id != hsr.render(scene, cam, W, H).face_id)
+
+
+def test_painter_is_right_where_a_depth_order_exists():
+    # Separate squares at distinct depths facing the camera: any key sorts them right.
+    square = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    verts, faces = [], []
+    for k, (x, y, z) in enumerate([(0.4, 0.2, -8), (-0.3, 0.0, -6), (0.1, -0.3, -4)]):
+        verts.append(square + [x, y, z])
+        faces += [[4 * k, 4 * k + 1, 4 * k + 2], [4 * k, 4 * k + 2, 4 * k + 3]]
+    # Submit near to far, so plain submission order would be wrong.
+    mesh = hsr.Mesh(np.vstack(verts[::-1]), np.array(faces))
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=40, near=1, far=20)
+    for key in ("max", "centroid", "min"):
+        frame = hsr.render(mesh, cam, W, H, algorithm="painter", options={"key": key})
+        assert frame.stats["pixels_wrong"] == 0
+    no_test = hsr.render(mesh, cam, W, H, depth_test=False)
+    assert np.count_nonzero(no_test.face_id != frame.face_id) > 100
+
+
+def test_painter_paints_back_to_front_counts():
+    scene, cam = scenes.get("cubes")
+    frame = hsr.render(scene, cam, W, H, algorithm="painter", counts=True)
+    assert frame.fragments.count_written.sum() == frame.stats["fragments_written"]
+    assert frame.stats["fragments_written"] == frame.stats["fragments_tested"]
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("traversal", ["back_to_front", "front_to_back"])
+def test_bsp_random_soups_match_reference(seed, traversal):
+    """Random intersecting triangles: BSP order must be exact after splitting."""
+    rng = np.random.default_rng(100 + seed)
+    n = 25
+    centers = rng.uniform([-2, -2, -9], [2, 2, -3], size=(n, 1, 3))
+    verts = (centers + rng.normal(scale=1.0, size=(n, 3, 3))).reshape(-1, 3)
+    mesh = hsr.Mesh(verts, np.arange(3 * n).reshape(-1, 3))
+    eye = rng.uniform(-1, 1, 3) + [0, 0, 1]
+    cam = hsr.Camera.look_at(eye, (0, 0, -6), fov_y=70, near=0.5, far=20)
+    frame = hsr.render(mesh, cam, W, H, algorithm="bsp", options={"traversal": traversal})
+    ref, _ = reference_render(mesh, cam, W, H)
+    amb = ambiguous_pixels(mesh, cam, W, H)
+    assert np.count_nonzero((frame.face_id != ref) & ~amb) == 0
+    assert frame.stats["splits"] > 0
+
+
+def test_bsp_front_to_back_writes_each_pixel_once():
+    scene, cam = small_scene("spheres")
+    a = hsr.render(scene, cam, W, H, algorithm="bsp", counts=True)
+    b = hsr.render(scene, cam, W, H, algorithm="bsp", counts=True,
+                   options={"traversal": "front_to_back"})
+    assert np.array_equal(a.face_id, b.face_id)
+    assert b.fragments.count_written.max() == 1
+    assert a.fragments.count_written.max() > 1  # painting overdraws
+
+
+def test_bsp_order_is_back_to_front():
+    """For every pair of pieces whose projections share a sample point, the one painted
+    later is nearer there."""
+    scene, cam = scenes.get("cyclic")
+    tree = bsp.build(scene)
+    order = bsp.back_to_front(tree, cam)
+    rank = {int(p): k for k, p in enumerate(order)}  # split originals are not drawn
+    eye = np.asarray(cam.eye)
+    rng = np.random.default_rng(0)
+    checked = 0
+    for _ in range(4000):
+        # Aim at a random point of a random piece, so overlaps are found often.
+        target = tree.triangles[rng.choice(order)]
+        a, b = rng.uniform(0, 1, 2)
+        if a + b > 1:
+            a, b = 1 - a, 1 - b
+        d = target[0] + a * (target[1] - target[0]) + b * (target[2] - target[0]) - eye
+        hits = []
+        for p in order:
+            tri = tree.triangles[p]
+            e1, e2 = tri[1] - tri[0], tri[2] - tri[0]
+            m = np.column_stack([-d, e1, e2])
+            if abs(np.linalg.det(m)) < 1e-12:
+                continue
+            t, u, v = np.linalg.solve(m, eye - tri[0])
+            if t > 0 and u >= 1e-9 and v >= 1e-9 and u + v <= 1 - 1e-9:
+                hits.append((t, rank[int(p)]))
+        if len(hits) > 1:
+            hits.sort()
+            ranks = [r for _, r in hits]
+            assert ranks == sorted(ranks, reverse=True), "a nearer piece painted earlier"
+            checked += 1
+    assert checked > 50
+
+
+def test_bsp_splitting_keeps_area():
+    scene, _ = small_scene("spheres")
+    tree = bsp.build(scene)
+    def area(t):
+        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    world = scene.world_triangles()
+    assert tree.splits > 0
+    drawn = tree.node_polys  # the pieces; a cut polygon itself is not drawn
+    assert np.isclose(area(tree.triangles[drawn]).sum(), area(world).sum(), rtol=1e-9)
+    per_face = np.bincount(tree.face_id[drawn], weights=area(tree.triangles[drawn]),
+                           minlength=len(world))
+    assert np.allclose(per_face, area(world), rtol=1e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize("heuristic", bsp.HEURISTICS)
+def test_bsp_heuristics_and_reuse(heuristic):
+    scene, cam = small_scene("cubes")
+    tree = bsp.build(scene, heuristic=heuristic)
+    assert tree.n_nodes > 0 and tree.depth() >= 1
+    for angle in (0, 90, 200):
+        eye = np.asarray(cam.target) + [8 * np.sin(np.radians(angle)), 2.0,
+                                        8 * np.cos(np.radians(angle))]
+        view = hsr.Camera.look_at(eye, cam.target, fov_y=50, near=0.5, far=40)
+        a = hsr.render(scene, view, W, H, algorithm="bsp", options={"tree": tree})
+        b = hsr.render(scene, view, W, H)
+        assert np.count_nonzero(a.face_id != b.face_id) <= 3
+    with pytest.raises(hsr.RenderError, match="another scene"):
+        hsr.render(scenes.cube(), cam, 8, 8, algorithm="bsp", options={"tree": tree})
+    with pytest.raises(hsr.RenderError):
+        bsp.build(scene, heuristic="magic")
