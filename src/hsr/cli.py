@@ -92,6 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
     r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
+    r.add_argument("--svg", help="with --algorithm bsp: write the ordered polygons as SVG")
+    r.add_argument("--error-map", help="write where the result differs from the z-buffer "
+                   "(red) as a PNG")
     r.add_argument("--occlusion-cull", action="store_true",
                    help="skip objects hidden behind nearer ones (same result, less work)")
     c = sub.add_parser("compare", help="render one scene with every algorithm and compare",
@@ -206,6 +209,14 @@ def _cmd_render(args) -> int:
         frame.save_depth(args.depth_out)
     if args.ids_out:
         frame.save_ids(args.ids_out)
+    if args.svg:
+        _write_svg(args, frame, scene, camera, width, height, background)
+    if args.error_map:
+        from .compare import difference_map
+        from .io import save_image
+
+        truth = render(scene, camera, width, height, state=state, threads=args.threads)
+        save_image(difference_map(frame, truth), args.error_map)
     if not args.quiet:
         s = frame.stats
         print(f"wrote {args.output} ({width}x{height}, {args.algorithm}): "
@@ -213,6 +224,22 @@ def _cmd_render(args) -> int:
               f"{s['culled']} culled, {s['clipped']} clipped, "
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms")
     return 0
+
+
+def _write_svg(args, frame, scene, camera, width, height, background):
+    from .parallel import Workers
+    from .shading import face_colors
+    from .svg import write_polygons_svg
+
+    polygons = frame.fragments.buffers.get("polygons")
+    if polygons is None or polygons[2] != "back_to_front":
+        raise CliError("--svg needs --algorithm bsp (back-to-front traversal)")
+    if args.shading == "depth":
+        raise CliError("--svg draws flat colours: use --shading flat, normal or random")
+    xy, source, _ = polygons
+    with Workers(args.threads) as workers:
+        colors = face_colors(args.shading, scene, camera, workers)[source]
+    write_polygons_svg(args.svg, xy, colors, source, width, height, background)
 
 
 def _cmd_compare(args) -> int:

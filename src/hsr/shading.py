@@ -94,16 +94,20 @@ def visible_faces(face_id, n_faces):
     return seen
 
 
-def face_colors(mode: str, scene, camera, workers, face_id) -> np.ndarray:
-    """(F, 3) uint8 colour of the faces visible in ``face_id`` for the per-face shading
-    modes (other rows are left unset); (0, 3) for ``depth``, which is per pixel."""
+def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
+    """(F, 3) uint8 colour of the faces visible in ``face_id`` (all faces when None) for
+    the per-face shading modes (other rows are left unset); (0, 3) for ``depth``, which
+    is per pixel."""
     if mode not in SHADING_MODES:
         raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
     if mode == "depth":
         return np.zeros((0, 3), dtype=np.uint8)
     if mode == "random":
         return face_random_colors(scene.n_faces)
-    visible = visible_faces(face_id, scene.n_faces)
+    if face_id is None:
+        visible = np.ones(scene.n_faces, dtype=np.bool_)
+    else:
+        visible = visible_faces(face_id, scene.n_faces)
     out = np.empty((scene.n_faces, 3), dtype=np.uint8)
     offsets = scene.face_offsets()
     for k, inst in enumerate(scene.instances):

@@ -68,5 +68,8 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         counts)
     stats.update(fragments_tested=int(tested), fragments_written=int(written),
                  pieces_drawn=len(pieces))
-    return Fragments(face, depth, screen, stats, count_tested if counts else None,
-                     count_written if counts else None)
+    fragments = Fragments(face, depth, screen, stats, count_tested if counts else None,
+                          count_written if counts else None)
+    # The ordered pieces are an exact vector picture (hsr.svg) when painted in order.
+    fragments.buffers["polygons"] = (pieces.xy_window, source, traversal)
+    return fragments
