@@ -23,7 +23,8 @@ from numba import njit
 
 from .conventions import SUBPIXEL_BITS
 
-__all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes", "FIRST_WINS"]
+__all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes", "FIRST_WINS",
+           "rasterize"]
 
 _ONE = 1 << SUBPIXEL_BITS
 # Pseudo depth function for front-to-back filling with a coverage mask: a pixel takes the
@@ -248,3 +249,43 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width,
             e1_row += step_y1
             e2_row += step_y2
     return n_tested, n_written
+
+
+def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, *,
+              depth_test=None, depth_func=None, depth_write=None, counts=False,
+              depth_buffer=None):
+    """Set up and fill triangles in array order into fresh buffers: the one sequence every
+    raster-based algorithm runs. ``depth_test`` / ``depth_func`` (a code, see
+    :class:`hsr.state.DepthFunc`, or :data:`FIRST_WINS`) / ``depth_write`` default to
+    ``state``'s. With ``depth_buffer`` the draw goes over it (no clear).
+
+    Returns ``(face, depth, bbox, tested, written, count_tested, count_written)``; the
+    counts are (H, W) arrays when ``counts`` else None.
+    """
+    depth_test = state.depth_test if depth_test is None else depth_test
+    depth_func = state.depth_func.code if depth_func is None else depth_func
+    depth_write = state.depth_mask if depth_write is None else depth_write
+    if depth_buffer is None:
+        depth = np.empty((height, width), dtype=np.float32)
+        clear = state.clear_depth
+        face = np.empty((height, width), dtype=np.int32)  # cleared by the fill
+    else:
+        depth = depth_buffer
+        clear = np.nan
+        face = np.full((height, width), -1, dtype=np.int32)
+    shape = (height, width) if counts else (1, 1)
+    count_tested = np.zeros(shape, dtype=np.int32)
+    count_written = np.zeros(shape, dtype=np.int32)
+    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+        np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window), width, height,
+        workers)
+    # One band per thread: the split balances estimated work, and every extra band costs
+    # a walk over all triangles.
+    bands = band_split(bbox, height, workers.threads)
+    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
+    tested, written = fill_bands(
+        workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
+        depth_test, depth_func, depth_write, z_lo, z_hi, clear, depth, face, count_tested,
+        count_written, counts)
+    return (face, depth, bbox, tested, written, count_tested if counts else None,
+            count_written if counts else None)

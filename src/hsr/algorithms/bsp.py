@@ -13,13 +13,12 @@ from ..fragments import Fragments
 from ..mesh import Mesh, Scene
 from ..parallel import Workers
 from ..pipeline import ScreenTriangles, prepare
-from ..raster import FIRST_WINS, band_split, fill_bands, setup_triangles
-from ..state import RenderState
+from ..raster import FIRST_WINS, rasterize
+from ..state import DepthFunc, RenderState
 
 NAME = "bsp"
 DESCRIPTION = "Fuchs-Kedem-Naylor BSP tree: split by planes, walk back to front, paint"
 TRAVERSALS = ("back_to_front", "front_to_back")
-ALWAYS = 7
 
 
 def ordered_screen(tree, view, state, workers, traversal):
@@ -51,25 +50,14 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         raise RenderError("the BSP tree was built for another scene")
     stats.update(bsp_nodes=tree.n_nodes, splits=tree.splits, bsp_depth=tree.depth())
     pieces, source, _ = ordered_screen(tree, view, state, workers, traversal)
-    width, height = screen.width, screen.height
-    face = np.empty((height, width), dtype=np.int32)
-    depth = np.empty((height, width), dtype=np.float32)
-    shape = (height, width) if counts else (1, 1)
-    count_tested = np.zeros(shape, dtype=np.int32)
-    count_written = np.zeros(shape, dtype=np.int32)
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
-        pieces.xy_window, pieces.depth_window, width, height, workers)
-    bands = band_split(bbox, height, workers.threads)
-    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    func = ALWAYS if traversal == "back_to_front" else FIRST_WINS
-    tested, written = fill_bands(
-        workers, bands, vert_fixed, edge_bias, bbox, zplane, source, width, height, True,
-        func, True, z_lo, z_hi, state.clear_depth, depth, face, count_tested, count_written,
-        counts)
+    # Back to front: paint over whatever is there; front to back: first fragment wins.
+    func = DepthFunc.ALWAYS.code if traversal == "back_to_front" else FIRST_WINS
+    face, depth, _, tested, written, count_tested, count_written = rasterize(
+        pieces.xy_window, pieces.depth_window, source, screen.width, screen.height, state,
+        workers, depth_test=True, depth_func=func, depth_write=True, counts=counts)
     stats.update(fragments_tested=int(tested), fragments_written=int(written),
                  pieces_drawn=len(pieces))
-    fragments = Fragments(face, depth, screen, stats, count_tested if counts else None,
-                          count_written if counts else None)
+    fragments = Fragments(face, depth, screen, stats, count_tested, count_written)
     # The ordered pieces are an exact vector picture (hsr.svg) when painted in order.
     fragments.buffers["polygons"] = (pieces.xy_window, source, traversal)
     return fragments

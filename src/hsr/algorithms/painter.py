@@ -14,40 +14,13 @@ import numpy as np
 from ..errors import RenderError
 from ..fragments import Fragments
 from ..parallel import Workers
-from ..pipeline import ScreenTriangles
-from ..raster import band_split, fill_bands, setup_triangles
-from ..state import RenderState
+from ..raster import rasterize
+from ..state import DepthFunc, RenderState
 from . import zbuffer
 
 NAME = "painter"
 DESCRIPTION = "depth sort (max / centroid / min key), paint far to near; fails on cycles"
 KEYS = ("max", "centroid", "min")
-_NO_COUNTS = np.zeros((1, 1), dtype=np.int32)
-ALWAYS = 7  # DepthFunc.ALWAYS.code: paint over whatever is there
-
-
-def paint_in_order(screen: ScreenTriangles, order: np.ndarray, tri_face: np.ndarray,
-                   state: RenderState, workers: Workers, counts: bool = False):
-    """Fill the triangles ``order`` (indices into ``screen``) in that order, each one
-    over whatever is there; the depth buffer keeps the depth of the last painted
-    fragment. Returns (face, depth, tested, written, count_tested, count_written)."""
-    width, height = screen.width, screen.height
-    face = np.empty((height, width), dtype=np.int32)
-    depth = np.empty((height, width), dtype=np.float32)
-    shape = (height, width) if counts else (1, 1)
-    count_tested = np.zeros(shape, dtype=np.int32)
-    count_written = np.zeros(shape, dtype=np.int32)
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
-        np.ascontiguousarray(screen.xy_window[order]),
-        np.ascontiguousarray(screen.depth_window[order]), width, height, workers)
-    bands = band_split(bbox, height, workers.threads)
-    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    tested, written = fill_bands(
-        workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height, True,
-        ALWAYS, True, z_lo, z_hi, state.clear_depth, depth, face, count_tested,
-        count_written, counts)
-    return face, depth, tested, written, (count_tested if counts else None), (
-        count_written if counts else None)
 
 
 def sort_far_to_near(depth_window: np.ndarray, key: str) -> np.ndarray:
@@ -64,14 +37,18 @@ def sort_far_to_near(depth_window: np.ndarray, key: str) -> np.ndarray:
     return np.argsort(-k, kind="stable")
 
 
-def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
+def resolve(screen, state: RenderState, workers: Workers | None = None,
             counts: bool = False, key: str = "max", check: bool = True, **_) -> Fragments:
     """Painter's algorithm. ``key`` picks the sort depth; ``check`` also runs the
     z-buffer to count the pixels where painting got it wrong."""
     workers = workers or Workers()
     order = sort_far_to_near(screen.depth_window, key)
-    face, depth, tested, written, c_tested, c_written = paint_in_order(
-        screen, order, screen.face_id[order], state, workers, counts)
+    # Paint each triangle over whatever is there (ALWAYS, depth written, so the depth
+    # buffer keeps the depth of the last painted fragment).
+    face, depth, _, tested, written, c_tested, c_written = rasterize(
+        screen.xy_window[order], screen.depth_window[order], screen.face_id[order],
+        screen.width, screen.height, state, workers, depth_test=True,
+        depth_func=DepthFunc.ALWAYS.code, depth_write=True, counts=counts)
     stats = {"key": key, "fragments_tested": int(tested), "fragments_written": int(written)}
     fragments = Fragments(face, depth, screen, stats, c_tested, c_written)
     if check:

@@ -10,7 +10,7 @@ from ..fragments import Fragments
 from ..occlusion import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
 from ..parallel import Workers
 from ..pipeline import ScreenTriangles
-from ..raster import band_split, fill_bands, setup_triangles
+from ..raster import band_split, fill_bands, rasterize, setup_triangles
 from ..state import DepthFunc, RenderState
 
 NAME = "zbuffer"
@@ -29,37 +29,16 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     workers = workers or Workers()
     if occlusion is not None:
         return _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion)
-    width, height = screen.width, screen.height
-    if depth_buffer is None:
-        depth = np.empty((height, width), dtype=np.float32)
-        clear = state.clear_depth
-        face = np.empty((height, width), dtype=np.int32)  # cleared by the fill
-    else:
-        depth = depth_buffer
-        clear = np.nan
-        face = np.full((height, width), -1, dtype=np.int32)
-    shape = (height, width) if counts else (1, 1)
-    count_tested = np.zeros(shape, dtype=np.int32)
-    count_written = np.zeros(shape, dtype=np.int32)
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
-        screen.xy_window, screen.depth_window, width, height, workers)
-    # One band per thread: the split balances estimated work, and every extra band costs
-    # a walk over all triangles.
-    bands = band_split(bbox, height, workers.threads)
-    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    tested, written = fill_bands(
-        workers, bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id, width, height,
-        state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi, clear, depth,
-        face, count_tested, count_written, counts)
+    face, depth, bbox, tested, written, count_tested, count_written = rasterize(
+        screen.xy_window, screen.depth_window, screen.face_id, screen.width, screen.height,
+        state, workers, counts=counts, depth_buffer=depth_buffer)
     stats = {
         "triangles_rasterized": int(np.count_nonzero((bbox[:, 0] <= bbox[:, 1])
                                                      & (bbox[:, 2] <= bbox[:, 3]))),
-        "bands": len(bands) - 1,
         "fragments_tested": int(tested),
         "fragments_written": int(written),
     }
-    return Fragments(face, depth, screen, stats,
-                     count_tested if counts else None, count_written if counts else None)
+    return Fragments(face, depth, screen, stats, count_tested, count_written)
 
 
 def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
