@@ -16,7 +16,7 @@ from test_zbuffer_reference import small_scene
 
 W, H = 96, 72
 # Algorithms that must equal the reference wherever a pixel centre is not on an edge.
-EXACT = ["zbuffer", "scanline", "raycast", "bsp"]
+EXACT = ["zbuffer", "scanline", "raycast", "bsp", "newell"]
 
 
 def cameras(cam):
@@ -57,7 +57,7 @@ def test_exact_algorithms_follow_state(algorithm, state):
     assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
 
 
-@pytest.mark.parametrize("algorithm", ["scanline", "raycast", "bsp"])
+@pytest.mark.parametrize("algorithm", ["scanline", "raycast", "bsp", "newell"])
 def test_near_plane_crossing(algorithm):
     scene, _ = small_scene("cubes")
     cam = hsr.Camera.look_at(eye=(-1.5, 0.2, -6.6), target=(1.0, 0.5, -10.0), fov_y=80,

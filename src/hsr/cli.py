@@ -92,7 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
     r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
-    r.add_argument("--svg", help="with --algorithm bsp: write the ordered polygons as SVG")
+    r.add_argument("--svg", help="with --algorithm bsp or newell: write the ordered polygons "
+                   "as SVG (exact, no rasterization)")
     r.add_argument("--error-map", help="write where the result differs from the z-buffer "
                    "(red) as a PNG")
     r.add_argument("--occlusion-cull", action="store_true",
@@ -233,7 +234,7 @@ def _write_svg(args, frame, scene, camera, width, height, background):
 
     polygons = frame.fragments.buffers.get("polygons")
     if polygons is None or polygons[2] != "back_to_front":
-        raise CliError("--svg needs --algorithm bsp (back-to-front traversal)")
+        raise CliError("--svg needs --algorithm bsp (back-to-front traversal) or newell")
     if args.shading == "depth":
         raise CliError("--svg draws flat colours: use --shading flat, normal or random")
     xy, source, _ = polygons

@@ -4,8 +4,9 @@ and the CLI read."""
 
 from __future__ import annotations
 
-from . import bsp, painter, raycast, scanline, zbuffer
+from . import bsp, newell, painter, raycast, scanline, zbuffer
 
-ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast, painter, bsp)}
+ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast, painter, newell,
+                                                 bsp)}
 
 __all__ = ["ALGORITHMS"]
