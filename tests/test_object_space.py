@@ -216,3 +216,23 @@ def test_newell_detects_and_splits_the_cycle():
     scene, cam = scenes.get("cyclic")
     frame = hsr.render(scene, cam, W, H, algorithm="newell")
     assert frame.stats["splits"] >= 1 and frame.stats["moves"] >= 1
+
+
+@pytest.mark.parametrize("algorithm", ["bsp", "newell"])
+@pytest.mark.parametrize("name", ["cyclic", "penetration", "spheres"])
+def test_splitting_keeps_projected_area(algorithm, name):
+    """The painted pieces cover exactly the window-space area of the faces they came from."""
+    scene, cam = small_scene(name)
+    frame = hsr.render(scene, cam, W, H, algorithm=algorithm)
+    xy, source, _ = frame.fragments.buffers["polygons"]
+    screen = frame.fragments.screen
+
+    def area(t):
+        d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+        return 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+    n = scene.n_faces
+    pieces = np.bincount(source, weights=area(xy), minlength=n)
+    faces = np.bincount(screen.face_id, weights=area(screen.xy_window), minlength=n)
+    assert np.allclose(pieces, faces, rtol=1e-6, atol=1e-9)
+    assert frame.stats["splits"] > 0
