@@ -152,21 +152,16 @@ def _newell(xy_in, z_in, face_in):
     while head < n_lst:
         p = lst[head]
         pa, pb, pc, p_ok = _plane(xy, z, p)
-        if not p_ok:  # edge-on: covers no area, paint anywhere
-            out = _grow(out, n_out + 1)
-            out[n_out] = p
-            n_out += 1
-            head += 1
-            continue
+        action = 0  # 0 paint P, 1 move Q to front, 2 split
+        target = -1
+        j = head + 1
+        # An edge-on P covers no area: paint it without tests.
         p_zmin = min(z[p, 0], z[p, 1], z[p, 2])
         p_x0 = min(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
         p_x1 = max(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
         p_y0 = min(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
         p_y1 = max(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
-        action = 0  # 0 paint P, 1 move Q to front, 2 split
-        target = -1
-        j = head + 1
-        while j < n_lst:
+        while p_ok and j < n_lst:
             q = lst[j]
             if zmax[q] <= p_zmin:
                 break  # sorted: no later Q overlaps P in depth
@@ -196,41 +191,38 @@ def _newell(xy_in, z_in, face_in):
                 continue
             # Q may be hidden by P: Q must go first, if it can (3', 4').
             can_swap = (q_vs_p == 1 or p_vs_q == -1 or (p_vs_q == 0 and q_vs_p == 0))
-            if can_swap and not marked[q]:
-                action, target = 1, j - 1
-            else:
-                action, target = 2, j - 1
+            action = 1 if can_swap and not marked[q] else 2
+            target = j - 1
             break
-        if action == 0 or budget <= 0:
-            if action != 0:
-                n_unresolved += 1
+        victim = -1
+        if action == 2 and budget > 0:
+            # A cycle or a penetration: split whichever straddles the other's plane.
+            q = lst[target]
+            qa, qb, qc, _ = _plane(xy, z, q)
+            if _side_of(xy, z, p, qa, qb, qc, eps_z) == 2:
+                victim, va, vb, vc, pos = p, qa, qb, qc, head
+            elif _side_of(xy, z, q, pa, pb, pc, eps_z) == 2:
+                victim, va, vb, vc, pos = q, pa, pb, pc, target
+        if action != 0 and (budget <= 0 or (action == 2 and victim < 0)):
+            # Out of budget, or no straddling pair (impossible for planar triangles):
+            # never loop, paint P and count it.
+            n_unresolved += 1
+            action = 0
+        if action == 0:
             out = _grow(out, n_out + 1)
             out[n_out] = p
             n_out += 1
             head += 1
             continue
         budget -= 1
-        q = lst[target]
         if action == 1:
             # Move Q to the head of the list (before P) and mark it.
+            q = lst[target]
             for k in range(target, head, -1):
                 lst[k] = lst[k - 1]
             lst[head] = q
             marked[q] = True
             n_moves += 1
-            continue
-        # A cycle or a penetration: split whichever straddles the other's plane.
-        qa, qb, qc, _ = _plane(xy, z, q)
-        if _side_of(xy, z, p, qa, qb, qc, eps_z) == 2:
-            victim, va, vb, vc, pos = p, qa, qb, qc, head
-        elif _side_of(xy, z, q, pa, pb, pc, eps_z) == 2:
-            victim, va, vb, vc, pos = q, pa, pb, pc, target
-        else:  # cannot happen for planar triangles; never loop on it
-            n_unresolved += 1
-            out = _grow(out, n_out + 1)
-            out[n_out] = p
-            n_out += 1
-            head += 1
             continue
         n_splits += 1
         # Remove the victim from the list.
