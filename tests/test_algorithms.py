@@ -105,7 +105,7 @@ def test_raycast_agrees_with_zbuffer_on_shared_models(models_dir, model):
     for direction in ((0, 0, 1), (1, 0.5, -0.7)):
         cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
         a = hsr.render(mesh, cam, 1920, 1080)
-        b = hsr.render(mesh, cam, 1920, 1080, algorithm="raycast")
+        b = hsr.render(mesh, cam, 1920, 1080, algorithm="raycast", options={"buffers": True})
         covered = (a.face_id >= 0) | (b.face_id >= 0)
         differ = a.face_id != b.face_id
         assert (~differ)[covered].mean() >= 0.999
@@ -123,8 +123,9 @@ def test_raycast_agrees_with_zbuffer_on_shared_models(models_dir, model):
 def test_naive_and_bvh_ray_casting_are_identical(models_dir):
     mesh = hsr.load(os.path.join(models_dir, "suzanne.obj"))
     cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
-    a = hsr.render(mesh, cam, 120, 90, algorithm="raycast", options={"accel": "none"})
-    b = hsr.render(mesh, cam, 120, 90, algorithm="raycast")
+    a = hsr.render(mesh, cam, 120, 90, algorithm="raycast",
+                   options={"accel": "none", "buffers": True})
+    b = hsr.render(mesh, cam, 120, 90, algorithm="raycast", options={"buffers": True})
     assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
     da, db = a.fragments.buffers["distance"], b.fragments.buffers["distance"]
     assert np.array_equal(da, db)
@@ -142,7 +143,7 @@ def test_ray_distance_and_barycentrics():
     equal to the reference's."""
     mesh = hsr.Mesh(np.array([[-2, -2, -5], [2, -2, -5], [0, 2, -5.0]]), np.array([[0, 1, 2]]))
     cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=60, near=1, far=10)
-    frame = hsr.render(mesh, cam, 64, 64, algorithm="raycast")
+    frame = hsr.render(mesh, cam, 64, 64, algorithm="raycast", options={"buffers": True})
     dist = frame.fragments.buffers["distance"]
     offset = (0.5 / 32) * np.tan(np.radians(30))  # pixel centre (32.5, 32.5) off the axis
     assert abs(dist[32, 32] - 5.0 * np.sqrt(1.0 + 2.0 * offset**2)) < 1e-9

@@ -229,7 +229,7 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
 def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_scale,
                depth_offset, cull_code, front_ccw, lequal, eye, ortho, forward, use_bvh,
                node_min, node_max, node_left, node_start, node_count, leaf_tris, face_buf,
-               depth_buf, dist_buf, bary_buf, clear_depth):
+               depth_buf, dist_buf, bary_buf, clear_depth, extras):
     n_tris = tris.shape[0]
     stack = np.empty(128, dtype=np.int64)
     tests = 0
@@ -321,8 +321,9 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                             best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
             face_buf[r, c] = -1
             depth_buf[r, c] = clear_depth
-            dist_buf[r, c] = np.inf
-            bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
+            if extras:
+                dist_buf[r, c] = np.inf
+                bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
             if best_f < 0:
                 continue
             px, py, pz = ox + best_t * dx, oy + best_t * dy, oz + best_t * dz
@@ -331,6 +332,8 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                 continue
             face_buf[r, c] = best_f
             depth_buf[r, c] = z
+            if not extras:
+                continue
             if ortho:
                 dist_buf[r, c] = ((px - eye[0]) * forward[0] + (py - eye[1]) * forward[1]
                                   + (pz - eye[2]) * forward[2])
@@ -387,16 +390,19 @@ def _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     return t_in
 
 
-def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None):
-    """Cast one ray per pixel. Returns (face_id, depth, distance, barycentrics, tests)."""
+def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None,
+         extras: bool = True):
+    """Cast one ray per pixel. Returns (face_id, depth, distance, barycentrics, tests);
+    without ``extras`` distance and barycentrics are None (less memory traffic)."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     inv = np.linalg.inv(view_proj)
     near, far = state.depth_range
     cull_code = ["none", "back", "front", "front_and_back"].index(state.cull.value)
     face = np.empty((height, width), dtype=np.int32)
     depth = np.empty((height, width), dtype=np.float32)
-    distance = np.empty((height, width), dtype=np.float64)
-    bary = np.empty((height, width, 3), dtype=np.float64)
+    shape = (height, width) if extras else (1, 1)
+    distance = np.empty(shape, dtype=np.float64)
+    bary = np.empty(shape + (3,), dtype=np.float64)
     if bvh is None:
         nodes = (np.zeros((1, 3)), np.zeros((1, 3)), np.full(1, -1), np.zeros(1, np.int64),
                  np.zeros(1, np.int64), np.zeros(0, np.int64))
@@ -409,5 +415,7 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
         0.5 * (far + near), cull_code, state.front_face.value == "ccw",
         state.depth_func.value == "lequal", np.asarray(camera.eye, dtype=np.float64),
         camera.is_orthographic, camera.forward, bvh is not None, *nodes, face, depth,
-        distance, bary, np.float32(state.clear_depth))
+        distance, bary, np.float32(state.clear_depth), extras)
+    if not extras:
+        distance = bary = None
     return face, depth, distance, bary, int(sum(tests))

@@ -18,7 +18,9 @@ NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" witho
 
 def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
             counts: bool = False, view=None, accel: str = "bvh", bvh: BVH | None = None,
-            force: bool = False, **_) -> Fragments:
+            force: bool = False, buffers: bool = False, **_) -> Fragments:
+    """``buffers=True`` also returns per-pixel ray ``distance`` (from the eye, or the eye
+    plane for orthographic cameras) and ``barycentrics`` in ``fragments.buffers``."""
     if view is None:
         raise RenderError("raycast needs the scene and camera (call it through hsr.render)")
     if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
@@ -46,8 +48,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         used = bvh
         stats.update(bvh_nodes=bvh.n_nodes, bvh_build_ms=bvh.build_ms)
     face, depth, distance, bary, tests = cast(triangles, view.camera, width, height, state,
-                                              workers, used)
+                                              workers, used, extras=buffers)
     stats["ray_triangle_tests"] = tests
     fragments = Fragments(face, depth, screen, stats)
-    fragments.buffers = {"distance": distance, "barycentrics": bary}
+    if buffers:
+        fragments.buffers = {"distance": distance, "barycentrics": bary}
     return fragments
