@@ -38,18 +38,20 @@ def setup_triangles(xy_window, depth_window, width, height, workers):
 
     Returns
     -------
-    vert_fixed : (N, 6) int64, snapped corners (x0, y0, x1, y1, x2, y2) in 1/256 pixel,
-        reordered counter-clockwise (y up).
-    edge_bias : (N, 3) int64, 0 where a centre exactly on the edge is inside (left or
+    vert_fixed : (N, 6) int32, snapped corners (x0, y0, x1, y1, x2, y2) in 1/256 pixel,
+        reordered counter-clockwise (y up); widen to int64 before multiplying.
+    edge_bias : (N, 3) int8, 0 where a centre exactly on the edge is inside (left or
         bottom edge in y-up window space), -1 where it is not.
-    bbox : (N, 4) int64, inclusive pixel ranges (x_min, x_max, y_min, y_max), clamped to
+    bbox : (N, 4) int32, inclusive pixel ranges (x_min, x_max, y_min, y_max), clamped to
         the viewport, y counted from the bottom; empty when min > max.
     zplane : (N, 5) float64, (x0, y0, z0, dz/dx, dz/dy) of the unsnapped depth plane.
     """
     n = xy_window.shape[0]
-    vert_fixed = np.empty((n, 6), dtype=np.int64)
-    edge_bias = np.empty((n, 3), dtype=np.int64)
-    bbox = np.empty((n, 4), dtype=np.int64)
+    # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
+    # memory traffic, not arithmetic, is what set-up costs on large meshes.
+    vert_fixed = np.empty((n, 6), dtype=np.int32)
+    edge_bias = np.empty((n, 3), dtype=np.int8)
+    bbox = np.empty((n, 4), dtype=np.int32)
     zplane = np.zeros((n, 5))
     workers.run_range(_setup_range, n, xy_window, depth_window, width, height, vert_fixed,
                       edge_bias, bbox, zplane)
@@ -117,10 +119,10 @@ def _row_work(bbox, height):
     widest = 1
     for t in range(bbox.shape[0]):
         if bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]:
-            w = bbox[t, 1] - bbox[t, 0] + 1
+            w = np.int64(bbox[t, 1]) - bbox[t, 0] + 1
             delta[bbox[t, 2]] += w
             delta[bbox[t, 3] + 1] -= w
-            widest = max(widest, bbox[t, 1] + 1)
+            widest = max(widest, np.int64(bbox[t, 1]) + 1)
     work = np.empty(height)
     running = 0.0
     for j in range(height):
@@ -193,20 +195,20 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width,
     n_tested = 0
     n_written = 0
     for t in range(n):
-        y0, y1 = max(bbox[t, 2], b_lo), min(bbox[t, 3], b_hi)
-        x0, x1 = bbox[t, 0], bbox[t, 1]
+        y0, y1 = max(np.int64(bbox[t, 2]), b_lo), min(np.int64(bbox[t, 3]), b_hi)
+        x0, x1 = np.int64(bbox[t, 0]), np.int64(bbox[t, 1])
         if y0 > y1 or x0 > x1:
             continue
-        X0, Y0 = vert_fixed[t, 0], vert_fixed[t, 1]
-        X1, Y1 = vert_fixed[t, 2], vert_fixed[t, 3]
-        X2, Y2 = vert_fixed[t, 4], vert_fixed[t, 5]
+        X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
+        X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
+        X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
         px = x0 * _ONE + _HALF
         py = y0 * _ONE + _HALF
         # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
         # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
-        e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + edge_bias[t, 0]
-        e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + edge_bias[t, 1]
-        e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + edge_bias[t, 2]
+        e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + np.int64(edge_bias[t, 0])
+        e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + np.int64(edge_bias[t, 1])
+        e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + np.int64(edge_bias[t, 2])
         step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
         step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
         step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE

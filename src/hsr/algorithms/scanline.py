@@ -61,15 +61,15 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 def _span(t, j, vert_fixed, edge_bias, bbox):
     """Inclusive pixel range [x0, x1] of triangle t's coverage on window row j (exact:
     the pixel centres where all three biased edge functions are >= 0)."""
-    x0, x1 = bbox[t, 0], bbox[t, 1]
-    py = j * _ONE + _HALF
+    x0, x1 = np.int64(bbox[t, 0]), np.int64(bbox[t, 1])
+    py = np.int64(j) * _ONE + _HALF
     for k in range(3):
-        xa, ya = vert_fixed[t, 2 * k], vert_fixed[t, 2 * k + 1]
+        xa, ya = np.int64(vert_fixed[t, 2 * k]), np.int64(vert_fixed[t, 2 * k + 1])
         kb = (k + 1) % 3
-        xb, yb = vert_fixed[t, 2 * kb], vert_fixed[t, 2 * kb + 1]
+        xb, yb = np.int64(vert_fixed[t, 2 * kb]), np.int64(vert_fixed[t, 2 * kb + 1])
         # E(i) = e0 + sx * i at pixel centre x = 256 i + 128.
         sx = -(yb - ya) * _ONE
-        e0 = (xb - xa) * (py - ya) - (yb - ya) * (_HALF - xa) + edge_bias[t, k]
+        e0 = (xb - xa) * (py - ya) - (yb - ya) * (_HALF - xa) + np.int64(edge_bias[t, k])
         if sx > 0:  # E >= 0  <=>  i >= ceil(-e0 / sx)
             x0 = max(x0, -(e0 // sx))
         elif sx < 0:  # E >= 0  <=>  i <= floor(e0 / -sx)
