@@ -13,7 +13,6 @@ import resource
 import sys
 import time
 
-import numpy as np
 
 import hsr
 import hsr.bsp as bsp

@@ -140,7 +140,9 @@ def test_compare_prints_table_and_montage(tmp_path, capsys):
 @pytest.mark.parametrize("args", [["compare", "--algorithms", "bogus"],
                                   ["render", "--option", "novalue"],
                                   ["render", "--threads", "0"],
-                                  ["render", "--algorithm", "raycast", "--option", "accel=warp"]])
+                                  ["render", "--algorithm", "raycast", "--option", "accel=warp"],
+                                  ["render", "--algorithm", "raycast", "--option", "acel=none"],
+                                  ["render", "--option", "key=max"]])
 def test_more_errors_are_one_line(tmp_path, capsys, args):
     code, _, err = run(args + ["--size", "32x24"] + (["-o", str(tmp_path / "x.png")]
                                                      if args[0] == "render" else []), capsys)

@@ -253,6 +253,9 @@ def _cmd_compare(args) -> int:
         raise CliError(f"unknown algorithm {', '.join(unknown) or '(none)'}; choose from "
                        f"{', '.join(ALGORITHMS)}")
     scene, camera, width, height, state, background, options = _setup(args)
+    known = {k for n in names for k in ALGORITHMS[n].OPTIONS}
+    if set(options) - known:
+        raise CliError(f"no chosen algorithm has option {', '.join(sorted(set(options) - known))}")
     results = compare_algorithms(scene, camera, width, height, names, state=state,
                                  shading=args.shading, background=background,
                                  threads=args.threads, options=options,

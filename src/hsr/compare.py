@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .algorithms import ALGORITHMS
 from .render import Frame, render
 
 __all__ = ["Comparison", "compare_algorithms", "montage", "difference_map"]
@@ -60,7 +61,8 @@ def compare_algorithms(scene, camera, width, height, names, *, state=None, shadi
 
         iterator = tqdm(names, desc="algorithms", leave=False)
     for name in iterator:
-        opts = dict(options or {}) if name != "zbuffer" else {}
+        # Each algorithm gets the options it understands.
+        opts = {k: v for k, v in (options or {}).items() if k in ALGORITHMS[name].OPTIONS}
         render(scene, camera, 16, 12, algorithm=name, state=state, threads=threads,
                options=_tiny(name, opts))
         t0 = time.perf_counter()

@@ -16,7 +16,7 @@ from .mesh import as_scene
 from .occlusion import object_bounds
 from .parallel import Workers
 from .pipeline import prepare
-from .shading import face_colors, paint_faces, shade_depth
+from .shading import SHADING_MODES, face_colors, paint_faces, shade_depth
 from .state import RenderState
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
@@ -137,6 +137,12 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     if algorithm not in ALGORITHMS:
         raise RenderError(
             f"unknown algorithm {algorithm!r}; choose from {', '.join(sorted(ALGORITHMS))}")
+    unknown = sorted(set(options or {}) - set(ALGORITHMS[algorithm].OPTIONS))
+    if unknown:
+        accepted = ", ".join(ALGORITHMS[algorithm].OPTIONS) or "none"
+        raise RenderError(f"{algorithm} has no option {', '.join(unknown)} (accepted: {accepted})")
+    if shading not in SHADING_MODES:
+        raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {shading!r}")
     if into is not None and (into.width, into.height) != (width, height):
         raise RenderError("into= frame has a different size")
     scene = as_scene(scene)

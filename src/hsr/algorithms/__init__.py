@@ -1,4 +1,5 @@
-"""The visibility algorithms. Each module has ``NAME``, ``DESCRIPTION`` and
+"""The visibility algorithms. Each module has ``NAME``, ``DESCRIPTION``, ``OPTIONS`` (the
+keys it accepts from ``render(..., options=...)``) and
 ``resolve(screen, state, ...) -> Fragments``; :data:`ALGORITHMS` is the registry the API
 and the CLI read."""
 

@@ -17,6 +17,7 @@ from ..raster import FIRST_WINS, rasterize
 from ..state import DepthFunc, RenderState
 
 NAME = "bsp"
+OPTIONS = ("tree", "heuristic", "traversal")  # accepted keys of render(..., options=...)
 DESCRIPTION = "Fuchs-Kedem-Naylor BSP tree: split by planes, walk back to front, paint"
 TRAVERSALS = ("back_to_front", "front_to_back")
 

@@ -28,6 +28,7 @@ from ..raster import rasterize
 from ..state import DepthFunc
 
 NAME = "newell"
+OPTIONS = ()  # accepted keys of render(..., options=...)
 DESCRIPTION = "Newell-Newell-Sancha: depth sort + 5 tests, reorder, split cycles"
 
 

@@ -19,6 +19,7 @@ from ..state import DepthFunc, RenderState
 from . import zbuffer
 
 NAME = "painter"
+OPTIONS = ("key", "check")  # accepted keys of render(..., options=...)
 DESCRIPTION = "depth sort (max / centroid / min key), paint far to near; fails on cycles"
 KEYS = ("max", "centroid", "min")
 

@@ -12,6 +12,7 @@ from ..raycast import BVH, build, cast
 from ..state import DepthFunc, RenderState
 
 NAME = "raycast"
+OPTIONS = ("accel", "bvh", "force", "buffers")  # accepted keys of render(..., options=...)
 DESCRIPTION = "one ray per pixel in world space; BVH (binned SAH) or naive; watertight test"
 NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" without force
 

@@ -26,6 +26,7 @@ from ..raster import _HALF, _ONE, band_split, setup_triangles
 from ..state import DepthFunc, RenderState
 
 NAME = "scanline"
+OPTIONS = ()  # accepted keys of render(..., options=...)
 DESCRIPTION = "Watkins scan-line: active edge list, spans, incremental depth along the line"
 
 

@@ -14,6 +14,7 @@ from ..raster import band_split, fill_bands, rasterize, setup_triangles
 from ..state import DepthFunc, RenderState
 
 NAME = "zbuffer"
+OPTIONS = ()  # accepted keys of render(..., options=...)
 DESCRIPTION = "depth buffer with OpenGL depth state (test, func, mask, clear, range)"
 _NO_COUNTS = np.zeros((1, 1), dtype=np.int32)
 
