@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from .clip import grow, split_triangle
 from .errors import RenderError
 from .mesh import as_scene
 
@@ -99,16 +100,6 @@ def build(scene, heuristic: str = "balanced", candidates: int = 8,
 
 
 @njit(cache=True, nogil=True)
-def _grow(a, n):
-    if n <= a.shape[0]:
-        return a
-    shape = (max(n, 2 * a.shape[0]),) + a.shape[1:]
-    b = np.empty(shape, dtype=a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@njit(cache=True, nogil=True)
 def _plane_of(tri):
     e1 = tri[1] - tri[0]
     e2 = tri[2] - tri[0]
@@ -134,50 +125,6 @@ def _side(tri, nx, ny, nz, d, eps):
     if has_back:
         return _BACK
     return _ON
-
-
-@njit(cache=True, nogil=True)
-def _split(tri, nx, ny, nz, d, eps, out_front, out_back):
-    """Cut a straddling triangle by the plane (Sutherland-Hodgman against each side);
-    fan-triangulate both parts, keeping the winding. Returns (n_front, n_back) triangles
-    written to out_front / out_back ((2, 3, 3) each)."""
-    s = np.empty(3)
-    for k in range(3):
-        s[k] = nx * tri[k, 0] + ny * tri[k, 1] + nz * tri[k, 2] + d
-        if abs(s[k]) <= eps:
-            s[k] = 0.0
-    fp = np.empty((4, 3))
-    bp = np.empty((4, 3))
-    nf = nb = 0
-    for k in range(3):
-        k2 = (k + 1) % 3
-        a, b = tri[k], tri[k2]
-        sa, sb = s[k], s[k2]
-        if sa >= 0.0:
-            fp[nf] = a
-            nf += 1
-        if sa <= 0.0:
-            bp[nb] = a
-            nb += 1
-        if (sa > 0.0 and sb < 0.0) or (sa < 0.0 and sb > 0.0):
-            # Interpolate from the front corner so both pieces get the same point.
-            if sa > 0.0:
-                p = a + (sa / (sa - sb)) * (b - a)
-            else:
-                p = b + (sb / (sb - sa)) * (a - b)
-            fp[nf] = p
-            nf += 1
-            bp[nb] = p
-            nb += 1
-    n_front = 0
-    for k in range(1, nf - 1):
-        out_front[n_front, 0], out_front[n_front, 1], out_front[n_front, 2] = fp[0], fp[k], fp[k + 1]
-        n_front += 1
-    n_back = 0
-    for k in range(1, nb - 1):
-        out_back[n_back, 0], out_back[n_back, 1], out_back[n_back, 2] = bp[0], bp[k], bp[k + 1]
-        n_back += 1
-    return n_front, n_back
 
 
 @njit(cache=True, nogil=True)
@@ -245,7 +192,7 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
             p = pool[lo + q]
             side = _side(tris[p], nx, ny, nz, d, eps)
             if side == _ON:
-                node_polys = _grow(node_polys, n_node_polys + 1)
+                node_polys = grow(node_polys, n_node_polys + 1)
                 node_polys[n_node_polys] = p
                 n_node_polys += 1
             elif side == _FRONT:
@@ -255,9 +202,9 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
                 back_idx[nb] = p
                 nb += 1
             else:
-                k_f, k_b = _split(tris[p], nx, ny, nz, d, eps, piece_f, piece_b)
-                tris = _grow(tris, n_poly + k_f + k_b)
-                face = _grow(face, n_poly + k_f + k_b)
+                k_f, k_b = split_triangle(tris[p], nx, ny, nz, d, eps, piece_f, piece_b)
+                tris = grow(tris, n_poly + k_f + k_b)
+                face = grow(face, n_poly + k_f + k_b)
                 for k in range(k_f):
                     tris[n_poly] = piece_f[k]
                     face[n_poly] = face[p]
@@ -275,11 +222,11 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
             if child_n == 0:
                 continue
             if n_nodes >= plane.shape[0]:
-                plane = _grow(plane, n_nodes + 1)
-                front = _grow(front, n_nodes + 1)
-                back = _grow(back, n_nodes + 1)
-                poly_start = _grow(poly_start, n_nodes + 1)
-                poly_count = _grow(poly_count, n_nodes + 1)
+                plane = grow(plane, n_nodes + 1)
+                front = grow(front, n_nodes + 1)
+                back = grow(back, n_nodes + 1)
+                poly_start = grow(poly_start, n_nodes + 1)
+                poly_count = grow(poly_count, n_nodes + 1)
                 front[n_nodes:] = -1
                 back[n_nodes:] = -1
             child = n_nodes
@@ -290,12 +237,12 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
                 front[node] = child
             else:
                 back[node] = child
-            pool = _grow(pool, pool_len + child_n)
+            pool = grow(pool, pool_len + child_n)
             pool[pool_len:pool_len + child_n] = child_idx[:child_n]
             if top >= stack_node.shape[0]:
-                stack_node = _grow(stack_node, top + 1)
-                stack_lo = _grow(stack_lo, top + 1)
-                stack_n = _grow(stack_n, top + 1)
+                stack_node = grow(stack_node, top + 1)
+                stack_lo = grow(stack_lo, top + 1)
+                stack_n = grow(stack_n, top + 1)
             stack_node[top], stack_lo[top], stack_n[top] = child, pool_len, child_n
             top += 1
             pool_len += child_n

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["clip_planes", "clip_triangles"]
+__all__ = ["clip_planes", "clip_triangles", "split_triangle", "grow"]
 
 # Vertex record: x, y, z, w (clip space).
 _REC = 4
@@ -107,3 +107,61 @@ def clip_triangles(pos_clip, planes):
             parent[n_out] = t
             n_out += 1
     return out_pos[:n_out].copy(), parent[:n_out].copy()
+
+
+@njit(cache=True, nogil=True)
+def grow(a, n):
+    """``a``, or a copy at least twice as long along axis 0 when it holds fewer than
+    ``n`` rows (amortised append for the splitters' growing arrays)."""
+    if n <= a.shape[0]:
+        return a
+    shape = (max(n, 2 * a.shape[0]),) + a.shape[1:]
+    b = np.empty(shape, dtype=a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def split_triangle(tri, nx, ny, nz, d, eps, out_front, out_back):
+    """Cut a triangle (3, 3) by the plane ``n . p + d = 0`` (Sutherland-Hodgman against
+    each side; distances within ``eps`` count as on the plane); fan-triangulate both
+    parts, keeping the winding. Returns (n_front, n_back) triangles written to
+    ``out_front`` (n . p + d > 0 side) and ``out_back`` ((2, 3, 3) each). Used by the BSP
+    build in world space and by Newell's algorithm in window space."""
+    s = np.empty(3)
+    for k in range(3):
+        s[k] = nx * tri[k, 0] + ny * tri[k, 1] + nz * tri[k, 2] + d
+        if abs(s[k]) <= eps:
+            s[k] = 0.0
+    fp = np.empty((4, 3))
+    bp = np.empty((4, 3))
+    nf = nb = 0
+    for k in range(3):
+        k2 = (k + 1) % 3
+        a, b = tri[k], tri[k2]
+        sa, sb = s[k], s[k2]
+        if sa >= 0.0:
+            fp[nf] = a
+            nf += 1
+        if sa <= 0.0:
+            bp[nb] = a
+            nb += 1
+        if (sa > 0.0 and sb < 0.0) or (sa < 0.0 and sb > 0.0):
+            # Interpolate from the front corner so both pieces get the same point.
+            if sa > 0.0:
+                p = a + (sa / (sa - sb)) * (b - a)
+            else:
+                p = b + (sb / (sb - sa)) * (a - b)
+            fp[nf] = p
+            nf += 1
+            bp[nb] = p
+            nb += 1
+    n_front = 0
+    for k in range(1, nf - 1):
+        out_front[n_front, 0], out_front[n_front, 1], out_front[n_front, 2] = fp[0], fp[k], fp[k + 1]
+        n_front += 1
+    n_back = 0
+    for k in range(1, nb - 1):
+        out_back[n_back, 0], out_back[n_back, 1], out_back[n_back, 2] = bp[0], bp[k], bp[k + 1]
+        n_back += 1
+    return n_front, n_back

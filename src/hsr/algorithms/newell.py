@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..clip import grow, split_triangle
 from ..fragments import Fragments
 from ..parallel import Workers
 from ..raster import rasterize
@@ -114,15 +115,6 @@ def _projections_overlap(xy, p, q, eps):
 
 
 @njit(cache=True, nogil=True)
-def _grow(a, n):
-    if n <= a.shape[0]:
-        return a
-    b = np.empty((max(n, 2 * a.shape[0]),) + a.shape[1:], dtype=a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@njit(cache=True, nogil=True)
 def _newell(xy_in, z_in, face_in):
     n0 = xy_in.shape[0]
     cap = max(8, 2 * n0)
@@ -142,14 +134,16 @@ def _newell(xy_in, z_in, face_in):
         zmax[p] = max(z[p, 0], z[p, 1], z[p, 2])
     # The list, farthest first (stable: equal depths keep submission order).
     lst = np.argsort(-zmax[:n0], kind="mergesort").astype(np.int64)
-    lst = _grow(lst, cap)
+    lst = grow(lst, cap)
     head, n_lst = 0, n0
     marked = np.zeros(cap, dtype=np.bool_)
     out = np.empty(cap, dtype=np.int64)
     n_out = 0
     n_moves = n_splits = n_unresolved = n_tests = 0
     budget = 20 * n0 + 1000  # moves + splits before giving up on a polygon
-    pieces = np.empty((4, 3))
+    victim_tri = np.empty((3, 3))
+    part_front = np.empty((2, 3, 3))
+    part_back = np.empty((2, 3, 3))
     while head < n_lst:
         p = lst[head]
         pa, pb, pc, p_ok = _plane(xy, z, p)
@@ -210,7 +204,7 @@ def _newell(xy_in, z_in, face_in):
             n_unresolved += 1
             action = 0
         if action == 0:
-            out = _grow(out, n_out + 1)
+            out = grow(out, n_out + 1)
             out[n_out] = p
             n_out += 1
             head += 1
@@ -230,54 +224,37 @@ def _newell(xy_in, z_in, face_in):
         for k in range(pos, n_lst - 1):
             lst[k] = lst[k + 1]
         n_lst -= 1
-        # Cut it (Sutherland-Hodgman against both sides of the plane), fan the parts.
-        s = np.empty(3)
+        # Cut it by the plane z = va x + vb y + vc, i.e. n . (x, y, z) + d = 0 with
+        # n = (-va, -vb, 1), d = -vc (the same Sutherland-Hodgman cut the BSP uses).
         for k in range(3):
-            s[k] = z[victim, k] - (va * xy[victim, k, 0] + vb * xy[victim, k, 1] + vc)
-            if abs(s[k]) <= eps_z:
-                s[k] = 0.0
-        for side in (1.0, -1.0):
-            m = 0
-            for k in range(3):
-                k2 = (k + 1) % 3
-                sa, sb = s[k] * side, s[k2] * side
-                if sa >= 0.0:
-                    pieces[m, 0], pieces[m, 1], pieces[m, 2] = (
-                        xy[victim, k, 0], xy[victim, k, 1], z[victim, k])
-                    m += 1
-                if (sa > 0.0 and sb < 0.0) or (sa < 0.0 and sb > 0.0):
-                    # Interpolate from the corner with positive s, so both parts agree.
-                    if s[k] > 0.0:
-                        ka, kb, t = k, k2, s[k] / (s[k] - s[k2])
-                    else:
-                        ka, kb, t = k2, k, s[k2] / (s[k2] - s[k])
-                    pieces[m, 0] = xy[victim, ka, 0] + t * (xy[victim, kb, 0] - xy[victim, ka, 0])
-                    pieces[m, 1] = xy[victim, ka, 1] + t * (xy[victim, kb, 1] - xy[victim, ka, 1])
-                    pieces[m, 2] = z[victim, ka] + t * (z[victim, kb] - z[victim, ka])
-                    m += 1
-            for k in range(1, m - 1):
-                xy = _grow(xy, n_poly + 1)
-                z = _grow(z, n_poly + 1)
-                face = _grow(face, n_poly + 1)
-                zmax = _grow(zmax, n_poly + 1)
-                marked = _grow(marked, n_poly + 1)
-                for c, src in enumerate((0, k, k + 1)):
-                    xy[n_poly, c, 0] = pieces[src, 0]
-                    xy[n_poly, c, 1] = pieces[src, 1]
-                    z[n_poly, c] = pieces[src, 2]
-                face[n_poly] = face[victim]
-                zmax[n_poly] = max(z[n_poly, 0], z[n_poly, 1], z[n_poly, 2])
-                marked[n_poly] = False
-                # Insert in depth order (after equal keys), at or after the head.
-                lst = _grow(lst, n_lst + 1)
-                at = head
-                while at < n_lst and zmax[lst[at]] >= zmax[n_poly]:
-                    at += 1
-                for r in range(n_lst, at, -1):
-                    lst[r] = lst[r - 1]
-                lst[at] = n_poly
-                n_lst += 1
-                n_poly += 1
+            victim_tri[k, 0], victim_tri[k, 1], victim_tri[k, 2] = (
+                xy[victim, k, 0], xy[victim, k, 1], z[victim, k])
+        n_front, n_back = split_triangle(victim_tri, -va, -vb, 1.0, -vc, eps_z, part_front,
+                                         part_back)
+        for k in range(n_front + n_back):
+            part = part_front[k] if k < n_front else part_back[k - n_front]
+            xy = grow(xy, n_poly + 1)
+            z = grow(z, n_poly + 1)
+            face = grow(face, n_poly + 1)
+            zmax = grow(zmax, n_poly + 1)
+            marked = grow(marked, n_poly + 1)
+            for c in range(3):
+                xy[n_poly, c, 0] = part[c, 0]
+                xy[n_poly, c, 1] = part[c, 1]
+                z[n_poly, c] = part[c, 2]
+            face[n_poly] = face[victim]
+            zmax[n_poly] = max(z[n_poly, 0], z[n_poly, 1], z[n_poly, 2])
+            marked[n_poly] = False
+            # Insert in depth order (after equal keys), at or after the head.
+            lst = grow(lst, n_lst + 1)
+            at = head
+            while at < n_lst and zmax[lst[at]] >= zmax[n_poly]:
+                at += 1
+            for r in range(n_lst, at, -1):
+                lst[r] = lst[r - 1]
+            lst[at] = n_poly
+            n_lst += 1
+            n_poly += 1
         # Marks belonged to the old list's order; start fresh for the new pieces.
         for k in range(head, n_lst):
             marked[lst[k]] = False
