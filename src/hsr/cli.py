@@ -67,6 +67,22 @@ def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
     p.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
     p.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
     p.add_argument("--shading", default="flat", choices=list(SHADING_MODES))
+    p.add_argument("--texture", metavar="IMAGE",
+                   help="diffuse texture for the MODELs (they need OBJ vt coordinates)")
+    p.add_argument("--no-texture", action="store_true", help="ignore textures")
+    p.add_argument("--texture-filter", default="bilinear", choices=["nearest", "bilinear"])
+    p.add_argument("--texture-wrap", default="repeat", choices=["repeat", "clamp"])
+    p.add_argument("--fog", metavar="MODE:PARAMS",
+                   help="depth cueing: linear:START,END, exp:DENSITY or exp2:DENSITY")
+    p.add_argument("--fog-color", default="128,128,128", help="fog colour r,g,b (0-255)")
+    p.add_argument("--fog-distance", default="radial", choices=["radial", "plane"],
+                   help="eye distance (radial) or |z_eye| (plane)")
+    p.add_argument("--polygon-mode", default="fill", choices=["fill", "line", "point"],
+                   help="glPolygonMode: line draws every edge, visible and hidden")
+    p.add_argument("--polygon-offset", metavar="FACTOR,UNITS",
+                   help="glPolygonOffset for filled triangles")
+    p.add_argument("--opacity", metavar="A[,A...]",
+                   help="opacity per MODEL (or one for all), 0..1; < 1 is blended")
     p.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
     p.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
@@ -92,8 +108,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
     r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
-    r.add_argument("--svg", help="with --algorithm bsp or newell: write the ordered polygons "
-                   "as SVG (exact, no rasterization)")
+    r.add_argument("--svg", help="with --lines: the exact visible edges as SVG; with "
+                   "--algorithm bsp or newell: the ordered polygons (exact, no rasterization)")
+    r.add_argument("--lines", action="store_true",
+                   help="--svg draws visible edges, cut exactly where they become hidden")
+    r.add_argument("--hidden-layer", action="store_true",
+                   help="--svg --lines also draws the hidden parts, dashed")
+    r.add_argument("--hidden-line", action="store_true",
+                   help="draw only visible edges (depth test against the polygon-offset fill)")
+    r.add_argument("--edges", default="all", choices=["all", "feature"],
+                   help="edges for --hidden-line and --lines: all, or feature edges "
+                   "(silhouettes, creases, boundaries)")
+    r.add_argument("--crease-angle", type=float, default=30.0,
+                   help="feature edges: creases sharper than this many degrees")
+    r.add_argument("--line-color", help="line colour r,g,b (default: contrast with background)")
+    r.add_argument("--hidden-line-fill", default="background", choices=["background", "shaded"],
+                   help="what --hidden-line draws under the edges")
+    r.add_argument("--transparency", default="object", choices=["object", "exact"],
+                   help="order transparent objects per object (painter's) or per fragment")
     r.add_argument("--error-map", help="write where the result differs from the z-buffer "
                    "(red) as a PNG")
     r.add_argument("--occlusion-cull", action="store_true",
@@ -181,14 +213,43 @@ def _setup(args):
     width, height = _size(args.size)
     default_camera = None
     if args.models:
-        scene = Scene([load(path) for path in args.models])
+        meshes = [load(path) for path in args.models]
+        if args.texture:
+            textured = [m for m in meshes if m.corner_uv is not None]
+            if not textured:
+                raise CliError("--texture: no MODEL has texture coordinates (OBJ vt)")
+            from .texture import load_texture
+
+            image = load_texture(args.texture)[::-1]  # checked now, row 0 = top again
+            for m in textured:
+                m.texture = image
+        scene = Scene(meshes)
     else:
+        if args.texture:
+            raise CliError("--texture needs MODEL files")
         scene, default_camera = scenes.get(args.scene)
+    if args.opacity:
+        values = args.opacity.split(",")
+        if len(values) not in (1, len(scene.instances)):
+            raise CliError(f"--opacity needs 1 or {len(scene.instances)} values, "
+                           f"got {len(values)}")
+        try:
+            opacity = [float(v) for v in values] * (len(scene.instances) if len(values) == 1
+                                                    else 1)
+        except ValueError:
+            raise CliError(f"--opacity values must be numbers, got {args.opacity!r}") from None
+        for inst, a in zip(scene.instances, opacity):
+            if not 0.0 <= a <= 1.0:
+                raise CliError(f"--opacity values must be in 0..1, got {a}")
+            inst.opacity = a
     camera = _camera_from_args(args, scene, default_camera)
     state = RenderState(depth_test=not args.no_depth_test, depth_func=args.depth_func,
                         depth_mask=not args.no_depth_write, clear_depth=args.clear_depth,
                         depth_range=_floats(args.depth_range, 2, "--depth-range"),
-                        cull=args.cull, front_face=args.front_face)
+                        cull=args.cull, front_face=args.front_face,
+                        polygon_mode=args.polygon_mode,
+                        polygon_offset=(_floats(args.polygon_offset, 2, "--polygon-offset")
+                                        if args.polygon_offset else (0.0, 0.0)))
     background = _floats(args.background, 3, "--background")
     if not all(0 <= c <= 255 for c in background):
         raise CliError(f"--background values must be in 0..255, got {args.background!r}")
@@ -198,19 +259,62 @@ def _setup(args):
         args.option)
 
 
+def _look(args):
+    from .fog import parse_fog
+    from .shading import Look
+
+    fog = None
+    if args.fog:
+        color = _floats(args.fog_color, 3, "--fog-color")
+        if not all(0 <= c <= 255 for c in color):
+            raise CliError(f"--fog-color values must be in 0..255, got {args.fog_color!r}")
+        fog = parse_fog(args.fog, color, args.fog_distance)
+    return Look(args.shading, not args.no_texture, args.texture_filter, args.texture_wrap, fog)
+
+
+def _hidden_line(args):
+    from .lines import HiddenLine
+
+    color = None
+    if args.line_color:
+        color = tuple(int(c) for c in _floats(args.line_color, 3, "--line-color"))
+        if not all(0 <= c <= 255 for c in color):
+            raise CliError(f"--line-color values must be in 0..255, got {args.line_color!r}")
+    offset = (_floats(args.polygon_offset, 2, "--polygon-offset") if args.polygon_offset
+              else (1.0, 1.0))
+    return HiddenLine(args.edges, args.crease_angle, offset, color, args.hidden_line_fill)
+
+
 def _cmd_render(args) -> int:
     from .render import render
 
     scene, camera, width, height, state, background, options = _setup(args)
+    if args.lines and not args.svg:
+        raise CliError("--lines writes an SVG: give --svg FILE")
+    if args.hidden_layer and not args.lines:
+        raise CliError("--hidden-layer goes with --svg FILE --lines")
+    hidden_line = _hidden_line(args)
     frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
-                   shading=args.shading, background=background,
-                   occlusion_cull=args.occlusion_cull, threads=args.threads, options=options)
+                   look=_look(args), background=background,
+                   occlusion_cull=args.occlusion_cull, threads=args.threads, options=options,
+                   hidden_line=hidden_line if args.hidden_line else None,
+                   transparency=args.transparency)
     frame.save(args.output)
     if args.depth_out:
         frame.save_depth(args.depth_out)
     if args.ids_out:
         frame.save_ids(args.ids_out)
-    if args.svg:
+    if args.svg and args.lines:
+        from .vector_lines import hidden_lines, write_lines_svg
+
+        drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
+        color = hidden_line.color or ((255, 255, 255) if sum(background) < 3 * 128
+                                      else (0, 0, 0))
+        write_lines_svg(args.svg, drawing, background, color, hidden=args.hidden_layer)
+        if not args.quiet:
+            print(f"wrote {args.svg}: {len(drawing.visible_polylines)} visible polylines "
+                  f"from {drawing.stats['edges']} edges")
+    elif args.svg:
         _write_svg(args, frame, scene, camera, width, height, background)
     if args.error_map:
         from .compare import difference_map
@@ -257,7 +361,7 @@ def _cmd_compare(args) -> int:
     if set(options) - known:
         raise CliError(f"no chosen algorithm has option {', '.join(sorted(set(options) - known))}")
     results = compare_algorithms(scene, camera, width, height, names, state=state,
-                                 shading=args.shading, background=background,
+                                 look=_look(args), background=background,
                                  threads=args.threads, options=options,
                                  progress=not args.quiet and sys.stderr.isatty())
     if not args.quiet:

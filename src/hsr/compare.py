@@ -49,7 +49,7 @@ def _fmt(value):
 
 def compare_algorithms(scene, camera, width, height, names, *, state=None, shading="flat",
                        background=(0, 0, 0), threads=None, options=None,
-                       progress=False) -> Comparison:
+                       progress=False, look=None) -> Comparison:
     """Render with each algorithm in ``names`` (the z-buffer is always included as the
     reference). Times are warm: each algorithm first runs once on a tiny image so its
     kernels are compiled."""
@@ -67,8 +67,8 @@ def compare_algorithms(scene, camera, width, height, names, *, state=None, shadi
                options=_tiny(name, opts))
         t0 = time.perf_counter()
         frames[name] = render(scene, camera, width, height, algorithm=name, state=state,
-                              shading=shading, background=background, threads=threads,
-                              options=opts)
+                              shading=shading, look=look, background=background,
+                              threads=threads, options=opts)
         times[name] = 1e3 * (time.perf_counter() - t0)
     return Comparison(names, frames, times)
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from .pipeline import ScreenTriangles
 
-__all__ = ["Fragments", "face_barycentrics"]
+__all__ = ["Fragments", "face_barycentrics", "barycentrics_at"]
 
 
 @dataclass
@@ -36,7 +36,18 @@ class Fragments:
 
 def face_barycentrics(fragments: Fragments) -> np.ndarray:
     """(H, W, 3) float64 perspective-correct barycentrics of each pixel centre on its
-    visible face (zeros for background).
+    visible face (zeros for background); see :func:`barycentrics_at`."""
+    screen = fragments.screen
+    height, width = fragments.face_id.shape
+    out = np.zeros((height, width, 3))
+    rows, cols = np.nonzero(fragments.face_id >= 0)
+    out[rows, cols] = barycentrics_at(screen, rows, cols, fragments.face_id[rows, cols])
+    return out
+
+
+def barycentrics_at(screen: ScreenTriangles, rows, cols, faces) -> np.ndarray:
+    """(K, 3) float64 perspective-correct barycentrics of pixel centres (``rows``,
+    ``cols``; row 0 = top) on the global faces ``faces``.
 
     Computed on the *source* face from its clip-space corners, so it is right whatever
     clipping cut out of the face (homogeneous rasterization, Olano & Greer 1997): the point
@@ -44,18 +55,14 @@ def face_barycentrics(fragments: Fragments) -> np.ndarray:
     ``sum_i b_i (y_i - y w_i) = 0``, so ``b`` is the cross product of those two rows,
     normalised to sum 1. This equals interpolating ``l_i / w_i`` in screen space.
     """
-    screen = fragments.screen
-    height, width = fragments.face_id.shape
-    out = np.zeros((height, width, 3))
-    rows, cols = np.nonzero(fragments.face_id >= 0)
     if len(rows) == 0:
-        return out
-    corners = screen.pos_clip[screen.faces[fragments.face_id[rows, cols]]]  # (K, 3, 4)
-    x_ndc = (cols + 0.5) * (2.0 / width) - 1.0
-    y_ndc = ((height - 1 - rows) + 0.5) * (2.0 / height) - 1.0  # window y points up
+        return np.zeros((0, 3))
+    width, height = screen.width, screen.height
+    corners = screen.pos_clip[screen.faces[faces]]  # (K, 3, 4)
+    x_ndc = (np.asarray(cols) + 0.5) * (2.0 / width) - 1.0
+    y_ndc = ((height - 1 - np.asarray(rows)) + 0.5) * (2.0 / height) - 1.0  # window y is up
     u = corners[:, :, 0] - x_ndc[:, None] * corners[:, :, 3]
     v = corners[:, :, 1] - y_ndc[:, None] * corners[:, :, 3]
     b = np.cross(u, v)
     total = b.sum(axis=1, keepdims=True)
-    out[rows, cols] = b / np.where(total == 0.0, 1.0, total)
-    return out
+    return b / np.where(total == 0.0, 1.0, total)

@@ -139,16 +139,26 @@ def _validate_corner(values, shape, what, name):
 
 @dataclass(eq=False)
 class Instance:
-    """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p)."""
+    """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p).
+    ``opacity`` < 1 makes the instance transparent (alpha blended, see hsr.transparency)."""
 
     mesh: Mesh
     model: np.ndarray = field(default_factory=lambda: np.eye(4))
+    opacity: float = 1.0
 
     def __post_init__(self):
         model = np.asarray(self.model, dtype=np.float64)
         if model.shape != (4, 4) or not np.isfinite(model).all():
             raise MeshError(f"{self.mesh.name}: model matrix must be a finite 4x4 array")
         self.model = model
+        try:
+            opacity = float(self.opacity)
+        except (TypeError, ValueError):
+            raise MeshError(f"{self.mesh.name}: opacity must be a number, "
+                            f"got {self.opacity!r}") from None
+        if not 0.0 <= opacity <= 1.0:
+            raise MeshError(f"{self.mesh.name}: opacity must be in [0, 1], got {self.opacity!r}")
+        self.opacity = opacity
 
 
 class Scene:
@@ -165,10 +175,10 @@ class Scene:
             else:
                 self.add(*item)
 
-    def add(self, mesh: Mesh, model=None) -> "Scene":
+    def add(self, mesh: Mesh, model=None, opacity: float = 1.0) -> "Scene":
         if not isinstance(mesh, Mesh):
             mesh = as_mesh(mesh)
-        self.instances.append(Instance(mesh, np.eye(4) if model is None else model))
+        self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity))
         return self
 
     def __len__(self):

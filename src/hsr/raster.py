@@ -33,8 +33,11 @@ FIRST_WINS = 8
 _HALF = _ONE >> 1
 
 
-def setup_triangles(xy_window, depth_window, width, height, workers):
-    """Per-triangle set-up shared by every fill.
+def setup_triangles(xy_window, depth_window, width, height, workers, polygon_offset=(0.0, 0.0)):
+    """Per-triangle set-up shared by every fill. ``polygon_offset`` = (factor, units) as
+    glPolygonOffset: each triangle's depth moves by ``factor * m + units * r``, with ``m``
+    its largest window depth slope and ``r`` the smallest float32 step at its largest
+    depth (OpenGL 4.6, 14.6.5, floating-point depth buffers).
 
     Returns
     -------
@@ -53,14 +56,15 @@ def setup_triangles(xy_window, depth_window, width, height, workers):
     edge_bias = np.empty((n, 3), dtype=np.int8)
     bbox = np.empty((n, 4), dtype=np.int32)
     zplane = np.zeros((n, 5))
+    factor, units = (float(v) for v in polygon_offset)
     workers.run_range(_setup_range, n, xy_window, depth_window, width, height, vert_fixed,
-                      edge_bias, bbox, zplane)
+                      edge_bias, bbox, zplane, factor, units)
     return vert_fixed, edge_bias, bbox, zplane
 
 
 @njit(cache=True, nogil=True)
 def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edge_bias,
-                 bbox, zplane):
+                 bbox, zplane, offset_factor, offset_units):
     for t in range(lo, hi):
         x0 = np.int64(math.floor(xy_window[t, 0, 0] * _ONE + 0.5))
         y0 = np.int64(math.floor(xy_window[t, 0, 1] * _ONE + 0.5))
@@ -96,6 +100,25 @@ def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edg
         if det != 0.0:
             zplane[t, 3] = (az * by - bz * ay) / det
             zplane[t, 4] = (ax * bz - bx * az) / det
+        if offset_factor != 0.0 or offset_units != 0.0:
+            zplane[t, 2] += polygon_offset(zplane[t, 3], zplane[t, 4], depth_window[t, 0],
+                                           depth_window[t, 1], depth_window[t, 2],
+                                           offset_factor, offset_units)
+
+
+@njit(cache=True, nogil=True)
+def polygon_offset(dzdx, dzdy, z0, z1, z2, factor, units):
+    """glPolygonOffset's depth offset ``factor * m + units * r`` of one triangle: ``m`` is
+    max(|dz/dx|, |dz/dy|) (the approximation the GL spec allows), ``r`` the float32
+    resolution 2**(e - 23) at the triangle's largest depth 2**e * 1.xxx."""
+    m = max(abs(dzdx), abs(dzdy))
+    z_max = max(abs(z0), abs(z1), abs(z2))
+    if z_max > 0.0:
+        _, e = math.frexp(z_max)  # z_max = mantissa * 2**e, mantissa in [0.5, 1)
+        r = math.ldexp(1.0, e - 24)
+    else:
+        r = math.ldexp(1.0, -149)
+    return factor * m + units * r
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -280,7 +303,7 @@ def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, 
     count_written = np.zeros(shape, dtype=np.int32)
     vert_fixed, edge_bias, bbox, zplane = setup_triangles(
         np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window), width, height,
-        workers)
+        workers, state.polygon_offset)
     # One band per thread: the split balances estimated work, and every extra band costs
     # a walk over all triangles.
     bands = band_split(bbox, height, workers.threads)

@@ -11,13 +11,17 @@ import numpy as np
 from .algorithms import ALGORITHMS
 from .camera import Camera
 from .errors import RenderError
+from .fog import Fog
 from .fragments import Fragments
+from .lines import HiddenLine, hidden_line_pass, polygon_edges
 from .mesh import as_scene
 from .occlusion import object_bounds
 from .parallel import Workers
 from .pipeline import prepare
-from .shading import SHADING_MODES, face_colors, paint_faces, shade_depth
+from .shading import (Look, ShadeContext, face_colors, paint_faces, shade_depth,
+                      shade_fragments, to_uint8)
 from .state import RenderState
+from .transparency import transparent_pass
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
@@ -110,12 +114,16 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
            shading: str = "flat", background=(0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
            occlusion_cull: bool = False, options: dict | None = None,
+           look: Look | None = None, fog: Fog | None = None, textures: bool = True,
+           texture_filter: str = "bilinear", texture_wrap: str = "repeat",
+           hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
            **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame.
 
     ``state`` (or keyword fields of :class:`RenderState`, e.g. ``cull="back"``,
-    ``depth_func="lequal"``) sets the OpenGL depth and culling state. ``counts=True``
+    ``depth_func="lequal"``, ``polygon_mode="line"``, ``polygon_offset=(1, 1)``) sets the
+    OpenGL depth, culling and polygon state. ``counts=True``
     also records per-pixel fragment counts (overdraw). ``into=frame`` draws on top of an
     earlier frame without clearing it (its depth buffer, colours and ids are kept where
     this draw writes nothing), like a second draw call in OpenGL. ``threads`` sets how
@@ -124,6 +132,14 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     objects front to back and skips those hidden behind what is already drawn; the
     result is identical, ``stats`` counts objects tested and culled. ``options`` go to the
     algorithm (e.g. ``{"accel": "none"}`` or ``{"bvh": tree}`` for ``raycast``).
+
+    Appearance (after visibility, the same for every algorithm): ``shading`` (see
+    :data:`hsr.shading.SHADING_MODES`), ``textures`` (use mesh textures), ``texture_filter``
+    (nearest | bilinear), ``texture_wrap`` (repeat | clamp), ``fog`` (:class:`hsr.fog.Fog`),
+    or all of them as one :class:`hsr.shading.Look`. ``hidden_line=True`` (or a
+    :class:`hsr.lines.HiddenLine`) draws only the visible edges over the filled depth
+    buffer. Instances with ``opacity < 1`` are blended after the opaque ones, sorted back
+    to front per object (``transparency="object"``) or per fragment (``"exact"``).
     """
     t_start = time.perf_counter()
     _check_size(width, height)
@@ -141,53 +157,135 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     if unknown:
         accepted = ", ".join(ALGORITHMS[algorithm].OPTIONS) or "none"
         raise RenderError(f"{algorithm} has no option {', '.join(unknown)} (accepted: {accepted})")
-    if shading not in SHADING_MODES:
-        raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {shading!r}")
+    if look is None:
+        look = Look(shading, textures, texture_filter, texture_wrap, fog)
+    elif not isinstance(look, Look):
+        raise RenderError(f"look must be an hsr.shading.Look, got {type(look).__name__}")
+    if hidden_line is True:
+        hidden_line = HiddenLine()
+    elif hidden_line is False:
+        hidden_line = None
+    elif hidden_line is not None and not isinstance(hidden_line, HiddenLine):
+        raise RenderError("hidden_line must be True, False or an hsr.lines.HiddenLine")
+    if transparency not in ("object", "exact"):
+        raise RenderError(f"transparency must be object or exact, got {transparency!r}")
     if into is not None and (into.width, into.height) != (width, height):
         raise RenderError("into= frame has a different size")
     scene = as_scene(scene)
+    _check_combination(scene, algorithm, state, hidden_line, occlusion_cull, counts, into)
 
     stats: dict = {"algorithm": algorithm, "width": width, "height": height}
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
-        return _render(scene, camera, width, height, algorithm, state, shading, background,
+        return _render(scene, camera, width, height, algorithm, state, look, background,
                        counts, into, stats, t_start, view_proj, workers, occlusion_cull,
-                       dict(options or {}))
+                       dict(options or {}), hidden_line, transparency)
 
 
-def _render(scene, camera, width, height, algorithm, state, shading, background, counts,
-            into, stats, t_start, view_proj, workers, occlusion_cull, options):
-    screen = prepare(scene, view_proj, width, height, state, stats, workers)
-    t_geometry = time.perf_counter()
+# Algorithms that fill through the shared raster code (and so honour polygon offset and
+# can draw a subset of the scene's triangles).
+_RASTER_FILLS = ("zbuffer", "painter", "newell")
 
-    module = ALGORITHMS[algorithm]
-    extra = dict(options, view=View(scene, camera, view_proj, width, height))
+
+def _check_combination(scene, algorithm, state, hidden_line, occlusion_cull, counts, into):
+    transparent = any(inst.opacity < 1.0 for inst in scene.instances)
     if occlusion_cull:
         if algorithm != "zbuffer":
             raise RenderError("occlusion culling works with the zbuffer algorithm")
         if counts:
             raise RenderError("occlusion culling does not record per-pixel counts")
-        extra["occlusion"] = object_bounds(scene, view_proj)
-    if into is not None:
+        if state.polygon_offset != (0.0, 0.0) or hidden_line is not None or transparent:
+            raise RenderError("occlusion culling does not combine with polygon offset, "
+                              "hidden lines or transparency")
+    if into is not None and algorithm != "zbuffer":
+        raise RenderError("into= (drawing without a clear) needs the zbuffer algorithm")
+    if state.polygon_mode != "fill":
         if algorithm != "zbuffer":
-            raise RenderError("into= (drawing without a clear) needs the zbuffer algorithm")
-        fragments = module.resolve(screen, state, depth_buffer=into.depth.copy(), counts=counts,
-                                   workers=workers, **extra)
+            raise RenderError(f"polygon mode {state.polygon_mode.value} draws lines or points "
+                              f"with the z-buffer; {algorithm} only fills")
+        if hidden_line is not None or transparent or into is not None or counts:
+            raise RenderError(f"polygon mode {state.polygon_mode.value} does not combine with "
+                              f"hidden lines, transparency, into= or counts")
+    offset = state.polygon_offset != (0.0, 0.0) or hidden_line is not None
+    if offset and algorithm not in _RASTER_FILLS + ("bsp",):
+        raise RenderError(f"polygon offset (and hidden lines) need a raster fill: "
+                          f"{', '.join(_RASTER_FILLS + ('bsp',))}, not {algorithm}")
+    if transparent and algorithm not in _RASTER_FILLS:
+        raise RenderError(f"transparency draws the opaque objects with one of "
+                          f"{', '.join(_RASTER_FILLS)}, not {algorithm}")
+
+
+def _render(scene, camera, width, height, algorithm, state, look, background, counts,
+            into, stats, t_start, view_proj, workers, occlusion_cull, options, hidden_line,
+            transparency):
+    background = np.asarray(background, dtype=np.uint8)
+    screen = prepare(scene, view_proj, width, height, state, stats, workers)
+    t_geometry = time.perf_counter()
+
+    fill_state = state
+    if hidden_line is not None and state.polygon_offset == (0.0, 0.0):
+        fill_state = state.with_(polygon_offset=hidden_line.polygon_offset)
+    transparent = np.array([inst.opacity < 1.0 for inst in scene.instances])
+    opaque_screen = screen
+    if transparent.any():
+        owner = np.searchsorted(scene.face_offsets(), screen.face_id, side="right") - 1
+        opaque_screen = screen.subset(~transparent[owner])
+
+    module = ALGORITHMS[algorithm]
+    if state.polygon_mode != "fill":
+        face_id, depth, line_stats = polygon_edges(scene, screen, view_proj, state)
+        fragments = Fragments(face_id, depth, screen, line_stats)
     else:
-        fragments = module.resolve(screen, state, counts=counts, workers=workers, **extra)
+        extra = dict(options, view=View(scene, camera, view_proj, width, height))
+        if occlusion_cull:
+            extra["occlusion"] = object_bounds(scene, view_proj)
+        if into is not None:
+            fragments = module.resolve(opaque_screen, fill_state, depth_buffer=into.depth.copy(),
+                                       counts=counts, workers=workers, **extra)
+        else:
+            fragments = module.resolve(opaque_screen, fill_state, counts=counts,
+                                       workers=workers, **extra)
+        fragments.screen = screen
     t_visibility = time.perf_counter()
 
     face_id = fragments.face_id
     color = np.empty((height, width, 3), dtype=np.uint8)
-    covered = paint_faces(workers, face_id, face_colors(shading, scene, camera, workers, face_id),
-                          np.asarray(background, dtype=np.uint8), color)
-    if shading == "depth":
-        shade_depth(color, face_id, fragments.depth, camera, state.depth_range)
+    ctx = ShadeContext(scene, camera, screen, look, workers)
+    if state.polygon_mode != "fill" or not ctx.per_pixel:
+        mode = look.shading if state.polygon_mode == "fill" else (
+            look.shading if look.shading in ("flat", "normal", "random") else "flat")
+        covered = paint_faces(workers, face_id, face_colors(mode, scene, camera, workers,
+                                                            face_id), background, color)
+        if look.shading == "depth" and state.polygon_mode == "fill":
+            shade_depth(color, face_id, fragments.depth, camera, state.depth_range)
+    else:
+        covered = paint_faces(workers, face_id, np.zeros((0, 3), np.uint8), background, color)
+        rows, cols = np.nonzero(face_id >= 0)
+        if len(rows):
+            color[rows, cols] = to_uint8(shade_fragments(
+                ctx, rows, cols, face_id[rows, cols], fragments.depth[rows, cols]))
     if into is not None:
         drawn = face_id >= 0
         color = np.where(drawn[..., None], color, into.color)
         face_id = np.where(drawn, face_id, into.face_id).astype(np.int32)
         covered = int(np.count_nonzero(face_id >= 0))
+    if transparent.any():
+        stats.update(transparent_pass(ctx, screen.subset(
+            transparent[np.searchsorted(scene.face_offsets(), screen.face_id, side="right") - 1]),
+            fragments.depth, state, color, order=transparency))
+    if hidden_line is not None:
+        if hidden_line.fill == "background":
+            color[:] = background
+        line_face, line_stats = hidden_line_pass(scene, camera, screen, view_proj,
+                                                 fragments.depth.copy(), hidden_line,
+                                                 state.depth_range)
+        line_color = hidden_line.color
+        if line_color is None:
+            line_color = (255, 255, 255) if float(np.mean(background)) < 128 else (0, 0, 0)
+        color[line_face >= 0] = np.asarray(line_color, dtype=np.uint8)
+        fragments.buffers["lines"] = line_face
+        stats.update(line_stats)
+        stats["line_pixels"] = int(np.count_nonzero(line_face >= 0))
     t_end = time.perf_counter()
 
     stats.update(fragments.stats)

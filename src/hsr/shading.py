@@ -1,22 +1,35 @@
 """The shading stage, shared by every algorithm: turns per-pixel visibility (face id,
 depth) into colours. Nothing here decides visibility.
 
-Modes: ``flat`` (Lambert, light along the view direction: tinyrenderer's look; two-sided so
-back faces drawn with culling off are lit too), ``normal`` (world normal as RGB),
-``random`` (a hashed colour per face: Gambetta's look), ``depth`` (linear eye depth, near
-= bright)."""
+Modes: ``flat`` (Lambert per face, light along the view direction: tinyrenderer's look;
+two-sided so back faces drawn with culling off are lit too), ``gouraud`` (Lambert at the
+vertices with per-vertex normals from the file or averaged over the faces around each
+vertex, the intensity interpolated perspective-correctly: Gouraud 1971), ``normal``
+(world normal as RGB), ``random`` (a hashed colour per face: Gambetta's look), ``depth``
+(linear eye depth, near = bright).
+
+A mesh with texture coordinates and a texture (``Mesh.texture``, from an .mtl ``map_Kd`` or
+given by the caller) is textured in ``flat`` and ``gouraud``: texel x Lambert intensity.
+Fog (:mod:`hsr.fog`) is applied last. The per-face modes without texture or fog take a
+fast path (a colour per visible face, painted by face id); everything else is computed
+per fragment by :func:`shade_fragments`, which the transparency pass also uses."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from dataclasses import dataclass, field
+
 from .errors import RenderError
+from .fog import Fog
+from .texture import FILTERS, WRAPS, load_texture, sample
 
-__all__ = ["SHADING_MODES", "face_colors", "paint_faces", "shade_depth",
-           "face_random_colors", "linear_eye_depth"]
+__all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
+           "paint_faces", "shade_depth", "face_random_colors", "linear_eye_depth",
+           "vertex_normals"]
 
-SHADING_MODES = ("flat", "normal", "random", "depth")
+SHADING_MODES = ("flat", "gouraud", "normal", "random", "depth")
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
@@ -102,6 +115,8 @@ def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
         raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
     if mode == "depth":
         return np.zeros((0, 3), dtype=np.uint8)
+    if mode == "gouraud":  # per-face stand-in (line and point drawing): flat Lambert
+        mode = "flat"
     if mode == "random":
         return face_random_colors(scene.n_faces)
     if face_id is None:
@@ -156,3 +171,185 @@ def linear_eye_depth(depth_window, camera, depth_range=(0.0, 1.0)) -> np.ndarray
     if camera.is_orthographic:
         return 0.5 * (z_ndc * (f - n) + (f + n))
     return 2.0 * f * n / ((f + n) - z_ndc * (f - n))
+
+
+@dataclass(frozen=True)
+class Look:
+    """How visible surfaces are coloured (everything after visibility).
+
+    shading : one of :data:`SHADING_MODES`.
+    textures : use the meshes' textures where they have one and texture coordinates.
+    texture_filter : ``nearest`` or ``bilinear``; texture_wrap : ``repeat`` or ``clamp``.
+    fog : a :class:`hsr.fog.Fog` or None.
+    """
+
+    shading: str = "flat"
+    textures: bool = True
+    texture_filter: str = "bilinear"
+    texture_wrap: str = "repeat"
+    fog: Fog | None = None
+
+    def __post_init__(self):
+        if self.shading not in SHADING_MODES:
+            raise RenderError(
+                f"shading must be one of {', '.join(SHADING_MODES)}; got {self.shading!r}")
+        if self.texture_filter not in FILTERS:
+            raise RenderError(f"texture filter must be one of {', '.join(FILTERS)}; "
+                              f"got {self.texture_filter!r}")
+        if self.texture_wrap not in WRAPS:
+            raise RenderError(f"texture wrap must be one of {', '.join(WRAPS)}; "
+                              f"got {self.texture_wrap!r}")
+        if self.fog is not None and not isinstance(self.fog, Fog):
+            raise RenderError(f"fog must be an hsr.fog.Fog, got {type(self.fog).__name__}")
+
+
+def _textured(look, mesh) -> bool:
+    return look.textures and mesh.texture is not None and look.shading in ("flat", "gouraud")
+
+
+@dataclass
+class ShadeContext:
+    """Everything the per-fragment shading of one render needs; textures and normals are
+    loaded or computed on first use and kept for the rest of this render only."""
+
+    scene: object
+    camera: object
+    screen: object  # ScreenTriangles: clip-space corners of the source faces
+    look: Look
+    workers: object
+    _textures: dict = field(default_factory=dict)
+    _normals: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        for k, inst in enumerate(self.scene.instances):
+            if _textured(self.look, inst.mesh) and inst.mesh.corner_uv is None:
+                raise RenderError(f"{inst.mesh.name}: has a texture but no texture "
+                                  f"coordinates (OBJ vt)")
+
+    @property
+    def per_pixel(self) -> bool:
+        """True when colours cannot be a plain per-face table."""
+        look = self.look
+        return (look.shading == "gouraud" or look.fog is not None
+                or any(_textured(look, inst.mesh) for inst in self.scene.instances))
+
+    def texture(self, k):
+        if k not in self._textures:
+            self._textures[k] = load_texture(self.scene.instances[k].mesh.texture)
+        return self._textures[k]
+
+    def corner_normals(self, k):
+        """(F, 3, 3) world-space unit normals at the corners of instance k's faces."""
+        if k not in self._normals:
+            inst = self.scene.instances[k]
+            normals = (inst.mesh.corner_normals if inst.mesh.corner_normals is not None
+                       else vertex_normals(inst.mesh))
+            # Normals transform by the inverse transpose of the model matrix.
+            linear = np.linalg.inv(inst.model[:3, :3]).T
+            world = normals @ linear.T
+            length = np.linalg.norm(world, axis=2, keepdims=True)
+            self._normals[k] = np.divide(world, length, out=np.zeros_like(world),
+                                         where=length > 0)
+        return self._normals[k]
+
+
+def vertex_normals(mesh) -> np.ndarray:
+    """(F, 3, 3) unit normals at face corners: the area-weighted average of the normals of
+    the faces around each vertex, vertices welded by exact position (so a mesh stored with
+    split vertices still gets smooth normals)."""
+    _, weld = np.unique(mesh.positions, axis=0, return_inverse=True)
+    weld = weld.reshape(-1)
+    tri = mesh.positions[mesh.faces]
+    area_normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # 2 x area
+    accum = np.zeros((weld.max() + 1, 3))
+    corner_vertex = weld[mesh.faces]
+    for c in range(3):
+        np.add.at(accum, corner_vertex[:, c], area_normal)
+    length = np.linalg.norm(accum, axis=1, keepdims=True)
+    unit = np.divide(accum, length, out=np.zeros_like(accum), where=length > 0)
+    return unit[corner_vertex]
+
+
+def _instance_groups(scene, faces):
+    """(instance index, local face ids, positions in ``faces``) for each instance that
+    owns some of the global ``faces``."""
+    offsets = scene.face_offsets()
+    owner = np.searchsorted(offsets, faces, side="right") - 1
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(len(offsets)))
+    for k in range(len(offsets) - 1):
+        idx = order[bounds[k]:bounds[k + 1]]
+        if len(idx):
+            yield k, faces[idx] - offsets[k], idx
+
+
+def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.ndarray:
+    """(K, 3) float64 colours (0..255) of K fragments: pixel centres (``rows``, ``cols``)
+    on global ``faces`` at window depth ``depth_window``. Fog included."""
+    from .fragments import barycentrics_at
+
+    look, scene, camera = ctx.look, ctx.scene, ctx.camera
+    k_count = len(faces)
+    rgb = np.zeros((k_count, 3))
+    if k_count == 0:
+        return rgb
+    faces = np.asarray(faces, dtype=np.int64)
+    if look.shading == "depth":
+        eye_depth = linear_eye_depth(depth_window, camera)
+        lo, hi = float(eye_depth.min()), float(eye_depth.max())
+        scale = (eye_depth - lo) / (hi - lo) if hi > lo else np.zeros_like(eye_depth)
+        rgb[:] = (255.0 - 215.0 * scale)[:, None]
+    elif look.shading in ("normal", "random"):
+        table = face_colors(look.shading, scene, camera, ctx.workers,
+                            _face_mask_image(faces, scene.n_faces))
+        rgb[:] = table[faces]
+    needs_bary = look.fog is not None or look.shading in ("flat", "gouraud")
+    bary = barycentrics_at(ctx.screen, rows, cols, faces) if needs_bary else None
+    forward = np.asarray(camera.forward, dtype=np.float64)
+    view = camera.view_matrix
+    for k, local, idx in _instance_groups(scene, faces):
+        inst = scene.instances[k]
+        mesh = inst.mesh
+        b = bary[idx] if bary is not None else None
+        if look.shading in ("flat", "gouraud"):
+            tri = mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
+            normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            length = np.linalg.norm(normal, axis=1)
+            normal /= np.where(length > 0, length, 1.0)[:, None]
+            facing = normal @ forward  # < 0: the face looks at the camera
+            if look.shading == "flat":
+                intensity = np.abs(facing)
+            else:
+                # Two-sided Lambert at the corners with the light along the view
+                # direction, then interpolated (Gouraud): back faces use -n.
+                sign = np.where(facing <= 0.0, 1.0, -1.0)
+                corner = ctx.corner_normals(k)[local] @ forward  # (K, 3)
+                lit = np.maximum(0.0, -corner * sign[:, None])
+                intensity = np.einsum("ij,ij->i", b, lit)
+            if _textured(look, mesh):
+                uv = np.einsum("ij,ijk->ik", b, mesh.corner_uv[local])
+                base = sample(ctx.texture(k), uv, look.texture_filter, look.texture_wrap)
+                if mesh.face_colors is not None:
+                    base *= mesh.face_colors[local] / 255.0
+            elif mesh.face_colors is not None:
+                base = mesh.face_colors[local].astype(np.float64)
+            else:
+                base = _DEFAULT_BASE[None, :]
+            rgb[idx] = base * intensity[:, None]
+        if look.fog is not None:
+            world = (mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
+                     + inst.model[:3, 3])
+            eye = world @ view[:3, :3].T + view[:3, 3]  # (K, 3 corners, 3)
+            pos_eye = np.einsum("ij,ijk->ik", b, eye)
+            rgb[idx] = look.fog.apply(rgb[idx], pos_eye)
+    return rgb
+
+
+def _face_mask_image(faces, n_faces):
+    """A one-row 'image' of the given face ids, for :func:`face_colors`' visible set."""
+    return np.asarray(faces, dtype=np.int32).reshape(1, -1)
+
+
+def to_uint8(rgb: np.ndarray) -> np.ndarray:
+    """Round float colours to uint8 (GL's conversion: round to nearest, clamp)."""
+    return np.clip(np.floor(rgb + 0.5), 0, 255).astype(np.uint8)

@@ -1,5 +1,6 @@
 """OpenGL-style render state: depth test, depth function, depth mask, clear depth,
-depth range, face culling and winding. Names follow the GL calls they mirror."""
+depth range, face culling and winding, polygon mode and polygon offset. Names follow the
+GL calls they mirror."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from enum import Enum
 
 from .errors import RenderError
 
-__all__ = ["DepthFunc", "CullMode", "FrontFace", "RenderState"]
+__all__ = ["DepthFunc", "CullMode", "FrontFace", "PolygonMode", "RenderState"]
 
 
 class DepthFunc(str, Enum):
@@ -46,6 +47,15 @@ class FrontFace(str, Enum):
     CW = "cw"
 
 
+class PolygonMode(str, Enum):
+    """glPolygonMode: fill the triangles, draw their edges as lines, or their corners as
+    points."""
+
+    FILL = "fill"
+    LINE = "line"
+    POINT = "point"
+
+
 def _enum(cls, value, what):
     if isinstance(value, cls):
         return value
@@ -68,8 +78,21 @@ class RenderState:
     depth_range: tuple = (0.0, 1.0)
     cull: CullMode = CullMode.NONE
     front_face: FrontFace = FrontFace.CCW
+    polygon_mode: PolygonMode = PolygonMode.FILL
+    # glPolygonOffset(factor, units) with GL_POLYGON_OFFSET_FILL; (0, 0) = disabled.
+    polygon_offset: tuple = (0.0, 0.0)
 
     def __post_init__(self):
+        object.__setattr__(self, "polygon_mode",
+                           _enum(PolygonMode, self.polygon_mode, "polygon mode"))
+        try:
+            factor, units = (float(v) for v in self.polygon_offset)
+        except (TypeError, ValueError):
+            raise RenderError(f"polygon offset must be two numbers (factor, units), got "
+                              f"{self.polygon_offset!r}") from None
+        if not (math.isfinite(factor) and math.isfinite(units)):
+            raise RenderError(f"polygon offset must be finite, got {self.polygon_offset!r}")
+        object.__setattr__(self, "polygon_offset", (factor, units))
         object.__setattr__(self, "depth_func", _enum(DepthFunc, self.depth_func, "depth func"))
         object.__setattr__(self, "cull", _enum(CullMode, self.cull, "cull mode"))
         object.__setattr__(self, "front_face", _enum(FrontFace, self.front_face, "front face"))

@@ -1,0 +1,338 @@
+"""Edges and lines: glPolygonMode(GL_LINE / GL_POINT), hidden-line removal by depth test
+against a filled, polygon-offset depth buffer, and the edge sets both use (every triangle
+edge, or only feature edges: boundaries, creases, silhouettes).
+
+Line rasterization follows OpenGL's aliased-line rule in its usual form: along the major
+axis every pixel column (row) whose centre lies in the half-open span from the start point
+to the end point gets one fragment, in the row (column) the line crosses at that centre;
+depth is interpolated linearly in window space, as OpenGL does for lines.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .conventions import GUARD_BAND_PIXELS
+from .errors import RenderError
+from .raster import depth_passes
+
+__all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
+           "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE", "SILHOUETTE",
+           "NONMANIFOLD"]
+
+BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD = 1, 2, 4, 8
+EDGE_KINDS = ("all", "feature")
+
+
+@dataclass(frozen=True)
+class HiddenLine:
+    """Settings of hidden-line drawing.
+
+    edges : ``all`` (every edge of the mesh once) or ``feature`` (boundaries, creases
+        sharper than ``crease_angle`` degrees, silhouettes, non-manifold edges).
+    polygon_offset : (factor, units) pushed onto the filled surfaces (glPolygonOffset) so
+        that edges lying on the surface pass the depth test.
+    color : line colour; None = white on a dark background, black on a light one.
+    fill : ``background`` (a classic hidden-line drawing) or ``shaded`` (edges over the
+        shaded image).
+    """
+
+    edges: str = "all"
+    crease_angle: float = 30.0
+    polygon_offset: tuple = (1.0, 1.0)
+    color: tuple | None = None
+    fill: str = "background"
+
+    def __post_init__(self):
+        if self.edges not in EDGE_KINDS:
+            raise RenderError(f"edges must be one of {', '.join(EDGE_KINDS)}; got {self.edges!r}")
+        if not (0.0 <= float(self.crease_angle) <= 180.0):
+            raise RenderError(f"crease angle must be in 0..180 degrees, got {self.crease_angle}")
+        if self.fill not in ("background", "shaded"):
+            raise RenderError(f"hidden-line fill must be background or shaded, got {self.fill!r}")
+
+
+@dataclass
+class Edges:
+    """World-space edges. ``ends`` (E, 2, 3) endpoints, ``faces`` (E, 2) global ids of the
+    faces on either side (-1 where there is none), ``kind`` (E,) bit mask of BOUNDARY,
+    CREASE, SILHOUETTE, NONMANIFOLD (0 = an ordinary edge)."""
+
+    ends: np.ndarray
+    faces: np.ndarray
+    kind: np.ndarray
+
+    def __len__(self):
+        return len(self.kind)
+
+    def subset(self, keep) -> "Edges":
+        return Edges(self.ends[keep], self.faces[keep], self.kind[keep])
+
+
+def _world(inst, points):
+    return points @ inst.model[:3, :3].T + inst.model[:3, 3]
+
+
+def triangle_edges(scene, face_ids) -> Edges:
+    """The three edges (v0 v1, v1 v2, v2 v0) of each global face in ``face_ids``, in
+    order: what glPolygonMode(GL_LINE) draws."""
+    face_ids = np.asarray(face_ids, dtype=np.int64)
+    offsets = scene.face_offsets()
+    ends = np.empty((len(face_ids), 3, 2, 3))
+    owner = np.searchsorted(offsets, face_ids, side="right") - 1
+    for k in np.unique(owner):
+        inst = scene.instances[k]
+        sel = owner == k
+        tri = _world(inst, inst.mesh.positions[inst.mesh.faces[face_ids[sel] - offsets[k]]])
+        ends[sel, :, 0] = tri
+        ends[sel, :, 1] = tri[:, [1, 2, 0]]
+    faces = np.stack([np.repeat(face_ids, 3), np.full(3 * len(face_ids), -1)], axis=1)
+    return Edges(ends.reshape(-1, 2, 3), faces, np.zeros(3 * len(face_ids), dtype=np.uint8))
+
+
+def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges:
+    """Every edge of every instance once (vertices welded by exact position, so meshes with
+    split vertices still have shared edges), classified. ``drawn`` (F,) bool limits the
+    edges to those of faces that are drawn (not culled, not degenerate)."""
+    offsets = scene.face_offsets()
+    cos_crease = np.cos(np.radians(crease_angle))
+    parts = []
+    for k, inst in enumerate(scene.instances):
+        mesh = inst.mesh
+        keep = ~mesh.degenerate_mask()
+        if drawn is not None:
+            keep &= drawn[offsets[k]:offsets[k + 1]]
+        local = np.flatnonzero(keep)
+        if len(local) == 0:
+            continue
+        unique_pos, weld = np.unique(mesh.positions, axis=0, return_inverse=True)
+        corner = weld.reshape(-1)[mesh.faces[local]]  # (F', 3) welded vertex ids
+        a = corner.ravel()
+        b = corner[:, [1, 2, 0]].ravel()
+        face_of = np.repeat(local, 3)
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        order = np.lexsort((face_of, hi, lo))
+        lo, hi, face_of = lo[order], hi[order], face_of[order]
+        start = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
+        count = np.diff(np.r_[start, len(lo)])
+        first = face_of[start]
+        second = np.where(count >= 2, face_of[np.minimum(start + 1, len(lo) - 1)], -1)
+
+        world_pos = _world(inst, unique_pos)
+        tri = world_pos[weld.reshape(-1)[mesh.faces]]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+        if camera.is_orthographic:
+            facing = normal @ -np.asarray(camera.forward) > 0
+        else:
+            facing = np.einsum("ij,ij->i", normal, np.asarray(camera.eye) - tri[:, 0]) > 0
+
+        kind = np.zeros(len(start), dtype=np.uint8)
+        kind[count == 1] |= BOUNDARY
+        kind[count > 2] |= NONMANIFOLD
+        pair = count == 2
+        f1, f2 = first[pair], second[pair]
+        dots = np.einsum("ij,ij->i", normal[f1], normal[f2])
+        kind[np.flatnonzero(pair)[dots < cos_crease]] |= CREASE
+        kind[np.flatnonzero(pair)[facing[f1] != facing[f2]]] |= SILHOUETTE
+        ends = np.stack([world_pos[lo[start]], world_pos[hi[start]]], axis=1)
+        faces = np.stack([first + offsets[k], np.where(second >= 0, second + offsets[k], -1)],
+                         axis=1)
+        parts.append(Edges(ends, faces, kind))
+    if not parts:
+        return Edges(np.zeros((0, 2, 3)), np.zeros((0, 2), dtype=np.int64),
+                     np.zeros(0, dtype=np.uint8))
+    return Edges(np.concatenate([p.ends for p in parts]),
+                 np.concatenate([p.faces for p in parts]),
+                 np.concatenate([p.kind for p in parts]))
+
+
+def clip_segments(ends_world, view_proj, width, height, depth_range=(0.0, 1.0),
+                  guard=GUARD_BAND_PIXELS):
+    """Clip world-space segments (E, 2, 3) to the view volume in homogeneous clip space
+    (Liang-Barsky on the planes w +- z >= 0 and the guard band |x|, |y| <= g w) and map
+    them to window space.
+
+    Returns ``(keep (E,) bool, ends_window (E', 2, 3) float64 x, y (y up), depth,
+    t (E', 2) the kept parameter span of the original segment)``.
+    """
+    n = len(ends_world)
+    hom = np.concatenate([ends_world, np.ones((n, 2, 1))], axis=2) @ view_proj.T  # (E, 2, 4)
+    gx = 2.0 * guard / width + 1.0
+    gy = 2.0 * guard / height + 1.0
+    planes = np.array([[0, 0, 1, 1], [0, 0, -1, 1], [1, 0, 0, gx], [-1, 0, 0, gx],
+                       [0, 1, 0, gy], [0, -1, 0, gy]], dtype=np.float64)
+    d = hom @ planes.T  # (E, 2, P): >= 0 inside
+    t0 = np.zeros(n)
+    t1 = np.ones(n)
+    keep = np.ones(n, dtype=bool)
+    for p in range(len(planes)):
+        da, db = d[:, 0, p], d[:, 1, p]
+        keep &= ~((da < 0) & (db < 0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_cross = da / (da - db)
+        enter = (da < 0) & (db >= 0)
+        leave = (da >= 0) & (db < 0)
+        t0 = np.where(enter, np.maximum(t0, t_cross), t0)
+        t1 = np.where(leave, np.minimum(t1, t_cross), t1)
+    keep &= t0 < t1
+    hom, t0, t1 = hom[keep], t0[keep], t1[keep]
+    a = hom[:, 0] + t0[:, None] * (hom[:, 1] - hom[:, 0])
+    b = hom[:, 0] + t1[:, None] * (hom[:, 1] - hom[:, 0])
+    near_d, far_d = depth_range
+    out = np.empty((len(a), 2, 3))
+    for j, p in enumerate((a, b)):
+        w = p[:, 3]
+        out[:, j, 0] = (p[:, 0] / w + 1.0) * 0.5 * width
+        out[:, j, 1] = (p[:, 1] / w + 1.0) * 0.5 * height
+        out[:, j, 2] = p[:, 2] / w * 0.5 * (far_d - near_d) + 0.5 * (far_d + near_d)
+    return keep, out, np.stack([t0, t1], axis=1)
+
+
+@njit(cache=True, nogil=True)
+def draw_lines(ends_window, seg_face, width, height, depth_test, depth_func, depth_write,
+               z_lo, z_hi, depth_buf, face_buf, line_face):
+    """Rasterize window-space segments (S, 2, 3) in order. A fragment passes glDepthFunc
+    against ``depth_buf`` (written when ``depth_write``); passing fragments set
+    ``line_face`` to the segment's face and, if ``face_buf`` is not empty, ``face_buf``.
+    Returns (fragments tested, fragments written)."""
+    tested = 0
+    written = 0
+    write_face = face_buf.shape[0] > 0
+    for s in range(ends_window.shape[0]):
+        xa, ya, za = ends_window[s, 0, 0], ends_window[s, 0, 1], ends_window[s, 0, 2]
+        xb, yb, zb = ends_window[s, 1, 0], ends_window[s, 1, 1], ends_window[s, 1, 2]
+        dx, dy = xb - xa, yb - ya
+        x_major = abs(dx) >= abs(dy)
+        if x_major:
+            a0, a1, length = xa, xb, dx
+        else:
+            a0, a1, length = ya, yb, dy
+        if length == 0.0:
+            continue
+        # Pixel centres c = k + 0.5 in the half-open span [a0, a1) (or (a1, a0]).
+        if length > 0:
+            k_first = int(np.ceil(a0 - 0.5))
+            k_last = int(np.ceil(a1 - 0.5)) - 1
+        else:
+            k_first = int(np.floor(a1 - 0.5)) + 1
+            k_last = int(np.floor(a0 - 0.5))
+        limit = width if x_major else height
+        k_first = max(k_first, 0)
+        k_last = min(k_last, limit - 1)
+        for k in range(k_first, k_last + 1):
+            t = (k + 0.5 - a0) / length
+            if x_major:
+                i = k
+                j = int(np.floor(ya + t * dy))
+            else:
+                j = k
+                i = int(np.floor(xa + t * dx))
+            if i < 0 or i >= width or j < 0 or j >= height:
+                continue
+            z = np.float32(min(max(za + t * (zb - za), z_lo), z_hi))
+            row = height - 1 - j
+            tested += 1
+            if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
+                continue
+            if depth_test and depth_write:
+                depth_buf[row, i] = z
+            line_face[row, i] = seg_face[s]
+            if write_face:
+                face_buf[row, i] = seg_face[s]
+            written += 1
+    return tested, written
+
+
+@njit(cache=True, nogil=True)
+def draw_points(points_window, point_face, width, height, depth_test, depth_func,
+                depth_write, z_lo, z_hi, depth_buf, face_buf):
+    """One-pixel points (glPointSize 1) at window positions (P, 3), in order: the pixel
+    containing the point. Returns (fragments tested, fragments written)."""
+    tested = 0
+    written = 0
+    for p in range(points_window.shape[0]):
+        i = int(np.floor(points_window[p, 0]))
+        j = int(np.floor(points_window[p, 1]))
+        if i < 0 or i >= width or j < 0 or j >= height:
+            continue
+        z = np.float32(min(max(points_window[p, 2], z_lo), z_hi))
+        row = height - 1 - j
+        tested += 1
+        if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
+            continue
+        if depth_test and depth_write:
+            depth_buf[row, i] = z
+        face_buf[row, i] = point_face[p]
+        written += 1
+    return tested, written
+
+
+def drawn_faces(screen, n_faces) -> np.ndarray:
+    """(F,) bool: faces that reached window space (not degenerate, culled or outside)."""
+    drawn = np.zeros(n_faces, dtype=bool)
+    drawn[screen.face_id] = True
+    return drawn
+
+
+def polygon_edges(scene, screen, view_proj, state):
+    """glPolygonMode(GL_LINE / GL_POINT): the edges (or corners) of every drawn face, in
+    submission order, rasterized with the state's depth test into cleared buffers.
+
+    Edges are clipped as segments, so a face cut by the near plane shows its edges up to
+    the plane (OpenGL would also outline the cut). Returns (face_id, depth, stats)."""
+    width, height = screen.width, screen.height
+    face_ids = np.flatnonzero(drawn_faces(screen, scene.n_faces))
+    depth = np.full((height, width), np.float32(state.clear_depth), dtype=np.float32)
+    face = np.full((height, width), -1, dtype=np.int32)
+    z_lo, z_hi = min(state.depth_range), max(state.depth_range)
+    if state.polygon_mode == "line":
+        edges = triangle_edges(scene, face_ids)
+        keep, ends_window, _ = clip_segments(edges.ends, view_proj, width, height,
+                                             state.depth_range)
+        tested, written = draw_lines(ends_window, edges.faces[keep, 0], width, height,
+                                     state.depth_test, state.depth_func.code, state.depth_mask,
+                                     z_lo, z_hi, depth, np.zeros((0, 0), np.int32), face)
+        stats = {"edges": int(keep.sum())}
+    else:
+        corners = screen.faces[face_ids].ravel()
+        pos_clip = screen.pos_clip[corners]
+        w = pos_clip[:, 3]
+        inside = np.all(np.abs(pos_clip[:, :3]) <= w[:, None], axis=1) & (w > 0)
+        near_d, far_d = state.depth_range
+        p = pos_clip[inside]
+        points = np.stack([(p[:, 0] / p[:, 3] + 1.0) * 0.5 * width,
+                           (p[:, 1] / p[:, 3] + 1.0) * 0.5 * height,
+                           p[:, 2] / p[:, 3] * 0.5 * (far_d - near_d) + 0.5 * (far_d + near_d)],
+                          axis=1)
+        tested, written = draw_points(points, np.repeat(face_ids, 3)[inside], width, height,
+                                      state.depth_test, state.depth_func.code,
+                                      state.depth_mask, z_lo, z_hi, depth, face)
+        stats = {"points": int(inside.sum())}
+    stats.update(fragments_tested=int(tested), fragments_written=int(written))
+    return face, depth, stats
+
+
+def hidden_line_pass(scene, camera, screen, view_proj, depth_filled, settings: HiddenLine,
+                     depth_range):
+    """Draw the chosen edges with a LEQUAL depth test against ``depth_filled`` (the depth
+    of the filled surfaces, already pushed back by the polygon offset), writing nothing to
+    it. Returns (line_face (H, W) int32, -1 where no edge is drawn; stats)."""
+    width, height = screen.width, screen.height
+    edges = unique_edges(scene, camera, settings.crease_angle,
+                         drawn=drawn_faces(screen, scene.n_faces))
+    if settings.edges == "feature":
+        edges = edges.subset(edges.kind != 0)
+    keep, ends_window, _ = clip_segments(edges.ends, view_proj, width, height, depth_range)
+    line_face = np.full((height, width), -1, dtype=np.int32)
+    z_lo, z_hi = min(depth_range), max(depth_range)
+    func = 3 if depth_range[1] >= depth_range[0] else 6  # LEQUAL, or GEQUAL when reversed
+    tested, written = draw_lines(ends_window, edges.faces[keep, 0], width, height, True, func,
+                                 False, z_lo, z_hi, depth_filled, np.zeros((0, 0), np.int32),
+                                 line_face)
+    return line_face, {"edges": int(keep.sum()), "line_fragments_tested": int(tested),
+                       "line_fragments_written": int(written)}

@@ -1,0 +1,101 @@
+"""Diffuse textures: loading (Pillow) and sampling at perspective-correct uv.
+
+Conventions follow OpenGL with OBJ texture coordinates: ``v = 0`` is the *bottom* row of
+the image (Pillow's row 0 is the top, so rows are flipped on load), texel ``(i, j)``
+covers ``[i, i + 1) x [j, j + 1)`` in ``(u * width, v * height)``, its centre is at
+``+0.5``. Filters: ``nearest`` (GL_NEAREST: the texel containing the point) and
+``bilinear`` (GL_LINEAR: the four texels around ``(u * width - 0.5, v * height - 0.5)``).
+Wrap modes: ``repeat`` (GL_REPEAT) and ``clamp`` (GL_CLAMP_TO_EDGE).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .errors import MeshError, RenderError
+
+__all__ = ["FILTERS", "WRAPS", "load_texture", "sample", "checkerboard"]
+
+FILTERS = ("nearest", "bilinear")
+WRAPS = ("repeat", "clamp")
+
+
+def load_texture(source) -> np.ndarray:
+    """(H, W, 3) uint8 texture with row 0 = ``v`` near 0 (the image's bottom row), from a
+    path (TGA, PNG, JPG, ... via Pillow) or an (H, W, 3|4) / (H, W) array given with row 0
+    at the top, like an image file."""
+    if isinstance(source, (str, os.PathLike)):
+        path = os.fspath(source)
+        if not os.path.exists(path):
+            raise MeshError(f"texture file not found: {path}")
+        from PIL import Image, UnidentifiedImageError
+
+        try:
+            with Image.open(path) as img:
+                pixels = np.asarray(img.convert("RGB"))
+        except (UnidentifiedImageError, OSError, ValueError) as exc:
+            raise MeshError(f"{path}: not a readable image ({exc})") from None
+    else:
+        pixels = np.asarray(source)
+        if pixels.ndim == 2:
+            pixels = np.repeat(pixels[:, :, None], 3, axis=2)
+        if pixels.ndim != 3 or pixels.shape[2] not in (3, 4) or pixels.shape[0] == 0 \
+                or pixels.shape[1] == 0:
+            raise MeshError(f"a texture array must have shape (H, W, 3) or (H, W, 4), "
+                            f"got {pixels.shape}")
+        if pixels.dtype != np.uint8:
+            if not np.isfinite(pixels).all():
+                raise MeshError("texture array has NaN or infinite values")
+            pixels = np.clip(pixels, 0, 255).astype(np.uint8)
+        pixels = pixels[:, :, :3]
+    return np.ascontiguousarray(pixels[::-1])
+
+
+def _wrap(index, size, wrap):
+    if wrap == "repeat":
+        return np.mod(index, size)
+    return np.clip(index, 0, size - 1)
+
+
+def sample(texture: np.ndarray, uv: np.ndarray, filter: str = "bilinear",
+           wrap: str = "repeat") -> np.ndarray:
+    """(K, 3) float64 colours (0..255) of ``texture`` (from :func:`load_texture`) at
+    (K, 2) texture coordinates ``uv``."""
+    if filter not in FILTERS:
+        raise RenderError(f"texture filter must be one of {', '.join(FILTERS)}; got {filter!r}")
+    if wrap not in WRAPS:
+        raise RenderError(f"texture wrap must be one of {', '.join(WRAPS)}; got {wrap!r}")
+    height, width = texture.shape[:2]
+    s = uv[:, 0] * width
+    t = uv[:, 1] * height
+    if filter == "nearest":
+        i = _wrap(np.floor(s).astype(np.int64), width, wrap)
+        j = _wrap(np.floor(t).astype(np.int64), height, wrap)
+        return texture[j, i].astype(np.float64)
+    s = s - 0.5
+    t = t - 0.5
+    i0 = np.floor(s)
+    j0 = np.floor(t)
+    a = (s - i0)[:, None]
+    b = (t - j0)[:, None]
+    i0 = i0.astype(np.int64)
+    j0 = j0.astype(np.int64)
+    i1, j1 = _wrap(i0 + 1, width, wrap), _wrap(j0 + 1, height, wrap)
+    i0, j0 = _wrap(i0, width, wrap), _wrap(j0, height, wrap)
+    tex = texture.astype(np.float64) if texture.dtype != np.float64 else texture
+    return ((1 - a) * (1 - b) * tex[j0, i0] + a * (1 - b) * tex[j0, i1]
+            + (1 - a) * b * tex[j1, i0] + a * b * tex[j1, i1])
+
+
+def checkerboard(squares: int = 8, texels_per_square: int = 8,
+                 colors=((235, 235, 235), (40, 40, 40))) -> np.ndarray:
+    """(H, W, 3) uint8 checkerboard image (row 0 = top), ``squares`` x ``squares``."""
+    n = squares * texels_per_square
+    idx = np.arange(n) // texels_per_square
+    odd = (idx[:, None] + idx[None, :]) % 2 == 1
+    image = np.empty((n, n, 3), dtype=np.uint8)
+    image[~odd] = colors[0]
+    image[odd] = colors[1]
+    return image

@@ -1,0 +1,422 @@
+"""Exact hidden-line removal in object space, for vector output (SVG, pen plotters).
+
+Each edge is clipped to the view volume and projected; then every triangle that may cover
+it (found through a uniform grid over the window: candidates only, never the answer) cuts
+out the part of the edge it hides. Along a projected segment both the edge's window depth
+and the depth of a triangle's plane are affine in the segment parameter ``t`` (window
+depth is affine in window x, y over a plane), so "inside the triangle" is the
+intersection of three half-lines in ``t`` and "behind it" one more: each occluder hides
+one exact interval. The visible parts are the complement of the union of those intervals
+(Appel 1967's quantitative invisibility, reduced to the two values visible / hidden).
+
+The visible pieces are then merged where collinear pieces overlap (edges shared by two
+objects), joined end to end into polylines, and written in the same pixel geometry as the
+raster images (x right, y down, pixel (x, y) covers [x, x+1) x [y, y+1)), so the SVG
+overlays the PNG.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from .errors import OutputError
+from .mesh import as_scene
+from .lines import HiddenLine, clip_segments, drawn_faces, unique_edges
+from .pipeline import prepare
+from .state import RenderState
+
+__all__ = ["LineDrawing", "hidden_lines", "write_lines_svg"]
+
+# Tolerances, in window pixels and window depth units: a point closer than EPS_PX to a
+# triangle's outline is not inside it, a depth within EPS_Z of the triangle's plane is not
+# behind it (so edges on the surface and edges sharing a vertex are not hidden).
+EPS_PX = 1e-6
+EPS_Z = 1e-9
+# Visible or hidden pieces shorter than this (pixels) are dropped: nobody can see them, and
+# they are what the EPS_PX margin leaves at vertices shared with an occluder.
+MIN_PIECE_PX = 1e-3
+
+
+@dataclass
+class LineDrawing:
+    """Visible (and hidden) edge pieces of a scene seen by a camera.
+
+    visible, hidden : (S, 2, 3) float64 segments in window space (x, y up, depth).
+    visible_polylines, hidden_polylines : lists of (n, 2) float64 arrays in image
+        coordinates (x right, y down), joined and merged.
+    width, height : the image size.
+    stats : counts.
+    """
+
+    visible: np.ndarray
+    hidden: np.ndarray
+    visible_polylines: list
+    hidden_polylines: list
+    width: int
+    height: int
+    stats: dict = field(default_factory=dict)
+
+
+@njit(cache=True, nogil=True)
+def _grid(xy, width, height, cell):
+    """Uniform grid over the window: (cell_start, items) listing the triangles whose
+    bounding box touches each cell."""
+    nx = (width + cell - 1) // cell
+    ny = (height + cell - 1) // cell
+    n = xy.shape[0]
+    boxes = np.empty((n, 4), dtype=np.int64)
+    count = np.zeros(nx * ny + 1, dtype=np.int64)
+    for t in range(n):
+        x_lo = min(xy[t, 0, 0], xy[t, 1, 0], xy[t, 2, 0])
+        x_hi = max(xy[t, 0, 0], xy[t, 1, 0], xy[t, 2, 0])
+        y_lo = min(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
+        y_hi = max(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
+        c0 = max(int(np.floor(x_lo / cell)), 0)
+        c1 = min(int(np.floor(x_hi / cell)), nx - 1)
+        r0 = max(int(np.floor(y_lo / cell)), 0)
+        r1 = min(int(np.floor(y_hi / cell)), ny - 1)
+        boxes[t, 0], boxes[t, 1], boxes[t, 2], boxes[t, 3] = c0, c1, r0, r1
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                count[r * nx + c + 1] += 1
+    start = np.cumsum(count)
+    items = np.empty(start[-1], dtype=np.int64)
+    fill = start[:-1].copy()
+    for t in range(n):
+        for r in range(boxes[t, 2], boxes[t, 3] + 1):
+            for c in range(boxes[t, 0], boxes[t, 1] + 1):
+                items[fill[r * nx + c]] = t
+                fill[r * nx + c] += 1
+    return start, items, nx, ny
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _above(f0, f1, eps, lo, hi):
+    """Narrow [lo, hi] to where f0 + t (f1 - f0) > eps."""
+    if f0 > eps and f1 > eps:
+        return lo, hi
+    if f0 <= eps and f1 <= eps:
+        return 1.0, 0.0
+    t = (eps - f0) / (f1 - f0)
+    if f1 > f0:
+        return max(lo, t), hi
+    return lo, min(hi, t)
+
+
+@njit(cache=True, nogil=True)
+def _hidden_intervals(ends, edge_faces, tri_xy, tri_z, tri_face, start, items, nx, ny, cell,
+                      out_edge, out_t):
+    """Merged hidden parameter intervals of every edge. Writes (edge, t0, t1) rows into
+    ``out_edge`` / ``out_t`` and returns the count, or -1 if they are too small."""
+    n_tri = tri_xy.shape[0]
+    stamp = np.full(n_tri, -1, dtype=np.int64)
+    scratch = np.empty((n_tri + 1, 2))
+    k_out = 0
+    for e in range(ends.shape[0]):
+        ax, ay, az = ends[e, 0, 0], ends[e, 0, 1], ends[e, 0, 2]
+        bx, by, bz = ends[e, 1, 0], ends[e, 1, 1], ends[e, 1, 2]
+        length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
+        n_int = 0
+        # Walk the cells along the segment in steps of at most half a cell.
+        steps = int(length / (0.5 * cell)) + 1
+        for s in range(steps + 1):
+            t_s = s / steps
+            px, py = ax + t_s * (bx - ax), ay + t_s * (by - ay)
+            cx0 = max(int(np.floor(px / cell)) - 1, 0)
+            cy0 = max(int(np.floor(py / cell)) - 1, 0)
+            for cy in range(cy0, min(cy0 + 3, ny)):
+                for cx in range(cx0, min(cx0 + 3, nx)):
+                    cid = cy * nx + cx
+                    for q in range(start[cid], start[cid + 1]):
+                        t = items[q]
+                        if stamp[t] == e:
+                            continue
+                        stamp[t] = e
+                        face = tri_face[t]
+                        if face == edge_faces[e, 0] or face == edge_faces[e, 1]:
+                            continue
+                        x0, y0 = tri_xy[t, 0, 0], tri_xy[t, 0, 1]
+                        x1, y1 = tri_xy[t, 1, 0], tri_xy[t, 1, 1]
+                        x2, y2 = tri_xy[t, 2, 0], tri_xy[t, 2, 1]
+                        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+                        if det == 0.0:
+                            continue
+                        sign = 1.0 if det > 0 else -1.0
+                        lo, hi = 0.0, 1.0
+                        for i in range(3):
+                            ux, uy = tri_xy[t, i, 0], tri_xy[t, i, 1]
+                            vx, vy = tri_xy[t, (i + 1) % 3, 0], tri_xy[t, (i + 1) % 3, 1]
+                            ex, ey = vx - ux, vy - uy
+                            fa = sign * (ex * (ay - uy) - ey * (ax - ux))
+                            fb = sign * (ex * (by - uy) - ey * (bx - ux))
+                            lo, hi = _above(fa, fb, EPS_PX * np.sqrt(ex * ex + ey * ey), lo, hi)
+                            if lo >= hi:
+                                break
+                        if lo >= hi:
+                            continue
+                        # Plane of the triangle's window depth: z = z0 + gx (x - x0) + gy (y - y0).
+                        z0 = tri_z[t, 0]
+                        gx = ((tri_z[t, 1] - z0) * (y2 - y0) - (tri_z[t, 2] - z0) * (y1 - y0)) / det
+                        gy = ((x1 - x0) * (tri_z[t, 2] - z0) - (x2 - x0) * (tri_z[t, 1] - z0)) / det
+                        da = az - (z0 + gx * (ax - x0) + gy * (ay - y0))
+                        db = bz - (z0 + gx * (bx - x0) + gy * (by - y0))
+                        lo, hi = _above(da, db, EPS_Z, lo, hi)
+                        if lo < hi:
+                            scratch[n_int, 0], scratch[n_int, 1] = lo, hi
+                            n_int += 1
+        if n_int == 0:
+            continue
+        order = np.argsort(scratch[:n_int, 0])
+        cur_lo, cur_hi = scratch[order[0], 0], scratch[order[0], 1]
+        for r in range(1, n_int + 1):
+            if r < n_int and scratch[order[r], 0] <= cur_hi:
+                cur_hi = max(cur_hi, scratch[order[r], 1])
+                continue
+            if k_out >= out_edge.shape[0]:
+                return -1
+            out_edge[k_out] = e
+            out_t[k_out, 0], out_t[k_out, 1] = cur_lo, cur_hi
+            k_out += 1
+            if r < n_int:
+                cur_lo, cur_hi = scratch[order[r], 0], scratch[order[r], 1]
+    return k_out
+
+
+def _pieces(ends, edge_idx, t_span):
+    """Segments (K, 2, 3) of ``ends[edge_idx]`` between parameters t_span (K, 2)."""
+    a = ends[edge_idx, 0]
+    d = ends[edge_idx, 1] - a
+    return np.stack([a + t_span[:, :1] * d, a + t_span[:, 1:] * d], axis=1)
+
+
+def _drop_slivers(segments, min_length=MIN_PIECE_PX):
+    """Pieces shorter than ``min_length`` pixels: what is left between an occluder's
+    outline, kept EPS_PX away from a shared vertex, and that vertex."""
+    length = np.hypot(*(segments[:, 1, :2] - segments[:, 0, :2]).T)
+    return segments[length >= min_length]
+
+
+def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
+    """Visible (edge, t0, t1) rows: [0, 1] minus the hidden intervals, which come sorted
+    and disjoint per edge (merged by the kernel)."""
+    first = np.r_[True, hidden_edge[1:] != hidden_edge[:-1]] if len(hidden_edge) else \
+        np.zeros(0, bool)
+    last = np.r_[hidden_edge[1:] != hidden_edge[:-1], True] if len(hidden_edge) else \
+        np.zeros(0, bool)
+    prev_hi = np.where(first, 0.0, np.r_[0.0, hidden_t[:-1, 1]])
+    gaps_before = np.stack([prev_hi, hidden_t[:, 0]], axis=1)
+    gaps_after = np.stack([hidden_t[last, 1], np.ones(int(last.sum()))], axis=1)
+    has = np.zeros(n_edges, dtype=bool)
+    has[hidden_edge] = True
+    free = np.flatnonzero(~has)
+    edges = np.concatenate([free, hidden_edge, hidden_edge[last]])
+    spans = np.concatenate([np.tile([0.0, 1.0], (len(free), 1)), gaps_before, gaps_after])
+    keep = spans[:, 1] - spans[:, 0] > min_t
+    order = np.lexsort((spans[keep, 0], edges[keep]))
+    return edges[keep][order], spans[keep][order]
+
+
+def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | None = None,
+                 state: RenderState | None = None, workers=None, with_hidden: bool = True,
+                 cell: int | None = None) -> LineDrawing:
+    """Exact visible (and hidden) parts of the scene's edges (all or feature edges, per
+    ``settings``) as seen by ``camera`` in a ``width`` x ``height`` image. ``state``
+    supplies culling and winding (culled faces neither occlude nor contribute edges)."""
+    from .parallel import Workers
+    from .render import _check_size
+
+    _check_size(width, height)
+    camera.validate()
+    scene = as_scene(scene)
+    settings = settings or HiddenLine()
+    state = RenderState(cull=(state or RenderState()).cull,
+                        front_face=(state or RenderState()).front_face)
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    stats: dict = {}
+    with Workers(None) if workers is None else _nullcontext(workers) as w:
+        screen = prepare(scene, view_proj, width, height, state, stats, w)
+    edges = unique_edges(scene, camera, settings.crease_angle,
+                         drawn=drawn_faces(screen, scene.n_faces))
+    if settings.edges == "feature":
+        edges = edges.subset(edges.kind != 0)
+    keep, ends, _ = clip_segments(edges.ends, view_proj, width, height, guard=0)
+    edge_faces = edges.faces[keep]
+    if cell is None:
+        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
+    start, items, nx, ny = _grid(np.ascontiguousarray(screen.xy_window), width, height, cell)
+    capacity = max(1024, 4 * len(ends))
+    while True:
+        out_edge = np.empty(capacity, dtype=np.int64)
+        out_t = np.empty((capacity, 2))
+        n = _hidden_intervals(ends, edge_faces, np.ascontiguousarray(screen.xy_window),
+                              np.ascontiguousarray(screen.depth_window), screen.face_id,
+                              start, items, nx, ny, cell, out_edge, out_t)
+        if n >= 0:
+            break
+        capacity *= 4
+    hidden_edge, hidden_t = out_edge[:n], out_t[:n]
+    vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
+    visible = _drop_slivers(_pieces(ends, vis_edge, vis_t))
+    hidden = _drop_slivers(_pieces(ends, hidden_edge, hidden_t))
+    visible_merged = merge_collinear(visible)
+    drawing = LineDrawing(
+        visible, hidden, join_polylines(visible_merged, height),
+        join_polylines(merge_collinear(hidden), height) if with_hidden else [],
+        width, height)
+    drawing.stats = {"edges": int(len(ends)), "visible_pieces": int(len(visible)),
+                     "hidden_pieces": int(len(hidden)),
+                     "visible_after_merge": int(len(visible_merged)),
+                     "polylines": len(drawing.visible_polylines),
+                     "triangles": int(len(screen)), "grid_cell": int(cell)}
+    return drawing
+
+
+class _nullcontext:
+    def __init__(self, value):
+        self.value = value
+
+    def __enter__(self):
+        return self.value
+
+    def __exit__(self, *exc):
+        return False
+
+
+def merge_collinear(segments: np.ndarray, angle_tol=1e-7, offset_tol=1e-5) -> np.ndarray:
+    """Merge overlapping collinear segments (S, 2, 3) (e.g. an edge drawn by two objects)
+    into one; each merged run lies on, and takes its depth from, its first segment."""
+    if len(segments) < 2:
+        return segments
+    xy = segments[:, :, :2]
+    d = xy[:, 1] - xy[:, 0]
+    theta = np.mod(np.arctan2(d[:, 1], d[:, 0]), np.pi)
+    theta = np.where(theta > np.pi - angle_tol, 0.0, theta)
+    direction = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    rho = direction[:, 0] * xy[:, 0, 1] - direction[:, 1] * xy[:, 0, 0]
+    key = np.stack([np.round(theta / angle_tol), np.round(rho / offset_tol)], axis=1)
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    s = np.einsum("ij,ikj->ik", direction, xy)  # position of both ends along the line
+    lo, hi = s.min(axis=1), s.max(axis=1)
+    order = np.lexsort((lo, group))
+    g, lo, hi = group[order], lo[order], hi[order]
+    # Running maximum of hi within each group (groups are contiguous after the sort).
+    span = float(np.abs(s).max()) * 4.0 + 1.0
+    reach = np.maximum.accumulate(hi + g * span) - g * span
+    new_run = np.r_[True, (g[1:] != g[:-1]) | (lo[1:] > reach[:-1] + offset_tol)]
+    run_start = np.flatnonzero(new_run)
+    run_end = np.r_[run_start[1:], len(g)] - 1
+    first = order[run_start]
+    run_lo, run_hi = lo[run_start], reach[run_end]
+    seg = segments[first]
+    sa = np.einsum("ij,ij->i", direction[first], seg[:, 0, :2])
+    sb = np.einsum("ij,ij->i", direction[first], seg[:, 1, :2])
+    length = np.where(sb != sa, sb - sa, 1.0)
+    ta = ((run_lo - sa) / length)[:, None]
+    tb = ((run_hi - sa) / length)[:, None]
+    # Keep each run's orientation along its first segment.
+    ta, tb = np.where(sb >= sa, ta[:, 0], tb[:, 0])[:, None], np.where(
+        sb >= sa, tb[:, 0], ta[:, 0])[:, None]
+    return np.stack([seg[:, 0] + ta * (seg[:, 1] - seg[:, 0]),
+                     seg[:, 0] + tb * (seg[:, 1] - seg[:, 0])], axis=1)
+
+
+def join_polylines(segments: np.ndarray, height: int, tol=1e-6) -> list:
+    """Chain segments that share endpoints into polylines (image coordinates, y down) and
+    drop interior points where the direction does not change."""
+    if len(segments) == 0:
+        return []
+    pts = segments[:, :, :2].reshape(-1, 2)
+    keys = np.round(pts / tol).astype(np.int64)
+    _, node = np.unique(keys, axis=0, return_inverse=True)
+    node = node.reshape(-1, 2)
+    n_nodes = node.max() + 1
+    adjacency = [[] for _ in range(n_nodes)]
+    for s, (a, b) in enumerate(node):
+        adjacency[a].append(s)
+        adjacency[b].append(s)
+    used = np.zeros(len(segments), dtype=bool)
+    position = np.zeros((n_nodes, 2))
+    position[node[:, 0]] = segments[:, 0, :2]
+    position[node[:, 1]] = segments[:, 1, :2]
+    lines = []
+
+    def walk(start_node):
+        chain = [start_node]
+        current = start_node
+        while True:
+            nxt = None
+            for s in adjacency[current]:
+                if not used[s]:
+                    nxt = s
+                    break
+            if nxt is None:
+                return chain
+            used[nxt] = True
+            a, b = node[nxt]
+            current = b if a == current else a
+            chain.append(current)
+
+    degree = np.array([len(a) for a in adjacency])
+    for start_node in list(np.flatnonzero(degree != 2)) + list(range(n_nodes)):
+        while any(not used[s] for s in adjacency[start_node]):
+            chain = walk(start_node)
+            lines.append(_simplify(position[chain]))
+    out = []
+    for line in lines:
+        line = line.copy()
+        line[:, 1] = height - line[:, 1]
+        out.append(line)
+    return out
+
+
+def _simplify(points: np.ndarray) -> np.ndarray:
+    """Drop interior points where a polyline goes straight on (collinear joins)."""
+    if len(points) < 3:
+        return points
+    keep = [0]
+    for i in range(1, len(points) - 1):
+        a = points[keep[-1]]
+        b, c = points[i], points[i + 1]
+        u, v = b - a, c - b
+        cross = u[0] * v[1] - u[1] * v[0]
+        if abs(cross) > 1e-9 * (np.hypot(*u) * np.hypot(*v) + 1e-300) or u @ v <= 0:
+            keep.append(i)
+    keep.append(len(points) - 1)
+    return points[keep]
+
+
+def write_lines_svg(path, drawing: LineDrawing, background=(255, 255, 255),
+                    color=(0, 0, 0), hidden: bool = False, stroke_width: float = 1.0) -> None:
+    """Write the drawing as SVG: one ``<path>`` per polyline in a ``visible`` group and,
+    with ``hidden``, the hidden parts dashed in a ``hidden`` group. The viewBox is the
+    image, so the SVG overlays the PNG of the same render."""
+
+    def rgb(c):
+        return f"rgb({int(c[0])},{int(c[1])},{int(c[2])})"
+
+    def paths(polylines):
+        for line in polylines:
+            yield "M" + " L".join(f"{x:.4f} {y:.4f}" for x, y in line)
+
+    w, h = drawing.width, drawing.height
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
+             f'viewBox="0 0 {w} {h}">',
+             f'<rect width="{w}" height="{h}" fill="{rgb(background)}"/>']
+    if hidden:
+        parts.append(f'<g id="hidden" fill="none" stroke="{rgb(color)}" stroke-opacity="0.45" '
+                     f'stroke-width="{stroke_width}" stroke-dasharray="4 3">')
+        parts.extend(f'<path d="{d}"/>' for d in paths(drawing.hidden_polylines))
+        parts.append("</g>")
+    parts.append(f'<g id="visible" fill="none" stroke="{rgb(color)}" '
+                 f'stroke-width="{stroke_width}" stroke-linecap="round" stroke-linejoin="round">')
+    parts.extend(f'<path d="{d}"/>' for d in paths(drawing.visible_polylines))
+    parts.append("</g></svg>")
+    try:
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write("\n".join(parts) + "\n")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
