@@ -135,3 +135,38 @@ def compare(frame_face, frame_depth, ref_face, ref_depth, ambiguous, depth_tol=2
     same = (frame_face == ref_face) & sure & (ref_face >= 0)
     depth_bad = same & (np.abs(frame_depth.astype(np.float64) - ref_depth) > depth_tol)
     return int(face_bad.sum()), int(depth_bad.sum()), int(sure.sum())
+
+
+def occluded(scene, camera, points, rel_eps=1e-7) -> np.ndarray:
+    """(P,) bool: is anything strictly between the eye and each world-space point?
+    Moller-Trumbore of the segment eye -> point against every triangle; hits within
+    ``rel_eps`` of the point (its own faces) do not count. Perspective cameras only."""
+    tris = world_triangles(scene)
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    direction = np.asarray(points, dtype=np.float64) - eye  # t = 1 at the point
+    out = np.zeros(len(direction), dtype=bool)
+    v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    tvec = eye - v0  # (T, 3)
+    qvec = np.cross(tvec, e1)
+    for start in range(0, len(direction), 64):
+        d = direction[start:start + 64]  # (P, 3)
+        pvec = np.cross(d[:, None, :], e2[None])  # (P, T, 3)
+        det = np.einsum("ptk,tk->pt", pvec, e1)
+        ok = np.abs(det) > 1e-300
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        u = np.einsum("ptk,tk->pt", pvec, tvec) * inv
+        v = np.einsum("pk,tk->pt", d, qvec) * inv
+        t = np.einsum("tk,tk->t", qvec, e2)[None] * inv
+        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1 - rel_eps)
+        out[start:start + 64] = hit.any(axis=1)
+    return out
+
+
+def unproject(camera, width, height, window_points) -> np.ndarray:
+    """World positions of (P, 3) window points (x, y up, depth in [0, 1])."""
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    p = np.asarray(window_points, dtype=np.float64)
+    ndc = np.c_[2 * p[:, 0] / width - 1, 2 * p[:, 1] / height - 1, 2 * p[:, 2] - 1,
+                np.ones(len(p))]
+    world = ndc @ np.linalg.inv(view_proj).T
+    return world[:, :3] / world[:, 3:]

@@ -30,13 +30,15 @@ from .state import RenderState
 
 __all__ = ["LineDrawing", "hidden_lines", "write_lines_svg"]
 
-# Tolerances, in window pixels and window depth units: a point closer than EPS_PX to a
-# triangle's outline is not inside it, a depth within EPS_Z of the triangle's plane is not
-# behind it (so edges on the surface and edges sharing a vertex are not hidden).
+# Tolerances, in window pixels and window depth units. Triangles are closed (a point within
+# EPS_PX of the outline counts as covered, like the reference ray test's u, v >= 0: an edge
+# seen exactly along the shared edge of two nearer faces is hidden by them); a depth within
+# EPS_Z of the triangle's plane is not behind it, so edges on the surface and edges that
+# share a vertex with an occluder are not hidden there.
 EPS_PX = 1e-6
 EPS_Z = 1e-9
 # Visible or hidden pieces shorter than this (pixels) are dropped: nobody can see them, and
-# they are what the EPS_PX margin leaves at vertices shared with an occluder.
+# they are what the EPS_Z margin leaves at vertices shared with an occluder.
 MIN_PIECE_PX = 1e-3
 
 
@@ -152,7 +154,8 @@ def _hidden_intervals(ends, edge_faces, tri_xy, tri_z, tri_face, start, items, n
                             ex, ey = vx - ux, vy - uy
                             fa = sign * (ex * (ay - uy) - ey * (ax - ux))
                             fb = sign * (ex * (by - uy) - ey * (bx - ux))
-                            lo, hi = _above(fa, fb, EPS_PX * np.sqrt(ex * ex + ey * ey), lo, hi)
+                            lo, hi = _above(fa, fb, -EPS_PX * np.sqrt(ex * ex + ey * ey), lo,
+                                            hi)
                             if lo >= hi:
                                 break
                         if lo >= hi:
@@ -193,8 +196,8 @@ def _pieces(ends, edge_idx, t_span):
 
 
 def _drop_slivers(segments, min_length=MIN_PIECE_PX):
-    """Pieces shorter than ``min_length`` pixels: what is left between an occluder's
-    outline, kept EPS_PX away from a shared vertex, and that vertex."""
+    """Drop pieces shorter than ``min_length`` pixels: slivers left where a hidden interval
+    stops EPS_Z short of a vertex shared with the occluder."""
     length = np.hypot(*(segments[:, 1, :2] - segments[:, 0, :2]).T)
     return segments[length >= min_length]
 
