@@ -142,8 +142,44 @@ def test_compare_prints_table_and_montage(tmp_path, capsys):
                                   ["render", "--threads", "0"],
                                   ["render", "--algorithm", "raycast", "--option", "accel=warp"],
                                   ["render", "--algorithm", "raycast", "--option", "acel=none"],
-                                  ["render", "--option", "key=max"]])
+                                  ["render", "--option", "key=max"],
+                                  ["render", "--fog", "linear:5"],
+                                  ["render", "--fog", "mist:1"],
+                                  ["render", "--fog", "exp:0.1", "--fog-color", "1,2"],
+                                  ["render", "--texture", "missing.png"],
+                                  ["render", "--opacity", "1.5"],
+                                  ["render", "--opacity", "0.5,0.5"],
+                                  ["render", "--polygon-mode", "line", "--algorithm", "bsp"],
+                                  ["render", "--polygon-offset", "1"],
+                                  ["render", "--hidden-line", "--algorithm", "scanline"],
+                                  ["render", "--hidden-layer"],
+                                  ["render", "--line-color", "300,0,0", "--hidden-line"],
+                                  ["render", "--opacity", "0.5", "--algorithm", "raycast"]])
 def test_more_errors_are_one_line(tmp_path, capsys, args):
     code, _, err = run(args + ["--size", "32x24"] + (["-o", str(tmp_path / "x.png")]
                                                      if args[0] == "render" else []), capsys)
     assert_one_line_error(code, err)
+
+
+def test_appearance_options(tmp_path, capsys, models_dir):
+    head = os.path.join(models_dir, "african_head.obj")
+    texture = os.path.join(models_dir, "african_head_diffuse.tga")
+    out = tmp_path / "head.png"
+    code, _, err = run(["render", head, "--texture", texture, "-o", str(out), "--size",
+                        "100x100", "--quiet", "--shading", "gouraud", "--fog", "exp:0.1"], capsys)
+    assert code == 0, err
+    image = np.asarray(Image.open(out)).astype(int)
+    covered = image.sum(axis=2) > 0
+    assert covered.sum() > 1500
+    # textured skin: red above blue on average, and many different colours
+    assert image[covered][:, 0].mean() > image[covered][:, 2].mean()
+    assert len(np.unique(image[covered], axis=0)) > 200
+    code, _, err = run(["render", os.path.join(models_dir, "cow.obj"), "--texture", texture,
+                        "-o", str(out)], capsys)
+    assert_one_line_error(code, err)
+    for extra in (["--polygon-mode", "line"], ["--polygon-mode", "point"],
+                  ["--hidden-line", "--edges", "feature"], ["--opacity", "0.4"],
+                  ["--opacity", "0.4", "--transparency", "exact"]):
+        code, _, err = run(["render", "-o", str(out), "--size", "80x60", "--quiet"] + extra,
+                           capsys)
+        assert code == 0, (extra, err)

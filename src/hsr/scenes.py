@@ -21,6 +21,7 @@ from .errors import HsrError
 from .mesh import Mesh, Scene
 
 __all__ = ["SCENES", "get", "cube", "uv_sphere", "cubes", "cyclic", "penetration", "spheres",
+           "glass", "checker",
            "translate", "rotate_y", "scale"]
 
 # Gambetta's cube colours: red, green, blue, yellow, purple, cyan (one per side).
@@ -237,8 +238,51 @@ def city(blocks: int = 16, segments: int = 16, seed: int = 7):
     return scene, camera
 
 
+def glass():
+    """Transparency (seed 003): an opaque floor and cube; a transparent sphere beside them,
+    and two transparent slabs that pass through each other, where sorting whole objects
+    back to front cannot be right (compare with ``transparency="exact"``)."""
+    scene = Scene()
+    floor = Mesh([[-4, 0, -4], [4, 0, -4], [4, 0, 4], [-4, 0, 4]], [[0, 2, 1], [0, 3, 2]],
+                 face_colors=[[190, 190, 180]] * 2, name="floor")
+    scene.add(floor, translate(0, -1.0, -8))
+    scene.add(cube(), translate(1.6, -0.4, -9.5) @ rotate_y(30) @ scale(0.6))
+    scene.add(uv_sphere(0.8, 16, 32, color=(60, 200, 90)), translate(-1.8, -0.2, -7.5),
+              opacity=0.45)
+    slab = tessellated_cube(1)
+    slab.face_colors = np.tile(np.array([[230, 40, 40]], np.uint8), (slab.n_faces, 1))
+    scene.add(slab, translate(0.2, 0.3, -8) @ rotate_y(35) @ _scale3(1.3, 0.7, 0.15),
+              opacity=0.5)
+    slab_b = tessellated_cube(1)
+    slab_b.face_colors = np.tile(np.array([[40, 80, 230]], np.uint8), (slab_b.n_faces, 1))
+    scene.add(slab_b, translate(0.0, 0.2, -8.2) @ rotate_y(-35) @ _scale3(1.3, 0.7, 0.15),
+              opacity=0.5)
+    camera = Camera.look_at(eye=(0.0, 3.2, -2.5), target=(0.0, -0.3, -8.2), fov_y=45.0,
+                            near=0.5, far=30.0)
+    return scene, camera
+
+
+def _scale3(x, y, z) -> np.ndarray:
+    return np.diag([x, y, z, 1.0])
+
+
+def checker():
+    """A textured plane at a grazing angle (seed 002's homework): perspective-correct
+    texture coordinates keep the squares straight and shrinking with distance."""
+    from .texture import checkerboard
+
+    pos = np.array([[-3, 0, 3], [3, 0, 3], [3, 0, -3], [-3, 0, -3]], dtype=float)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    plane = Mesh(pos, faces, corner_uv=uv[faces], texture=checkerboard(8, 16), name="checker")
+    scene = Scene().add(plane)
+    camera = Camera.look_at(eye=(0, 1.8, 3.5), target=(0, 0, -1.0), fov_y=55.0, near=0.3,
+                            far=20.0)
+    return scene, camera
+
+
 SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres": spheres,
-          "terrain": terrain, "city": city}
+          "terrain": terrain, "city": city, "glass": glass, "checker": checker}
 
 
 def get(name: str):

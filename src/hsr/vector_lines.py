@@ -109,15 +109,17 @@ def _above(f0, f1, eps, lo, hi):
 
 
 @njit(cache=True, nogil=True)
-def _hidden_intervals(ends, edge_faces, tri_xy, tri_z, tri_face, start, items, nx, ny, cell,
-                      out_edge, out_t):
-    """Merged hidden parameter intervals of every edge. Writes (edge, t0, t1) rows into
-    ``out_edge`` / ``out_t`` and returns the count, or -1 if they are too small."""
+def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, start, items,
+                      nx, ny, cell):
+    """Merged hidden parameter intervals of edges ``e_lo <= e < e_hi``: arrays (edge,)
+    and (t0, t1), sorted by edge and t0."""
     n_tri = tri_xy.shape[0]
     stamp = np.full(n_tri, -1, dtype=np.int64)
     scratch = np.empty((n_tri + 1, 2))
+    out_edge = np.empty(max(64, 2 * (e_hi - e_lo)), dtype=np.int64)
+    out_t = np.empty((out_edge.shape[0], 2))
     k_out = 0
-    for e in range(ends.shape[0]):
+    for e in range(e_lo, e_hi):
         ax, ay, az = ends[e, 0, 0], ends[e, 0, 1], ends[e, 0, 2]
         bx, by, bz = ends[e, 1, 0], ends[e, 1, 1], ends[e, 1, 2]
         length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
@@ -178,14 +180,18 @@ def _hidden_intervals(ends, edge_faces, tri_xy, tri_z, tri_face, start, items, n
             if r < n_int and scratch[order[r], 0] <= cur_hi:
                 cur_hi = max(cur_hi, scratch[order[r], 1])
                 continue
-            if k_out >= out_edge.shape[0]:
-                return -1
+            if k_out >= out_edge.shape[0]:  # grow
+                bigger_edge = np.empty(2 * out_edge.shape[0], dtype=np.int64)
+                bigger_t = np.empty((2 * out_edge.shape[0], 2))
+                bigger_edge[:k_out] = out_edge[:k_out]
+                bigger_t[:k_out] = out_t[:k_out]
+                out_edge, out_t = bigger_edge, bigger_t
             out_edge[k_out] = e
             out_t[k_out, 0], out_t[k_out, 1] = cur_lo, cur_hi
             k_out += 1
             if r < n_int:
                 cur_lo, cur_hi = scratch[order[r], 0], scratch[order[r], 1]
-    return k_out
+    return out_edge[:k_out].copy(), out_t[:k_out].copy()
 
 
 def _pieces(ends, edge_idx, t_span):
@@ -222,12 +228,40 @@ def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
     return edges[keep][order], spans[keep][order]
 
 
+_CHUNK = 8192  # edges per task: threads share the work and the progress bar moves
+
+
+def _run_chunks(threads, bounds, args, progress):
+    from concurrent.futures import ThreadPoolExecutor
+
+    chunks = list(zip(bounds[:-1], bounds[1:]))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=int(bounds[-1]), desc="hidden lines", unit="edge", leave=False)
+    with ThreadPoolExecutor(threads) as pool:
+        futures = [pool.submit(_hidden_intervals, int(lo), int(hi), *args) for lo, hi in chunks]
+        results = []
+        for (lo, hi), f in zip(chunks, futures):
+            results.append(f.result())
+            if bar is not None:
+                bar.update(int(hi - lo))
+    if bar is not None:
+        bar.close()
+    return results
+
+
 def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | None = None,
-                 state: RenderState | None = None, workers=None, with_hidden: bool = True,
-                 cell: int | None = None) -> LineDrawing:
+                 state: RenderState | None = None, threads: int | None = None,
+                 with_hidden: bool = True,
+                 cell: int | None = None, progress: bool | None = None) -> LineDrawing:
     """Exact visible (and hidden) parts of the scene's edges (all or feature edges, per
     ``settings``) as seen by ``camera`` in a ``width`` x ``height`` image. ``state``
-    supplies culling and winding (culled faces neither occlude nor contribute edges)."""
+    supplies culling and winding (culled faces neither occlude nor contribute edges).
+    ``progress`` (default: when stderr is a terminal) shows a bar on big meshes."""
+    import sys
+
     from .parallel import Workers
     from .render import _check_size
 
@@ -235,12 +269,14 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     camera.validate()
     scene = as_scene(scene)
     settings = settings or HiddenLine()
+    if progress is None:
+        progress = sys.stderr.isatty()
     state = RenderState(cull=(state or RenderState()).cull,
                         front_face=(state or RenderState()).front_face)
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     stats: dict = {}
-    with Workers(None) if workers is None else _nullcontext(workers) as w:
-        screen = prepare(scene, view_proj, width, height, state, stats, w)
+    with Workers(threads) as workers:
+        screen = prepare(scene, view_proj, width, height, state, stats, workers)
     edges = unique_edges(scene, camera, settings.crease_angle,
                          drawn=drawn_faces(screen, scene.n_faces))
     if settings.edges == "feature":
@@ -249,18 +285,15 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     edge_faces = edges.faces[keep]
     if cell is None:
         cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
-    start, items, nx, ny = _grid(np.ascontiguousarray(screen.xy_window), width, height, cell)
-    capacity = max(1024, 4 * len(ends))
-    while True:
-        out_edge = np.empty(capacity, dtype=np.int64)
-        out_t = np.empty((capacity, 2))
-        n = _hidden_intervals(ends, edge_faces, np.ascontiguousarray(screen.xy_window),
-                              np.ascontiguousarray(screen.depth_window), screen.face_id,
-                              start, items, nx, ny, cell, out_edge, out_t)
-        if n >= 0:
-            break
-        capacity *= 4
-    hidden_edge, hidden_t = out_edge[:n], out_t[:n]
+    tri_xy = np.ascontiguousarray(screen.xy_window)
+    start, items, nx, ny = _grid(tri_xy, width, height, cell)
+    args = (ends, edge_faces, tri_xy, np.ascontiguousarray(screen.depth_window),
+            screen.face_id, start, items, nx, ny, cell)
+    bounds = np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))
+    bounds = np.unique(np.r_[0, bounds])
+    results = _run_chunks(workers.threads, bounds, args, progress and len(ends) > 4 * _CHUNK)
+    hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
+    hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
     vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
     visible = _drop_slivers(_pieces(ends, vis_edge, vis_t))
     hidden = _drop_slivers(_pieces(ends, hidden_edge, hidden_t))
@@ -275,17 +308,6 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
                      "polylines": len(drawing.visible_polylines),
                      "triangles": int(len(screen)), "grid_cell": int(cell)}
     return drawing
-
-
-class _nullcontext:
-    def __init__(self, value):
-        self.value = value
-
-    def __enter__(self):
-        return self.value
-
-    def __exit__(self, *exc):
-        return False
 
 
 def merge_collinear(segments: np.ndarray, angle_tol=1e-7, offset_tol=1e-5) -> np.ndarray:
