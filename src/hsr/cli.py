@@ -137,6 +137,20 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--algorithms", default=",".join(ALGORITHMS),
                    help="comma-separated algorithms (default: all: %(default)s)")
     c.add_argument("--montage", help="write the images side by side with difference maps")
+    from .explain import VIEWS
+
+    e = sub.add_parser("explain", help="a picture that explains one part of hidden-surface "
+                       "removal", description="Views: " + ", ".join(VIEWS) + ".")
+    e.add_argument("view", choices=list(VIEWS))
+    _add_scene_args(e, *shared)
+    e.add_argument("-o", "--output", help="PNG (or .gif for the painter animation); "
+                   "default VIEW.png")
+    rp = sub.add_parser("report", help="one HTML page with every view, the algorithm "
+                        "comparison and stats")
+    _add_scene_args(rp, *shared)
+    rp.add_argument("-o", "--output", default="report.html", help="default %(default)s")
+    rp.add_argument("--algorithms", default=",".join(ALGORITHMS),
+                    help="algorithms to compare (default: all)")
     return parser
 
 
@@ -373,6 +387,45 @@ def _cmd_compare(args) -> int:
     return 0
 
 
+def _cmd_explain(args) -> int:
+    from .explain import explain
+
+    scene, camera, width, height, state, _, _ = _setup(args)
+    result = explain(args.view, scene, camera, width, height, state)
+    output = args.output or f"{args.view}.png"
+    result.save(output)
+    if not args.quiet:
+        print(f"wrote {output}")
+        for line in result.text.splitlines()[1:]:
+            print(line)
+        for key, value in result.numbers.items():
+            if not isinstance(value, (dict, list)):
+                print(f"  {key}: {value:.6g}" if isinstance(value, float) else
+                      f"  {key}: {value}")
+    return 0
+
+
+def _cmd_report(args) -> int:
+    import os
+
+    from .algorithms import ALGORITHMS
+    from .report import write_report
+
+    names = [n.strip() for n in args.algorithms.split(",") if n.strip()]
+    unknown = [n for n in names if n not in ALGORITHMS]
+    if unknown or not names:
+        raise CliError(f"unknown algorithm {', '.join(unknown) or '(none)'}; choose from "
+                       f"{', '.join(ALGORITHMS)}")
+    scene, camera, width, height, state, _, _ = _setup(args)
+    title = ("hsr report: " + ", ".join(os.path.basename(m) for m in args.models)
+             if args.models else f"hsr report: built-in scene {args.scene}")
+    write_report(args.output, scene, camera, title, width=width, height=height, state=state,
+                 algorithms=names, progress=not args.quiet and sys.stderr.isatty())
+    if not args.quiet:
+        print(f"wrote {args.output}")
+    return 0
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
@@ -386,6 +439,10 @@ def main(argv=None) -> int:
             return _cmd_render(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "explain":
+            return _cmd_explain(args)
+        if args.command == "report":
+            return _cmd_report(args)
         raise CliError(f"unknown command {args.command!r}")
     except HsrError as exc:
         if debug:

@@ -27,19 +27,27 @@ class Comparison:
     reference: str = "zbuffer"
     rows: list = field(default_factory=list)
 
-    def table(self) -> str:
+    def records(self) -> list:
+        """One dict per algorithm: name, ms, covered, agree (%), differ, counts (text)."""
         ref = self.frames[self.reference].face_id
-        lines = [f"{'algorithm':10} {'ms':>9} {'covered':>9} {'agree':>9} {'differ':>8}  counts"]
+        out = []
         for name in self.names:
             frame = self.frames[name]
             covered = (frame.face_id >= 0) | (ref >= 0)
             n_cov = int(covered.sum())
             differ = int(np.count_nonzero((frame.face_id != ref) & covered))
-            agree = 100.0 * (n_cov - differ) / n_cov if n_cov else 100.0
-            extras = ", ".join(f"{k}={_fmt(frame.stats[k])}" for k in _EXTRA_KEYS
-                               if k in frame.stats)
-            lines.append(f"{name:10} {self.times_ms[name]:9.1f} {n_cov:9d} {agree:8.3f}% "
-                         f"{differ:8d}  {extras}")
+            out.append({"name": name, "ms": self.times_ms[name], "covered": n_cov,
+                        "agree": 100.0 * (n_cov - differ) / n_cov if n_cov else 100.0,
+                        "differ": differ,
+                        "counts": ", ".join(f"{k}={_fmt(frame.stats[k])}" for k in _EXTRA_KEYS
+                                            if k in frame.stats)})
+        return out
+
+    def table(self) -> str:
+        lines = [f"{'algorithm':10} {'ms':>9} {'covered':>9} {'agree':>9} {'differ':>8}  counts"]
+        for r in self.records():
+            lines.append(f"{r['name']:10} {r['ms']:9.1f} {r['covered']:9d} {r['agree']:8.3f}% "
+                         f"{r['differ']:8d}  {r['counts']}")
         return "\n".join(lines)
 
 
