@@ -277,3 +277,14 @@ def test_per_object_sorting_fails_on_interpenetrating_objects_and_exact_does_not
     wrong = (by_object.color != expected).any(axis=2) & sure
     assert wrong.sum() > 50, "per-object order should get part of the overlap wrong"
     assert (~wrong & sure).sum() > 50, "... and the other part right"
+
+
+@pytest.mark.parametrize("algorithm", ["scanline", "raycast", "painter", "newell", "bsp"])
+def test_every_algorithm_gets_textures_and_fog_for_free(algorithm):
+    scene, camera = hsr.scenes.get("checker")
+    look = dict(fog=Fog("linear", 2.0, 9.0, color=(90, 90, 120)), shading="gouraud")
+    ref = hsr.render(scene, camera, W, H, **look)
+    frame = hsr.render(scene, camera, W, H, algorithm=algorithm, **look)
+    same_face = frame.face_id == ref.face_id
+    assert same_face.mean() > 0.999
+    assert (frame.color[same_face] == ref.color[same_face]).all()

@@ -108,6 +108,9 @@ def test_zfighting_gets_worse_with_fewer_bits_and_a_closer_near_plane():
         assert lost[f"float32-reversed@near={near}"] == 0.0
     assert lost["unorm16@near=0.01"] > lost["unorm16@near=1.0"] > 0
     assert lost["unorm24@near=0.01"] > 0 == lost["unorm24@near=1.0"]
+    # a far plane 100 times farther changes little; the near plane is what matters
+    assert lost["unorm16@near=1.0"] <= lost["unorm16@near=1.0,far=30000"] \
+        < 2 * lost["unorm16@near=1.0"]
 
 
 def test_ybuffer_by_hand():
