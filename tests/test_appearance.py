@@ -2,8 +2,6 @@
 the brute-force ray reference (tests/reference.py: its own barycentrics and hit points) and
 formulas written out here, not from hsr's shading code."""
 
-import os
-
 import numpy as np
 import pytest
 

@@ -361,15 +361,23 @@ def _write_svg(args, frame, scene, camera, width, height, background):
     write_polygons_svg(args.svg, xy, colors, source, width, height, background)
 
 
-def _cmd_compare(args) -> int:
+def _algorithm_names(text: str) -> list:
+    """A comma-separated list of algorithm names, checked."""
     from .algorithms import ALGORITHMS
-    from .compare import compare_algorithms, montage
 
-    names = [n.strip() for n in args.algorithms.split(",") if n.strip()]
+    names = [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in ALGORITHMS]
     if unknown or not names:
         raise CliError(f"unknown algorithm {', '.join(unknown) or '(none)'}; choose from "
                        f"{', '.join(ALGORITHMS)}")
+    return names
+
+
+def _cmd_compare(args) -> int:
+    from .algorithms import ALGORITHMS
+    from .compare import compare_algorithms, montage
+
+    names = _algorithm_names(args.algorithms)
     scene, camera, width, height, state, background, options = _setup(args)
     known = {k for n in names for k in ALGORITHMS[n].OPTIONS}
     if set(options) - known:
@@ -408,14 +416,9 @@ def _cmd_explain(args) -> int:
 def _cmd_report(args) -> int:
     import os
 
-    from .algorithms import ALGORITHMS
     from .report import write_report
 
-    names = [n.strip() for n in args.algorithms.split(",") if n.strip()]
-    unknown = [n for n in names if n not in ALGORITHMS]
-    if unknown or not names:
-        raise CliError(f"unknown algorithm {', '.join(unknown) or '(none)'}; choose from "
-                       f"{', '.join(ALGORITHMS)}")
+    names = _algorithm_names(args.algorithms)
     scene, camera, width, height, state, _, _ = _setup(args)
     title = ("hsr report: " + ", ".join(os.path.basename(m) for m in args.models)
              if args.models else f"hsr report: built-in scene {args.scene}")

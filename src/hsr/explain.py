@@ -292,7 +292,6 @@ def linear_z_depths(screen, camera, depth_range=(0.0, 1.0)):
 
 
 def linear_z_view(scene, camera, width, height, state):
-    from .fragments import Fragments  # noqa: F401  (documents the record used)
     from .parallel import Workers
     from .raster import rasterize
     from .shading import face_colors, paint_faces

@@ -193,6 +193,17 @@ def clip_segments(ends_world, view_proj, width, height, depth_range=(0.0, 1.0),
     return keep, out, np.stack([t0, t1], axis=1)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _depth_stage(depth_test, depth_func, depth_write, z, depth_buf, row, i):
+    """The per-fragment depth test and write (no write when the test is off, as in GL);
+    True when the fragment passes."""
+    if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
+        return False
+    if depth_test and depth_write:
+        depth_buf[row, i] = z
+    return True
+
+
 @njit(cache=True, nogil=True)
 def draw_lines(ends_window, seg_face, width, height, depth_test, depth_func, depth_write,
                z_lo, z_hi, depth_buf, face_buf, line_face):
@@ -237,10 +248,8 @@ def draw_lines(ends_window, seg_face, width, height, depth_test, depth_func, dep
             z = np.float32(min(max(za + t * (zb - za), z_lo), z_hi))
             row = height - 1 - j
             tested += 1
-            if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
+            if not _depth_stage(depth_test, depth_func, depth_write, z, depth_buf, row, i):
                 continue
-            if depth_test and depth_write:
-                depth_buf[row, i] = z
             line_face[row, i] = seg_face[s]
             if write_face:
                 face_buf[row, i] = seg_face[s]
@@ -263,10 +272,8 @@ def draw_points(points_window, point_face, width, height, depth_test, depth_func
         z = np.float32(min(max(points_window[p, 2], z_lo), z_hi))
         row = height - 1 - j
         tested += 1
-        if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
+        if not _depth_stage(depth_test, depth_func, depth_write, z, depth_buf, row, i):
             continue
-        if depth_test and depth_write:
-            depth_buf[row, i] = z
         face_buf[row, i] = point_face[p]
         written += 1
     return tested, written

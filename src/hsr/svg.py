@@ -14,16 +14,25 @@ import numpy as np
 
 from .errors import OutputError
 
-__all__ = ["write_polygons_svg"]
+__all__ = ["write_polygons_svg", "write_svg"]
+
+
+def write_svg(path, parts: list) -> None:
+    """Write SVG text lines to ``path``, with a one-line error when it cannot."""
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    if not os.path.isdir(folder):
+        raise OutputError(f"cannot write {path}: directory {folder} does not exist")
+    try:
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write("\n".join(parts) + "\n")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def write_polygons_svg(path, xy_window: np.ndarray, colors: np.ndarray, face_id: np.ndarray,
                        width: int, height: int, background=(0, 0, 0)) -> None:
     """Write triangles (N, 3, 2) in painting order, filled with (N, 3) uint8 colours;
     each carries its source face as ``data-face``."""
-    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
-    if not os.path.isdir(folder):
-        raise OutputError(f"cannot write {path}: directory {folder} does not exist")
     lines = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
              f'viewBox="0 0 {width} {height}">',
              f'<rect width="{width}" height="{height}" fill="rgb{tuple(int(c) for c in background)}"/>',
@@ -33,8 +42,4 @@ def write_polygons_svg(path, xy_window: np.ndarray, colors: np.ndarray, face_id:
         lines.append(f'<polygon points="{points}" fill="#{int(color[0]):02x}{int(color[1]):02x}'
                      f'{int(color[2]):02x}" data-face="{int(face)}"/>')
     lines.append("</g></svg>")
-    try:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write("\n".join(lines) + "\n")
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from None
+    write_svg(path, lines)

@@ -22,11 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .errors import OutputError
 from .mesh import as_scene
 from .lines import HiddenLine, clip_segments, drawn_faces, unique_edges
 from .pipeline import prepare
 from .state import RenderState
+from .svg import write_svg
 
 __all__ = ["LineDrawing", "hidden_lines", "write_lines_svg"]
 
@@ -440,8 +440,4 @@ def write_lines_svg(path, drawing: LineDrawing, background=(255, 255, 255),
                  f'stroke-width="{stroke_width}" stroke-linecap="round" stroke-linejoin="round">')
     parts.extend(f'<path d="{d}"/>' for d in paths(drawing.visible_polylines))
     parts.append("</g></svg>")
-    try:
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write("\n".join(parts) + "\n")
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    write_svg(path, parts)
