@@ -291,6 +291,9 @@ def read_obj(path: str) -> Mesh:
     except OSError as exc:
         raise MeshError(f"{path}: cannot read ({exc.strerror})") from None
     name = os.path.basename(path)
+    plain = _read_plain_triangles(text, name)
+    if plain is not None:
+        return plain
     scanned = _scan_fast(text)
     if scanned is not None:
         try:
@@ -298,6 +301,28 @@ def read_obj(path: str) -> Mesh:
         except MeshError:
             pass  # read it again carefully, to report the line
     return _build_obj(path, name, *_scan_careful(text, name))
+
+
+def _read_plain_triangles(text: str, name: str):
+    """The most common OBJ of all (scans such as the bunny): only ``v x y z`` and
+    ``f i j k`` with positive indices. Two regular expressions and two NumPy conversions;
+    None when the file has anything else (the general reader takes it)."""
+    if "/" in text or "\t" in text or "vt" in text or "vn" in text or "mtl" in text \
+            or "-" in text.split("\nf", 1)[-1]:
+        return None
+    tri = re.findall(r"^f +(\d+) +(\d+) +(\d+) *$", text, re.M)
+    pos = re.findall(r"^v +(\S+) +(\S+) +(\S+) *$", text, re.M)
+    if (not tri or len(tri) != len(re.findall(r"^f", text, re.M))
+            or len(pos) != len(re.findall(r"^v", text, re.M))):
+        return None
+    try:
+        positions = np.array(pos, dtype=np.float64)
+    except ValueError:
+        return None  # let the careful reader name the line
+    faces = np.array(tri, dtype=np.int64) - 1
+    if faces.min() < 0 or faces.max() >= len(positions):
+        return None
+    return Mesh(positions, faces, name=name)
 
 
 def _scan_careful(text: str, name: str):

@@ -72,8 +72,9 @@ def paint_faces(workers, face_id, face_rgb, background, image):
     """``image = face_rgb[face_id]`` where a face is visible, else the background
     (``face_rgb`` may be empty: every pixel gets the background). Returns the number of
     covered pixels."""
+    # Rows are the unit here: a few dozen rows of a large image are plenty of work.
     return sum(workers.run_range(_paint_rows, face_id.shape[0], face_id, face_rgb,
-                                 background, image))
+                                 background, image, min_chunk=32))
 
 
 @njit(cache=True, nogil=True)
@@ -96,11 +97,19 @@ def _paint_rows(lo, hi, face_id, face_rgb, background, image):
     return covered
 
 
+def visible_faces(face_id, n_faces, workers=None):
+    """(F,) bool: faces that appear in the image (rows scanned in parallel, each chunk
+    into its own mask)."""
+    if workers is None:
+        return _seen_rows(0, face_id.shape[0], face_id, n_faces)
+    masks = workers.run_range(_seen_rows, face_id.shape[0], face_id, n_faces, min_chunk=32)
+    return np.logical_or.reduce(masks) if len(masks) > 1 else masks[0]
+
+
 @njit(cache=True, nogil=True)
-def visible_faces(face_id, n_faces):
-    """(F,) bool: faces that appear in the image."""
+def _seen_rows(lo, hi, face_id, n_faces):
     seen = np.zeros(n_faces, dtype=np.bool_)
-    for r in range(face_id.shape[0]):
+    for r in range(lo, hi):
         for c in range(face_id.shape[1]):
             if face_id[r, c] >= 0:
                 seen[face_id[r, c]] = True
@@ -122,7 +131,7 @@ def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
     if face_id is None:
         visible = np.ones(scene.n_faces, dtype=np.bool_)
     else:
-        visible = visible_faces(face_id, scene.n_faces)
+        visible = visible_faces(face_id, scene.n_faces, workers)
     out = np.empty((scene.n_faces, 3), dtype=np.uint8)
     offsets = scene.face_offsets()
     for k, inst in enumerate(scene.instances):
