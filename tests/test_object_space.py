@@ -171,8 +171,8 @@ def rasterize_svg(path, width, height):
     depth_buf = np.empty((height, width), np.float32)
     none = np.zeros((1, 1), np.int32)
     with Workers() as w:
-        setup = setup_triangles(np.ascontiguousarray(xy), depth, width, height, w)
-        fill_bands(w, band_split(setup[2], height, w.threads), *setup, faces, width, height,
+        *setup, row_work = setup_triangles(np.ascontiguousarray(xy), depth, width, height, w)
+        fill_bands(w, band_split(row_work, w.threads), *setup, faces, width, height,
                    True, 7, True, 0.0, 1.0, 1.0, depth_buf, face_buf, none, none, False)
     return face_buf
 

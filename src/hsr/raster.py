@@ -48,6 +48,8 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     bbox : (N, 4) int32, inclusive pixel ranges (x_min, x_max, y_min, y_max), clamped to
         the viewport, y counted from the bottom; empty when min > max.
     zplane : (N, 5) float64, (x0, y0, z0, dz/dx, dz/dy) of the unsnapped depth plane.
+    row_work : (H,) float64, estimated fill work per window row (for :func:`band_split`),
+        gathered during the same pass.
     """
     n = xy_window.shape[0]
     # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
@@ -57,14 +59,21 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     bbox = np.empty((n, 4), dtype=np.int32)
     zplane = np.zeros((n, 5))
     factor, units = (float(v) for v in polygon_offset)
-    workers.run_range(_setup_range, n, xy_window, depth_window, width, height, vert_fixed,
-                      edge_bias, bbox, zplane, factor, units)
-    return vert_fixed, edge_bias, bbox, zplane
+    parts = workers.run_range(_setup_range, n, xy_window, depth_window, width, height,
+                              vert_fixed, edge_bias, bbox, zplane, factor, units)
+    delta = parts[0][0] if len(parts) == 1 else np.sum([p[0] for p in parts], axis=0)
+    widest = max(p[1] for p in parts)
+    # Work of a row: the box widths of the triangles on it plus a share for clearing it.
+    row_work = np.cumsum(delta[:height]) + 0.05 * widest
+    return vert_fixed, edge_bias, bbox, zplane, row_work
 
 
 @njit(cache=True, nogil=True)
 def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edge_bias,
                  bbox, zplane, offset_factor, offset_units):
+    # Per-row work estimate of this chunk: +box width at its first row, - after its last.
+    delta = np.zeros(height + 1)
+    widest = 1
     for t in range(lo, hi):
         x0 = np.int64(math.floor(xy_window[t, 0, 0] * _ONE + 0.5))
         y0 = np.int64(math.floor(xy_window[t, 0, 1] * _ONE + 0.5))
@@ -90,6 +99,11 @@ def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edg
         bbox[t, 1] = min((max(x0, x1, x2) - _HALF) // _ONE, width - 1)
         bbox[t, 2] = max(-((-(min(y0, y1, y2) - _HALF)) // _ONE), 0)
         bbox[t, 3] = min((max(y0, y1, y2) - _HALF) // _ONE, height - 1)
+        if bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]:
+            box_w = np.int64(bbox[t, 1]) - bbox[t, 0] + 1
+            delta[bbox[t, 2]] += box_w
+            delta[bbox[t, 3] + 1] -= box_w
+            widest = max(widest, np.int64(bbox[t, 1]) + 1)
         # Depth plane from the unsnapped positions.
         fx0, fy0, fz0 = xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0]
         ax, ay = xy_window[t, 1, 0] - fx0, xy_window[t, 1, 1] - fy0
@@ -104,6 +118,7 @@ def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edg
             zplane[t, 2] += polygon_offset(zplane[t, 3], zplane[t, 4], depth_window[t, 0],
                                            depth_window[t, 1], depth_window[t, 2],
                                            offset_factor, offset_units)
+    return delta, widest
 
 
 @njit(cache=True, nogil=True)
@@ -127,31 +142,15 @@ def _bias(dx, dy):
     return 0 if (dy < 0 or (dy == 0 and dx > 0)) else -1
 
 
-def band_split(bbox: np.ndarray, height: int, n_bands: int) -> np.ndarray:
+def band_split(row_work: np.ndarray, n_bands: int) -> np.ndarray:
     """Row boundaries (n_bands + 1,) of horizontal bands (window rows, y up) holding about
-    equal work, estimated as the bounding-box pixels of the triangles in each row plus a
-    share for clearing the row."""
-    total = np.cumsum(_row_work(bbox, height))
+    equal work (``row_work`` from :func:`setup_triangles`)."""
+    height = len(row_work)
+    if n_bands <= 1:
+        return np.array([0, height], dtype=np.int64)
+    total = np.cumsum(row_work)
     cuts = np.searchsorted(total, total[-1] * np.arange(1, n_bands) / n_bands)
     return np.concatenate([[0], cuts, [height]]).astype(np.int64)
-
-
-@njit(cache=True, nogil=True)
-def _row_work(bbox, height):
-    delta = np.zeros(height + 1)
-    widest = 1
-    for t in range(bbox.shape[0]):
-        if bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]:
-            w = np.int64(bbox[t, 1]) - bbox[t, 0] + 1
-            delta[bbox[t, 2]] += w
-            delta[bbox[t, 3] + 1] -= w
-            widest = max(widest, np.int64(bbox[t, 1]) + 1)
-    work = np.empty(height)
-    running = 0.0
-    for j in range(height):
-        running += delta[j]
-        work[j] = running + 0.05 * widest
-    return work
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -301,12 +300,12 @@ def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, 
     shape = (height, width) if counts else (1, 1)
     count_tested = np.zeros(shape, dtype=np.int32)
     count_written = np.zeros(shape, dtype=np.int32)
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+    vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
         np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window), width, height,
         workers, state.polygon_offset)
     # One band per thread: the split balances estimated work, and every extra band costs
     # a walk over all triangles.
-    bands = band_split(bbox, height, workers.threads)
+    bands = band_split(row_work, workers.threads)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     tested, written = fill_bands(
         workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,

@@ -64,7 +64,7 @@ def fragment_stream(screen, depth_buf, state, workers):
     triangles that passes ``state``'s depth test against ``depth_buf``, in submission
     order (the order OpenGL blends them)."""
     width, height = screen.width, screen.height
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+    vert_fixed, edge_bias, bbox, zplane, _ = setup_triangles(
         np.ascontiguousarray(screen.xy_window), np.ascontiguousarray(screen.depth_window),
         width, height, workers, state.polygon_offset)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)

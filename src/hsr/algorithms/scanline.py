@@ -38,7 +38,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         raise RenderError("scanline does not record per-pixel fragment counts")
     workers = workers or Workers()
     width, height = screen.width, screen.height
-    vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+    vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
         screen.xy_window, screen.depth_window, width, height, workers)
     live = np.flatnonzero((bbox[:, 0] <= bbox[:, 1]) & (bbox[:, 2] <= bbox[:, 3]))
     # Edge table: triangles ordered by the first scan line they touch.
@@ -46,7 +46,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     face = np.empty((height, width), dtype=np.int32)
     depth = np.empty((height, width), dtype=np.float32)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    bands = band_split(bbox, height, workers.threads)
+    bands = band_split(row_work, workers.threads)
     results = workers.run(_scan_rows, bands, edge_table, vert_fixed, edge_bias, bbox, zplane,
                           screen.face_id, width, height, state.depth_func == DepthFunc.LEQUAL,
                           np.float32(state.clear_depth), z_lo, z_hi, face, depth)

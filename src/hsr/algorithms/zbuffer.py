@@ -74,9 +74,9 @@ def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
             n_culled += 1
             continue
         # Set up only what is drawn: culled objects cost nothing past the geometry stage.
-        vert_fixed, edge_bias, bbox, zplane = setup_triangles(
+        vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
             screen.xy_window[t0:t1], screen.depth_window[t0:t1], width, height, workers)
-        bands = band_split(bbox, height, workers.threads)
+        bands = band_split(row_work, workers.threads)
         t, w = fill_bands(
             workers, bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id[t0:t1], width,
             height, True, state.depth_func.code, True, z_lo, z_hi, np.nan, depth, face,
