@@ -73,20 +73,44 @@ def paint_faces(workers, face_id, face_rgb, background, image):
     (``face_rgb`` may be empty: every pixel gets the background). Returns the number of
     covered pixels."""
     # Rows are the unit here: a few dozen rows of a large image are plenty of work.
-    return sum(workers.run_range(_paint_rows, face_id.shape[0], face_id, face_rgb,
-                                 background, image, min_chunk=32))
+    parts = workers.run_range(_scan_rows, face_id.shape[0], True, face_id, face_rgb,
+                              background, image, 0, min_chunk=32)
+    return sum(p[1] for p in parts)
+
+
+def visible_faces(face_id, n_faces, workers=None):
+    """(F,) bool: faces that appear in the image (rows scanned in parallel, each chunk
+    into its own mask)."""
+    none_rgb, none_bg = np.zeros((0, 3), np.uint8), np.zeros(3, np.uint8)
+    none_image = np.zeros((1, 1, 3), np.uint8)
+    args = (False, face_id, none_rgb, none_bg, none_image, n_faces)
+    if workers is None:
+        return _scan_rows(0, face_id.shape[0], *args)[0]
+    masks = [p[0] for p in workers.run_range(_scan_rows, face_id.shape[0], *args,
+                                             min_chunk=32)]
+    return np.logical_or.reduce(masks) if len(masks) > 1 else masks[0]
 
 
 @njit(cache=True, nogil=True)
-def _paint_rows(lo, hi, face_id, face_rgb, background, image):
-    paint = face_rgb.shape[0] > 0
+def _scan_rows(lo, hi, paint, face_id, face_rgb, background, image, n_faces):
+    """One pass over image rows ``lo..hi``: with ``paint``, colour them from the per-face
+    table (returns the covered count); without, mark the faces seen (returns the (F,)
+    mask). One kernel for both halves of the per-face path: one compile on first use."""
+    seen = np.zeros(n_faces, dtype=np.bool_)
     covered = 0
+    if not paint:
+        for r in range(lo, hi):
+            for c in range(face_id.shape[1]):
+                if face_id[r, c] >= 0:
+                    seen[face_id[r, c]] = True
+        return seen, covered
+    use_table = face_rgb.shape[0] > 0
     for r in range(lo, hi):
         for c in range(face_id.shape[1]):
             f = face_id[r, c]
             if f >= 0:
                 covered += 1
-            if f >= 0 and paint:
+            if f >= 0 and use_table:
                 image[r, c, 0] = face_rgb[f, 0]
                 image[r, c, 1] = face_rgb[f, 1]
                 image[r, c, 2] = face_rgb[f, 2]
@@ -94,26 +118,7 @@ def _paint_rows(lo, hi, face_id, face_rgb, background, image):
                 image[r, c, 0] = background[0]
                 image[r, c, 1] = background[1]
                 image[r, c, 2] = background[2]
-    return covered
-
-
-def visible_faces(face_id, n_faces, workers=None):
-    """(F,) bool: faces that appear in the image (rows scanned in parallel, each chunk
-    into its own mask)."""
-    if workers is None:
-        return _seen_rows(0, face_id.shape[0], face_id, n_faces)
-    masks = workers.run_range(_seen_rows, face_id.shape[0], face_id, n_faces, min_chunk=32)
-    return np.logical_or.reduce(masks) if len(masks) > 1 else masks[0]
-
-
-@njit(cache=True, nogil=True)
-def _seen_rows(lo, hi, face_id, n_faces):
-    seen = np.zeros(n_faces, dtype=np.bool_)
-    for r in range(lo, hi):
-        for c in range(face_id.shape[1]):
-            if face_id[r, c] >= 0:
-                seen[face_id[r, c]] = True
-    return seen
+    return seen, covered
 
 
 def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
