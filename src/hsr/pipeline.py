@@ -97,46 +97,61 @@ def degenerate_faces(positions, faces):
 def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, depth_scale,
                    depth_offset):
     """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
-    window coordinates, depth and twice the signed window area (y up)."""
+    window coordinates, depth and twice the signed window area (y up). ``planes`` are
+    :func:`hsr.clip.clip_planes`' (near, far, guard band); the kernel tests them directly."""
+    gx, gy = float(planes[2, 3]), float(planes[4, 3])
     n = faces.shape[0]
     status = np.empty(n, dtype=np.int8)
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
     area = np.zeros(n)
-    workers.run_range(_classify_range, n, pos_model, pos_clip, faces, planes, width, height,
+    workers.run_range(_classify_range, n, pos_model, pos_clip, faces, gx, gy, width, height,
                       depth_scale, depth_offset, status, xy, depth, area)
     return status, xy, depth, area
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _codes(pos_clip, v, gx, gy):
+    """Outcode of vertex ``v`` against the six frustum planes |x|, |y|, |z| <= w (bits
+    0-5) and whether it lies outside a clipping plane: near z >= -w, far z <= w, or the
+    guard band |x| <= gx w, |y| <= gy w (bit 6). The comparisons are written so that they
+    round exactly like the plane dot products the clipper evaluates (``z + w < 0`` etc.)."""
+    x, y, z, w = pos_clip[v, 0], pos_clip[v, 1], pos_clip[v, 2], pos_clip[v, 3]
+    code = 0
+    if x > w:
+        code |= 1
+    if -x > w:
+        code |= 2
+    if y > w:
+        code |= 4
+    if -y > w:
+        code |= 8
+    if z > w:
+        code |= 16
+    if -z > w:
+        code |= 32
+    if (z + w < 0.0 or -z + w < 0.0 or x + gx * w < 0.0 or -x + gx * w < 0.0
+            or y + gy * w < 0.0 or -y + gy * w < 0.0):
+        code |= 64
+    return code
+
+
 @njit(cache=True, nogil=True)
-def _classify_range(lo, hi, pos_model, pos_clip, faces, planes, width, height, depth_scale,
+def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, depth_scale,
                     depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
-    n_planes = planes.shape[0]
     for f in range(lo, hi):
-        if _is_degenerate(pos_model, faces[f, 0], faces[f, 1], faces[f, 2]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if _is_degenerate(pos_model, a, b, c):
             status[f] = DEGENERATE
             continue
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        # Trivial reject: all corners outside one frustum plane (|x|,|y|,|z| <= w).
-        outside = False
-        for axis in range(3):
-            for sign in (-1.0, 1.0):
-                if (sign * pos_clip[a, axis] > pos_clip[a, 3]
-                        and sign * pos_clip[b, axis] > pos_clip[b, 3]
-                        and sign * pos_clip[c, axis] > pos_clip[c, 3]):
-                    outside = True
-        if outside:
+        code_a, code_b, code_c = _codes(pos_clip, a, gx, gy), _codes(pos_clip, b, gx, gy), \
+            _codes(pos_clip, c, gx, gy)
+        # Trivial reject: all corners outside one frustum plane.
+        if code_a & code_b & code_c & 63:
             status[f] = OUTSIDE
             continue
-        crossing = False
-        for p in range(n_planes):
-            for v in (a, b, c):
-                d = (planes[p, 0] * pos_clip[v, 0] + planes[p, 1] * pos_clip[v, 1]
-                     + planes[p, 2] * pos_clip[v, 2] + planes[p, 3] * pos_clip[v, 3])
-                if d < 0.0:
-                    crossing = True
-        if crossing:
+        if (code_a | code_b | code_c) & 64:
             status[f] = NEEDS_CLIP
             continue
         status[f] = SIMPLE
