@@ -58,9 +58,11 @@ class GLRenderer:
         return self.ctx.vertex_array(self.prog, [(vbo, "3f", "pos_world")]), vbo
 
     def render(self, tri_world, view_proj, width, height, cull="none", front_face="ccw",
-               depth_func="less", depth_test=True, depth_mask=True, clear_depth=1.0, vao=None):
+               depth_func="less", depth_test=True, depth_mask=True, clear_depth=1.0, vao=None,
+               polygon_offset=(0.0, 0.0), polygon_mode="fill"):
         """Returns (face_id (H, W) int32 with -1 background, depth (H, W) float32 with
-        clear_depth where empty), row 0 = top."""
+        clear_depth where empty), row 0 = top. ``polygon_mode`` fill or line
+        (glPolygonMode), ``polygon_offset`` (factor, units) as glPolygonOffset."""
         import moderngl
 
         ctx = self.ctx
@@ -85,8 +87,12 @@ class GLRenderer:
         own = vao is None
         if own:
             vao, vbo = self.upload(tri_world)
+        ctx.polygon_offset = tuple(float(v) for v in polygon_offset)
+        ctx.wireframe = polygon_mode == "line"
         vao.render(moderngl.TRIANGLES)
         ctx.finish()
+        ctx.polygon_offset = (0.0, 0.0)
+        ctx.wireframe = False
         face = np.frombuffer(fbo.read(components=1, dtype="i4", attachment=0), dtype="i4")
         depth = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype="f4")
         if own:

@@ -95,3 +95,56 @@ def test_axis_aligned_square_covers_exactly_its_pixels(gl):
     gl_face, _ = gl.render(verts[mesh.faces], cam.projection_matrix(1.0) @ cam.view_matrix,
                            width, height)
     assert np.array_equal(frame.face_id, gl_face)
+
+
+@pytest.mark.parametrize("name", ["suzanne.obj", "spot.obj"])
+@pytest.mark.parametrize("offset", [(1.0, 0.0), (2.5, 0.0), (-1.5, 0.0), (0.0, 8.0)])
+def test_polygon_offset_matches_opengl(gl, models_dir, name, offset):
+    # gl_FragCoord.z carries glPolygonOffset's shift; compare the shift pixel by pixel.
+    # The slope term must agree. The units term depends on the depth format: hsr's buffer
+    # is float32, r = 2**(e - 23) for depths 2**e * 1.xxx (the spec's floating-point rule);
+    # llvmpipe's framebuffer here is 24-bit fixed point and Mesa's state tracker doubles
+    # the units (its offset is applied in [-1, 1] depth), so it moves twice as far.
+    mesh = hsr.load(os.path.join(models_dir, name))
+    cam = cameras_for(mesh)["oblique"]
+    width, height = 160, 120
+    view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
+    tris = hsr.Scene([mesh]).world_triangles()
+    gl_face0, gl_depth0 = gl.render(tris, view_proj, width, height)
+    gl_face1, gl_depth1 = gl.render(tris, view_proj, width, height, polygon_offset=offset)
+    base = hsr.render(mesh, cam, width, height)
+    moved = hsr.render(mesh, cam, width, height, polygon_offset=offset)
+    same = ((gl_face0 == base.face_id) & (gl_face1 == moved.face_id) & (gl_face0 == gl_face1)
+            & (base.face_id >= 0))
+    assert same.sum() > 0.9 * (base.face_id >= 0).sum()
+    gl_shift = gl_depth1[same].astype(np.float64) - gl_depth0[same]
+    hsr_shift = moved.depth[same].astype(np.float64) - base.depth[same]
+    if offset[1]:
+        assert (base.depth[same] >= 0.5).all()  # one float32 binade: r = 2**-24 throughout
+        assert np.allclose(hsr_shift, offset[1] * 2.0 ** -24)
+        assert np.allclose(gl_shift, 2 * offset[1] * 2.0 ** -24)
+        return
+    assert np.abs(gl_shift).max() > 0  # the offset did something
+    # within a few float32 steps of the depth (2**-24 near 1), plus 1% of the shift
+    assert np.abs(hsr_shift - gl_shift).max() <= 4 * 2.0 ** -24 + 0.01 * np.abs(gl_shift).max()
+
+
+@pytest.mark.parametrize("name", ["cubes", "suzanne.obj"])
+def test_polygon_mode_line_matches_opengl(gl, models_dir, name):
+    if name == "cubes":
+        scene, cam = hsr.scenes.get("cubes")
+    else:
+        mesh = hsr.load(os.path.join(models_dir, name))
+        scene, cam = hsr.Scene([mesh]), cameras_for(mesh)["front"]
+    width, height = 200, 150
+    view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
+    gl_face, _ = gl.render(scene.world_triangles(), view_proj, width, height,
+                           polygon_mode="line")
+    frame = hsr.render(scene, cam, width, height, polygon_mode="line")
+    g, h = gl_face >= 0, frame.face_id >= 0
+    # The same pixels are drawn (GL's aliased-line rule; a few line ends differ), and
+    # mostly by the same edge: where two edges cross or coincide, which one is in front is
+    # a depth tie.
+    assert g.sum() > 300
+    assert (g != h).sum() <= 0.002 * g.sum()
+    assert (gl_face[g & h] == frame.face_id[g & h]).mean() > 0.95
