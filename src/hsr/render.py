@@ -167,6 +167,12 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
         hidden_line = None
     elif hidden_line is not None and not isinstance(hidden_line, HiddenLine):
         raise RenderError("hidden_line must be True, False or an hsr.lines.HiddenLine")
+    try:
+        bg = np.asarray(background, dtype=np.float64)
+    except (TypeError, ValueError):
+        bg = np.zeros(0)
+    if bg.shape != (3,) or not np.all((bg >= 0) & (bg <= 255)):
+        raise RenderError(f"background must be three numbers in 0..255, got {background!r}")
     if transparency not in ("object", "exact"):
         raise RenderError(f"transparency must be object or exact, got {transparency!r}")
     if into is not None and (into.width, into.height) != (width, height):
