@@ -172,6 +172,16 @@ def test_painter_view_counts_and_animation(tmp_path):
     assert gif.n_frames == len(r.frames)
 
 
+@pytest.mark.parametrize("view", ["newell", "bsp"])
+def test_split_views_on_a_visibility_cycle(view):
+    scene, camera = scenes.get("cyclic")
+    r = explain(view, scene, camera, W, H)
+    assert r.numbers["pixels_differing"] == 0  # exact, unlike the painter
+    assert r.numbers["polygons"] > 3 and r.numbers["splits"] > 0  # the cycle was cut
+    assert len(r.frames) == r.numbers["animation_frames"] == r.numbers["polygons"]
+    assert (r.frames[-1][-H:] == hsr.render(scene, camera, W, H, algorithm=view).color).all()
+
+
 @pytest.mark.parametrize("view", list(VIEWS))
 def test_every_view_has_a_picture(view, tmp_path):
     scene, camera = scenes.get("cubes")
@@ -235,7 +245,8 @@ def test_report_in_a_real_browser(tmp_path, models_dir):
             images = driver.execute_script(
                 "return Array.from(document.images).map(i => [i.complete, i.naturalWidth, "
                 "i.getBoundingClientRect().right])")
-            assert len(images) == 2 + len(VIEWS)  # main image, every view, the animation
+            # the main image, every view, and the animations (painter, newell, bsp)
+            assert len(images) == text.count("<img") == 1 + len(VIEWS) + 3
             assert all(done and width > 0 for done, width, _ in images), images
             inner = driver.execute_script("return window.innerWidth")
             assert all(right <= inner + 1 for _, _, right in images)  # scaled to fit

@@ -8,7 +8,7 @@ in one HTML page.
 Views: ``depth`` (the depth buffer as stored and as linear eye depth), ``overdraw`` (depth
 complexity: fragments tested / written per pixel), ``no-depth-test`` (submission order
 without the test, seed 000 fig. 12-1), ``painter`` (painting back to front, animated, and
-where it goes wrong), ``linear-z`` (depth interpolated as z instead of 1/z, seed 000's
+where it goes wrong), ``newell`` and ``bsp`` (their split polygons and painting order), ``linear-z`` (depth interpolated as z instead of 1/z, seed 000's
 8.666 vs 6), ``precision`` (16/24-bit and float depth, reversed z, z-fighting), ``ybuffer``
 (tinyrenderer's 2-D y-buffer, seed 002) and ``culling`` (glCullFace modes, culled faces
 tinted).
@@ -243,32 +243,41 @@ def no_depth_test_view(scene, camera, width, height, state):
     return Explanation("no-depth-test", image, {"pixels_differing": differ}, text)
 
 
-def painter_view(scene, camera, width, height, state, n_frames: int = 24):
-    from .algorithms.painter import sort_far_to_near
+def _painting_frames(scene, camera, xy_window, face, width, height, state, caption,
+                     n_frames=24):
+    """Animation frames of polygons (window xy, source face) painted in the given order,
+    each over the last, no depth test."""
     from .parallel import Workers
     from .raster import rasterize
     from .shading import face_colors, paint_faces
+
+    frames = []
+    depth = np.zeros(xy_window.shape[:2])
+    with Workers() as workers:
+        colors = face_colors("flat", scene, camera, workers)
+        steps = np.unique(np.linspace(1, len(face), min(n_frames, len(face))).astype(int))
+        for k in steps:
+            painted, *_ = rasterize(xy_window[:k], depth[:k], face[:k], width, height, state,
+                                    workers, depth_test=True, depth_func=7, depth_write=True)
+            image = np.empty((height, width, 3), np.uint8)
+            paint_faces(workers, painted, colors, np.zeros(3, np.uint8), image)
+            frames.append(panel(image, caption.format(k=k, n=len(face))))
+    return frames
+
+
+def painter_view(scene, camera, width, height, state, n_frames: int = 24):
+    from .algorithms.painter import sort_far_to_near
+    from .compare import difference_map
 
     painted = render(scene, camera, width, height, state=state, algorithm="painter")
     truth = render(scene, camera, width, height, state=state)
     screen = painted.fragments.screen
     order = sort_far_to_near(screen.depth_window, "max")
-    frames = []
-    with Workers() as workers:
-        colors = face_colors("flat", scene, camera, workers)
-        steps = np.unique(np.linspace(1, len(order), min(n_frames, len(order))).astype(int))
-        for k in steps:
-            sel = order[:k]
-            face, *_ = rasterize(screen.xy_window[sel], screen.depth_window[sel],
-                                 screen.face_id[sel], width, height, state, workers,
-                                 depth_test=True, depth_func=7, depth_write=True)
-            image = np.empty((height, width, 3), np.uint8)
-            paint_faces(workers, face, colors, np.zeros(3, np.uint8), image)
-            frames.append(panel(image, f"painted {k} of {len(order)} triangles, far to near"))
+    frames = _painting_frames(scene, camera, screen.xy_window[order], screen.face_id[order],
+                              width, height, state,
+                              "painted {k} of {n} triangles, far to near", n_frames)
     wrong = painted.face_id != truth.face_id
     offending = np.unique(painted.face_id[wrong & (painted.face_id >= 0)])
-    from .compare import difference_map
-
     error = _outline(difference_map(painted, truth), _triangles_image(painted, offending))
     image = row([panel(painted.color, "painter's algorithm"),
                  panel(truth.color, "z-buffer"),
@@ -279,6 +288,46 @@ def painter_view(scene, camera, width, height, state, n_frames: int = 24):
             "far to near without a depth test. Where triangles overlap cyclically or pierce "
             "each other no such order exists; the triangles painted wrongly are outlined.")
     return Explanation("painter", image, numbers, text, frames)
+
+
+def _split_view(name, scene, camera, width, height, state, text, n_frames=24):
+    """Newell's and the BSP tree's order: the polygons after splitting, painted in the
+    algorithm's order (animation), outlined, and compared with the z-buffer."""
+    from .compare import difference_map
+
+    frame = render(scene, camera, width, height, state=state, algorithm=name)
+    truth = render(scene, camera, width, height, state=state)
+    xy, face, _ = frame.fragments.buffers["polygons"]
+    frames = _painting_frames(scene, camera, xy, face, width, height, state,
+                              "painted {k} of {n} polygons in " + name + " order", n_frames)
+    outlines = xy.copy()
+    outlines[..., 1] = height - outlines[..., 1]
+    drawn = _outline(frame.color // 2, list(outlines), color=(255, 255, 255))
+    differ = int(np.count_nonzero(frame.face_id != truth.face_id))
+    splits = int(frame.stats.get("splits", 0))
+    image = row([panel(frame.color, f"{name}"),
+                 panel(drawn, f"{len(face)} polygons after {splits} splits"),
+                 panel(difference_map(frame, truth), f"differs from z-buffer: {differ} px")])
+    numbers = {"polygons": int(len(face)), "splits": splits, "pixels_differing": differ,
+               "animation_frames": len(frames)}
+    numbers.update({k: frame.stats[k] for k in ("bsp_nodes", "bsp_depth", "moves",
+                                                "pair_tests") if k in frame.stats})
+    return Explanation(name, image, numbers, text, frames)
+
+
+def newell_view(scene, camera, width, height, state):
+    return _split_view("newell", scene, camera, width, height, state,
+                       "Newell, Newell and Sancha sort by farthest depth, then test each "
+                       "overlapping pair (extents, planes, projections) and move or split "
+                       "polygons until a true back-to-front order exists: cycles and "
+                       "penetrations are cut along a plane, so painting is exact.")
+
+
+def bsp_view(scene, camera, width, height, state):
+    return _split_view("bsp", scene, camera, width, height, state,
+                       "Fuchs, Kedem and Naylor's BSP tree splits polygons by the planes of "
+                       "others once, in world space; any viewpoint then walks it back to front "
+                       "(far side, node, near side), which is a correct painting order.")
 
 
 def linear_z_depths(screen, camera, depth_range=(0.0, 1.0)):
@@ -539,6 +588,8 @@ VIEWS = {
     "overdraw": overdraw_view,
     "no-depth-test": no_depth_test_view,
     "painter": painter_view,
+    "newell": newell_view,
+    "bsp": bsp_view,
     "linear-z": linear_z_view,
     "precision": precision_view,
     "ybuffer": ybuffer_view,
