@@ -76,10 +76,11 @@ def build_report(scene, camera, title: str, width: int = 480, height: int = 360,
     from .render import render
 
     t0 = time.perf_counter()
-    frame = render(scene, camera, width, height, state=state)
     names = list(algorithms or ALGORITHMS)
     comparison = compare_algorithms(scene, camera, width, height, names, state=state,
                                     progress=progress)
+    # After the comparison has compiled and warmed the kernels: these timings are warm.
+    frame = render(scene, camera, width, height, state=state)
     views = list(VIEWS)
     iterator = views
     if progress:
