@@ -97,6 +97,9 @@ def test_depth_quantisation_steps():
             < resolvable_depth(z[1:], n, f, "float32")).all()
     assert window_depth(n, n, f) == pytest.approx(0) and window_depth(f, n, f) == pytest.approx(1)
     assert window_depth(n, n, f, True) == pytest.approx(1)
+    # orthographic: depth is linear, so one step is the same eye distance everywhere
+    assert np.allclose(resolvable_depth(z, n, f, "unorm16", orthographic=True),
+                       (f - n) / 65535)
 
 
 def test_zfighting_gets_worse_with_fewer_bits_and_a_closer_near_plane():

@@ -378,11 +378,15 @@ def depth_formats():
     return ("unorm16", "unorm24", "float32", "float32-reversed")
 
 
-def window_depth(z_eye, near, far, reversed_z=False):
+def window_depth(z_eye, near, far, reversed_z=False, orthographic=False):
     """Window depth in [0, 1] of positive eye distances for a perspective projection:
     standard OpenGL (near -> 0, far -> 1) or reversed z (near -> 1, far -> 0, as with
-    glClipControl(GL_ZERO_TO_ONE) and a reversed projection)."""
+    glClipControl(GL_ZERO_TO_ONE) and a reversed projection). Orthographic projections
+    map depth linearly."""
     z = np.asarray(z_eye, dtype=np.float64)
+    if orthographic:
+        d = (z - near) / (far - near)
+        return 1.0 - d if reversed_z else d
     if reversed_z:
         return near * (far - z) / (z * (far - near))
     return far * (z - near) / (z * (far - near))
@@ -410,13 +414,18 @@ def depth_step(d, fmt):
     return np.spacing(np.abs(np.asarray(d, dtype=np.float32))).astype(np.float64)
 
 
-def resolvable_depth(z_eye, near, far, fmt):
+def resolvable_depth(z_eye, near, far, fmt, orthographic=False):
     """Smallest eye-space depth difference the format can tell apart at distance
-    ``z_eye``: one depth step divided by |d(window depth)/d(z_eye)| = n f / ((f - n) z^2)."""
+    ``z_eye``: one depth step divided by |d(window depth)/d(z_eye)|, which is
+    n f / ((f - n) z^2) for a perspective projection and 1 / (f - n) for an orthographic
+    one."""
     z = np.asarray(z_eye, dtype=np.float64)
     reversed_z = fmt == "float32-reversed"
-    d = window_depth(z, near, far, reversed_z)
-    slope = near * far / ((far - near) * z * z)
+    d = window_depth(z, near, far, reversed_z, orthographic)
+    if orthographic:
+        slope = np.full(z.shape, 1.0 / (far - near))
+    else:
+        slope = near * far / ((far - near) * z * z)
     return depth_step(d, fmt) / slope
 
 
@@ -464,7 +473,8 @@ def precision_view(scene, camera, width, height, state, gap=0.005):
     # (up to 0.9 far: at the far plane itself reversed z stores 0, where a float is
     # denormal-fine and the table would say nothing useful)
     distances = np.geomspace(max(near * 2, 1e-6), 0.9 * far, 6)
-    table = {fmt: [float(v) for v in resolvable_depth(distances, near, far, fmt)]
+    ortho = camera.is_orthographic
+    table = {fmt: [float(v) for v in resolvable_depth(distances, near, far, fmt, ortho)]
              for fmt in fmts}
     small_w, small_h = max(width // 2, 80), max(height // 2, 60)
     panels_rows = []
@@ -485,7 +495,8 @@ def precision_view(scene, camera, width, height, state, gap=0.005):
             panels.append(panel(img, f"{fmt}, near {z_near:g}, far {z_far:g}\n"
                                      f"lower floor shows: {100 * lost:.1f}%", 2))
         panels_rows.append(row(panels))
-    lines = [f"resolvable eye-depth difference, near {near:g}, far {far:g}:"]
+    lines = [f"resolvable eye-depth difference, near {near:g}, far {far:g}"
+             f"{' (orthographic)' if ortho else ''}:"]
     lines.append("distance  " + "  ".join(f"{f:>16}" for f in fmts))
     for i, z in enumerate(distances):
         lines.append(f"{z:8.3g}  " + "  ".join(f"{table[f][i]:16.3g}" for f in fmts))
