@@ -237,8 +237,9 @@ class ShadeContext:
     def __post_init__(self):
         for k, inst in enumerate(self.scene.instances):
             if _textured(self.look, inst.mesh) and inst.mesh.corner_uv is None:
-                raise RenderError(f"{inst.mesh.name}: has a texture but no texture "
-                                  f"coordinates (OBJ vt)")
+                raise RenderError(f"{inst.mesh.name}: has a texture but not every face has "
+                                  f"texture coordinates (OBJ vt); use textures=False "
+                                  f"(--no-texture)")
 
     @property
     def per_pixel(self) -> bool:
