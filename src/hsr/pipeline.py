@@ -110,7 +110,7 @@ def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, d
     return status, xy, depth, area
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def _codes(pos_clip, v, gx, gy):
     """Outcode of vertex ``v`` against the six frustum planes |x|, |y|, |z| <= w (bits
     0-5) and whether it lies outside a clipping plane: near z >= -w, far z <= w, or the
