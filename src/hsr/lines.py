@@ -21,11 +21,12 @@ from numba import njit
 
 from .conventions import GUARD_BAND_PIXELS
 from .errors import RenderError
+from .mesh import instance_of
 from .raster import _ONE, depth_passes
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
-           "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE", "SILHOUETTE",
-           "NONMANIFOLD"]
+           "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
+           "SILHOUETTE", "NONMANIFOLD"]
 
 BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD = 1, 2, 4, 8
 EDGE_KINDS = ("all", "feature")
@@ -86,7 +87,7 @@ def triangle_edges(scene, face_ids) -> Edges:
     face_ids = np.asarray(face_ids, dtype=np.int64)
     offsets = scene.face_offsets()
     ends = np.empty((len(face_ids), 3, 2, 3))
-    owner = np.searchsorted(offsets, face_ids, side="right") - 1
+    owner = instance_of(offsets, face_ids)
     for k in np.unique(owner):
         inst = scene.instances[k]
         sel = owner == k
@@ -336,16 +337,21 @@ def polygon_edges(scene, screen, view_proj, state):
     return face, depth, stats
 
 
+def chosen_edges(scene, camera, screen, settings: HiddenLine) -> Edges:
+    """The edges hidden-line drawing considers: every edge of the drawn faces once, or
+    only the feature edges."""
+    edges = unique_edges(scene, camera, settings.crease_angle,
+                         drawn=drawn_faces(screen, scene.n_faces))
+    return edges.subset(edges.kind != 0) if settings.edges == "feature" else edges
+
+
 def hidden_line_pass(scene, camera, screen, view_proj, depth_filled, settings: HiddenLine,
                      depth_range):
     """Draw the chosen edges with a LEQUAL depth test against ``depth_filled`` (the depth
     of the filled surfaces, already pushed back by the polygon offset), writing nothing to
     it. Returns (line_face (H, W) int32, -1 where no edge is drawn; stats)."""
     width, height = screen.width, screen.height
-    edges = unique_edges(scene, camera, settings.crease_angle,
-                         drawn=drawn_faces(screen, scene.n_faces))
-    if settings.edges == "feature":
-        edges = edges.subset(edges.kind != 0)
+    edges = chosen_edges(scene, camera, screen, settings)
     keep, ends_window, _ = clip_segments(edges.ends, view_proj, width, height, depth_range)
     line_face = np.full((height, width), -1, dtype=np.int32)
     z_lo, z_hi = min(depth_range), max(depth_range)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .errors import MeshError
 
-__all__ = ["Mesh", "Scene", "Instance", "load", "read_obj", "as_scene"]
+__all__ = ["Mesh", "Scene", "Instance", "load", "read_obj", "as_scene", "instance_of"]
 
 
 @dataclass(eq=False)
@@ -194,6 +194,10 @@ class Scene:
             np.int64
         )
 
+    def instance_of(self, face_id) -> np.ndarray:
+        """Instance index of each global face id (see :func:`instance_of`)."""
+        return instance_of(self.face_offsets(), face_id)
+
     def world_triangles(self) -> np.ndarray:
         """(F, 3, 3) world-space corners of every face, in submission order."""
         parts = []
@@ -206,6 +210,12 @@ class Scene:
         """(2, 3) world-space bounding box of all instances."""
         tri = self.world_triangles().reshape(-1, 3)
         return np.stack([tri.min(axis=0), tri.max(axis=0)])
+
+
+def instance_of(face_offsets: np.ndarray, face_id) -> np.ndarray:
+    """Index of the instance owning each global face id, given the scene's face offsets
+    (:meth:`Scene.face_offsets`); -1 for face id -1."""
+    return np.searchsorted(face_offsets, face_id, side="right") - 1
 
 
 def as_mesh(source) -> Mesh:

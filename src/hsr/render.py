@@ -14,7 +14,7 @@ from .errors import RenderError
 from .fog import Fog
 from .fragments import Fragments
 from .lines import HiddenLine, hidden_line_pass, polygon_edges
-from .mesh import as_scene
+from .mesh import as_scene, instance_of
 from .occlusion import object_bounds
 from .parallel import Workers
 from .pipeline import prepare
@@ -69,7 +69,7 @@ class Frame:
         from ``face_id`` on first use)."""
         if getattr(self, "_object_id", None) is None:
             offsets = self.face_offsets if self.face_offsets is not None else np.array([0])
-            object_id = np.searchsorted(offsets, self.face_id, side="right").astype(np.int32) - 1
+            object_id = instance_of(offsets, self.face_id).astype(np.int32)
             object_id[self.face_id < 0] = -1
             self._object_id = object_id
         return self._object_id
@@ -234,8 +234,8 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
     transparent = np.array([inst.opacity < 1.0 for inst in scene.instances])
     opaque_screen = screen
     if transparent.any():
-        owner = np.searchsorted(scene.face_offsets(), screen.face_id, side="right") - 1
-        opaque_screen = screen.subset(~transparent[owner])
+        is_transparent = transparent[scene.instance_of(screen.face_id)]
+        opaque_screen = screen.subset(~is_transparent)
 
     module = ALGORITHMS[algorithm]
     if state.polygon_mode != "fill":
@@ -276,9 +276,8 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
         face_id = np.where(drawn, face_id, into.face_id).astype(np.int32)
         covered = int(np.count_nonzero(face_id >= 0))
     if transparent.any():
-        stats.update(transparent_pass(ctx, screen.subset(
-            transparent[np.searchsorted(scene.face_offsets(), screen.face_id, side="right") - 1]),
-            fragments.depth, state, color, order=transparency))
+        stats.update(transparent_pass(ctx, screen.subset(is_transparent), fragments.depth,
+                                      state, color, order=transparency))
     if hidden_line is not None:
         if hidden_line.fill == "background":
             color[:] = background

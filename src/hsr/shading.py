@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 from .errors import RenderError
 from .fog import Fog
+from .mesh import instance_of
 from .texture import FILTERS, WRAPS, load_texture, sample
 
 __all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
@@ -289,7 +290,7 @@ def _instance_groups(scene, faces):
     """(instance index, local face ids, positions in ``faces``) for each instance that
     owns some of the global ``faces``."""
     offsets = scene.face_offsets()
-    owner = np.searchsorted(offsets, faces, side="right") - 1
+    owner = instance_of(offsets, faces)
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], np.arange(len(offsets)))
     for k in range(len(offsets) - 1):
@@ -326,8 +327,11 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
         inst = scene.instances[k]
         mesh = inst.mesh
         b = bary[idx] if bary is not None else None
+        if needs_bary:
+            world = (mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
+                     + inst.model[:3, 3])  # (K, 3 corners, 3)
         if look.shading in ("flat", "gouraud"):
-            tri = mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
+            tri = world
             normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             length = np.linalg.norm(normal, axis=1)
             normal /= np.where(length > 0, length, 1.0)[:, None]
@@ -352,9 +356,7 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
                 base = _DEFAULT_BASE[None, :]
             rgb[idx] = base * intensity[:, None]
         if look.fog is not None:
-            world = (mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
-                     + inst.model[:3, 3])
-            eye = world @ view[:3, :3].T + view[:3, 3]  # (K, 3 corners, 3)
+            eye = world @ view[:3, :3].T + view[:3, 3]
             pos_eye = np.einsum("ij,ijk->ik", b, eye)
             rgb[idx] = look.fog.apply(rgb[idx], pos_eye)
     return rgb

@@ -102,10 +102,6 @@ def object_order(scene, camera, instances) -> list:
     return [instances[i] for i in np.argsort(keys, kind="stable")]
 
 
-def _instance_of(scene, face):
-    return np.searchsorted(scene.face_offsets(), face, side="right") - 1
-
-
 def transparent_pass(ctx, screen, depth_buf, state, image, order="object"):
     """Blend the transparent instances over ``image`` (H, W, 3 uint8, modified).
 
@@ -115,7 +111,7 @@ def transparent_pass(ctx, screen, depth_buf, state, image, order="object"):
     scene = ctx.scene
     width = screen.width
     transparent = [k for k, inst in enumerate(scene.instances) if inst.opacity < 1.0]
-    owner = _instance_of(scene, screen.face_id)
+    owner = scene.instance_of(screen.face_id)
     flat = image.reshape(-1, 3)
     total = 0
     if order == "exact":
@@ -141,7 +137,7 @@ def _shade_and_blend(ctx, scene, flat, pixel, face, depth, width):
     if len(pixel) == 0:
         return 0
     rgb = shade_fragments(ctx, pixel // width, pixel % width, face, depth)
-    alpha = np.array([inst.opacity for inst in scene.instances])[_instance_of(scene, face)]
+    alpha = np.array([inst.opacity for inst in scene.instances])[scene.instance_of(face)]
     blend_in_order(flat, pixel, rgb, alpha)
     return len(pixel)
 

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from .mesh import as_scene
-from .lines import HiddenLine, clip_segments, drawn_faces, unique_edges
+from .lines import HiddenLine, chosen_edges, clip_segments
 from .pipeline import prepare
 from .state import RenderState
 from .svg import write_svg
@@ -277,10 +277,7 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     stats: dict = {}
     with Workers(threads) as workers:
         screen = prepare(scene, view_proj, width, height, state, stats, workers)
-    edges = unique_edges(scene, camera, settings.crease_angle,
-                         drawn=drawn_faces(screen, scene.n_faces))
-    if settings.edges == "feature":
-        edges = edges.subset(edges.kind != 0)
+    edges = chosen_edges(scene, camera, screen, settings)
     keep, ends, _ = clip_segments(edges.ends, view_proj, width, height, guard=0)
     edge_faces = edges.faces[keep]
     if cell is None:
