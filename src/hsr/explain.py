@@ -9,7 +9,8 @@ Views: ``depth`` (the depth buffer as stored and as linear eye depth), ``overdra
 complexity: fragments tested / written per pixel), ``no-depth-test`` (submission order
 without the test, seed 000 fig. 12-1), ``painter`` (painting back to front, animated, and
 where it goes wrong), ``newell`` and ``bsp`` (their split polygons and painting order),
-``linear-z`` (depth interpolated as z instead of 1/z, seed 000's 8.666 vs 6), ``precision`` (16/24-bit and float depth, reversed z, z-fighting), ``ybuffer``
+``linear-z`` (depth interpolated as z instead of 1/z, seed 000's 8.666 vs 6),
+``precision`` (16/24-bit and float depth, reversed z, z-fighting), ``ybuffer``
 (tinyrenderer's 2-D y-buffer, seed 002) and ``culling`` (glCullFace modes, culled faces
 tinted).
 """
