@@ -36,6 +36,14 @@ def _floats(text: str, count: int, what: str) -> tuple:
     return values
 
 
+def _color(text: str, what: str) -> tuple:
+    """An r,g,b colour with components in 0..255."""
+    color = _floats(text, 3, what)
+    if not all(0 <= c <= 255 for c in color):
+        raise CliError(f"{what} values must be in 0..255, got {text!r}")
+    return tuple(int(c) for c in color)
+
+
 def _size(text: str) -> tuple[int, int]:
     parts = text.lower().split("x")
     try:
@@ -232,11 +240,8 @@ def _setup(args):
             textured = [m for m in meshes if m.corner_uv is not None]
             if not textured:
                 raise CliError("--texture: no MODEL has texture coordinates (OBJ vt)")
-            from .texture import load_texture
-
-            image = load_texture(args.texture)[::-1]  # checked now, row 0 = top again
-            for m in textured:
-                m.texture = image
+            for m in textured:  # read (and checked) when shading starts
+                m.texture = args.texture
         scene = Scene(meshes)
     else:
         if args.texture:
@@ -264,13 +269,10 @@ def _setup(args):
                         polygon_mode=args.polygon_mode,
                         polygon_offset=(_floats(args.polygon_offset, 2, "--polygon-offset")
                                         if args.polygon_offset else (0.0, 0.0)))
-    background = _floats(args.background, 3, "--background")
-    if not all(0 <= c <= 255 for c in background):
-        raise CliError(f"--background values must be in 0..255, got {args.background!r}")
+    background = _color(args.background, "--background")
     if args.threads is not None and args.threads < 1:
         raise CliError(f"--threads must be >= 1, got {args.threads}")
-    return scene, camera, width, height, state, tuple(int(c) for c in background), _options(
-        args.option)
+    return scene, camera, width, height, state, background, _options(args.option)
 
 
 def _look(args):
@@ -279,21 +281,14 @@ def _look(args):
 
     fog = None
     if args.fog:
-        color = _floats(args.fog_color, 3, "--fog-color")
-        if not all(0 <= c <= 255 for c in color):
-            raise CliError(f"--fog-color values must be in 0..255, got {args.fog_color!r}")
-        fog = parse_fog(args.fog, color, args.fog_distance)
+        fog = parse_fog(args.fog, _color(args.fog_color, "--fog-color"), args.fog_distance)
     return Look(args.shading, not args.no_texture, args.texture_filter, args.texture_wrap, fog)
 
 
 def _hidden_line(args):
     from .lines import HiddenLine
 
-    color = None
-    if args.line_color:
-        color = tuple(int(c) for c in _floats(args.line_color, 3, "--line-color"))
-        if not all(0 <= c <= 255 for c in color):
-            raise CliError(f"--line-color values must be in 0..255, got {args.line_color!r}")
+    color = _color(args.line_color, "--line-color") if args.line_color else None
     offset = (_floats(args.polygon_offset, 2, "--polygon-offset") if args.polygon_offset
               else (1.0, 1.0))
     return HiddenLine(args.edges, args.crease_angle, offset, color, args.hidden_line_fill)
@@ -322,9 +317,8 @@ def _cmd_render(args) -> int:
         from .vector_lines import hidden_lines, write_lines_svg
 
         drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
-        color = hidden_line.color or ((255, 255, 255) if sum(background) < 3 * 128
-                                      else (0, 0, 0))
-        write_lines_svg(args.svg, drawing, background, color, hidden=args.hidden_layer)
+        write_lines_svg(args.svg, drawing, background, hidden_line.line_color(background),
+                        hidden=args.hidden_layer)
         if not args.quiet:
             print(f"wrote {args.svg}: {len(drawing.visible_polylines)} visible polylines "
                   f"from {drawing.stats['edges']} edges")

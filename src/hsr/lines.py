@@ -51,6 +51,12 @@ class HiddenLine:
     color: tuple | None = None
     fill: str = "background"
 
+    def line_color(self, background) -> tuple:
+        """The line colour: ``color``, or white on a dark background, black on a light one."""
+        if self.color is not None:
+            return tuple(self.color)
+        return (255, 255, 255) if float(np.mean(background)) < 128 else (0, 0, 0)
+
     def __post_init__(self):
         if self.edges not in EDGE_KINDS:
             raise RenderError(f"edges must be one of {', '.join(EDGE_KINDS)}; got {self.edges!r}")

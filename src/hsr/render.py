@@ -284,10 +284,7 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
         line_face, line_stats = hidden_line_pass(scene, camera, screen, view_proj,
                                                  fragments.depth.copy(), hidden_line,
                                                  state.depth_range)
-        line_color = hidden_line.color
-        if line_color is None:
-            line_color = (255, 255, 255) if float(np.mean(background)) < 128 else (0, 0, 0)
-        color[line_face >= 0] = np.asarray(line_color, dtype=np.uint8)
+        color[line_face >= 0] = np.asarray(hidden_line.line_color(background), dtype=np.uint8)
         fragments.buffers["lines"] = line_face
         stats.update(line_stats)
         stats["line_pixels"] = int(np.count_nonzero(line_face >= 0))

@@ -6,8 +6,9 @@ buffer (rounded after every blend, as the framebuffer stores it).
 
 Where it is wrong: sorting whole objects cannot order fragments of objects that
 interpenetrate or overlap cyclically, nor the faces inside one object (they blend in
-submission order). :func:`exact_blend` sorts every fragment per pixel instead (an
-A-buffer, Carpenter 1984): the correct result, against which the error is measured.
+submission order). ``transparent_pass(..., order="exact")`` (``render(...,
+transparency="exact")``) sorts every fragment per pixel instead (an A-buffer, Carpenter
+1984): the correct result, against which the error is measured.
 """
 
 from __future__ import annotations
@@ -19,8 +20,7 @@ from numba import njit
 
 from .raster import _HALF, _ONE, depth_passes, setup_triangles
 
-__all__ = ["fragment_stream", "blend_in_order", "object_order", "transparent_pass",
-           "exact_blend"]
+__all__ = ["fragment_stream", "blend_in_order", "object_order", "transparent_pass"]
 
 
 @njit(cache=True, nogil=True)
@@ -140,9 +140,3 @@ def _shade_and_blend(ctx, scene, flat, pixel, face, depth, width):
     alpha = np.array([inst.opacity for inst in scene.instances])[scene.instance_of(face)]
     blend_in_order(flat, pixel, rgb, alpha)
     return len(pixel)
-
-
-def exact_blend(ctx, screen, depth_buf, state, image):
-    """Per-pixel sorted blending of all transparent fragments (correct where per-object
-    sorting fails); modifies ``image``."""
-    return transparent_pass(ctx, screen, depth_buf, state, image, order="exact")
