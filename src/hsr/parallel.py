@@ -39,15 +39,22 @@ class Workers:
             self._pool.shutdown()
             self._pool = None
 
-    def run(self, kernel, bounds, *args) -> list:
-        """``kernel(bounds[i], bounds[i + 1], *args)`` for every chunk; results in order."""
+    def run(self, kernel, bounds, *args, on_done=None) -> list:
+        """``kernel(bounds[i], bounds[i + 1], *args)`` for every chunk; results in order.
+        ``on_done(lo, hi)`` is called as each chunk's result is collected (progress)."""
         chunks = [(int(bounds[i]), int(bounds[i + 1])) for i in range(len(bounds) - 1)]
         if self.threads == 1 or len(chunks) == 1:
-            return [kernel(lo, hi, *args) for lo, hi in chunks]
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(self.threads)
-        futures = [self._pool.submit(kernel, lo, hi, *args) for lo, hi in chunks]
-        return [f.result() for f in futures]
+            futures = None
+        else:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.threads)
+            futures = [self._pool.submit(kernel, lo, hi, *args) for lo, hi in chunks]
+        results = []
+        for k, (lo, hi) in enumerate(chunks):
+            results.append(kernel(lo, hi, *args) if futures is None else futures[k].result())
+            if on_done is not None:
+                on_done(lo, hi)
+        return results
 
     def run_range(self, kernel, n: int, *args, min_chunk: int = 4096) -> list:
         """Split ``range(n)`` into one chunk per thread (none smaller than ``min_chunk``:

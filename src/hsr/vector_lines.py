@@ -229,27 +229,31 @@ def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
 
 
 _CHUNK = 8192  # edges per task: threads share the work and the progress bar moves
-
-
-def _run_chunks(threads, bounds, args, progress):
-    from concurrent.futures import ThreadPoolExecutor
-
-    chunks = list(zip(bounds[:-1], bounds[1:]))
+def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progress):
+    """Hidden intervals (edge, (t0, t1)) of the chosen edges, clipped to the view: the
+    window-space edges, and the grid cell size used."""
+    width, height = screen.width, screen.height
+    edges = chosen_edges(scene, camera, screen, settings)
+    keep, ends, _ = clip_segments(edges.ends, view_proj, width, height, guard=0)
+    if cell is None:
+        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
+    tri_xy = np.ascontiguousarray(screen.xy_window)
+    start, items, nx, ny = _grid(tri_xy, width, height, cell)
+    bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
     bar = None
-    if progress:
+    if progress and len(ends) > 4 * _CHUNK:
         from tqdm import tqdm
 
-        bar = tqdm(total=int(bounds[-1]), desc="hidden lines", unit="edge", leave=False)
-    with ThreadPoolExecutor(threads) as pool:
-        futures = [pool.submit(_hidden_intervals, int(lo), int(hi), *args) for lo, hi in chunks]
-        results = []
-        for (lo, hi), f in zip(chunks, futures):
-            results.append(f.result())
-            if bar is not None:
-                bar.update(int(hi - lo))
+        bar = tqdm(total=len(ends), desc="hidden lines", unit="edge", leave=False)
+    results = workers.run(_hidden_intervals, bounds, ends, edges.faces[keep], tri_xy,
+                          np.ascontiguousarray(screen.depth_window), screen.face_id, start,
+                          items, nx, ny, cell,
+                          on_done=None if bar is None else (lambda lo, hi: bar.update(hi - lo)))
     if bar is not None:
         bar.close()
-    return results
+    hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
+    hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
+    return hidden_edge, hidden_t, ends, cell
 
 
 def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | None = None,
@@ -271,26 +275,13 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     settings = settings or HiddenLine()
     if progress is None:
         progress = sys.stderr.isatty()
-    state = RenderState(cull=(state or RenderState()).cull,
-                        front_face=(state or RenderState()).front_face)
+    state = state or RenderState()
+    state = RenderState(cull=state.cull, front_face=state.front_face)
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
-    stats: dict = {}
     with Workers(threads) as workers:
-        screen = prepare(scene, view_proj, width, height, state, stats, workers)
-    edges = chosen_edges(scene, camera, screen, settings)
-    keep, ends, _ = clip_segments(edges.ends, view_proj, width, height, guard=0)
-    edge_faces = edges.faces[keep]
-    if cell is None:
-        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
-    tri_xy = np.ascontiguousarray(screen.xy_window)
-    start, items, nx, ny = _grid(tri_xy, width, height, cell)
-    args = (ends, edge_faces, tri_xy, np.ascontiguousarray(screen.depth_window),
-            screen.face_id, start, items, nx, ny, cell)
-    bounds = np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))
-    bounds = np.unique(np.r_[0, bounds])
-    results = _run_chunks(workers.threads, bounds, args, progress and len(ends) > 4 * _CHUNK)
-    hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
-    hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
+        screen = prepare(scene, view_proj, width, height, state, {}, workers)
+        hidden_edge, hidden_t, ends, cell = _cut_edges(scene, camera, screen, settings,
+                                                       view_proj, workers, cell, progress)
     vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
     visible = _drop_slivers(_pieces(ends, vis_edge, vis_t))
     hidden = _drop_slivers(_pieces(ends, hidden_edge, hidden_t))
