@@ -9,19 +9,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import sys
-import time
 
 
 import hsr
 import hsr.bsp as bsp
-
-
-def timed(fn):
-    t0 = time.perf_counter()
-    result = fn()
-    return result, 1e3 * (time.perf_counter() - t0)
+from common import agreement_percent, peak_gb, timed
 
 
 def main(argv=None):
@@ -49,9 +42,8 @@ def main(argv=None):
         tree, b_ms = timed(lambda: bsp.build(scene))
         _, r_ms = timed(lambda: hsr.render(scene, cam, width, height, algorithm="bsp",
                                            options={"tree": tree}))
-        covered = (z.face_id >= 0) | (n.face_id >= 0)
-        agree = 100 * (z.face_id == n.face_id)[covered].mean()
-        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+        agree = agreement_percent(z.face_id, n.face_id)
+        peak = peak_gb()
         print(f"{label:18} {scene.n_faces:7d} {z_ms:8.1f} {n_ms:9.1f} "
               f"{n.stats['pair_tests']:11d} {n.stats['splits']:7d} {agree:7.3f}% {b_ms:12.1f} "
               f"{tree.n_nodes:7d} {tree.splits:10d} {r_ms:7.1f} {peak:7.2f}", flush=True)

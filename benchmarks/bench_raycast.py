@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import time
 
@@ -22,18 +21,9 @@ import numpy as np
 
 import hsr
 import hsr.raycast as rc
+from common import agreement_percent, median_ms
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
-
-
-def median_ms(fn, repeat):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
 
 
 def rays(camera, width, height):
@@ -71,8 +61,8 @@ def main(argv=None):
         cam = hsr.Camera.frame(mesh.bounds())
         tree = rc.build(mesh)
         tree = rc.build(mesh)  # second build: compiled
-        hsr_ms = median_ms(lambda: hsr.render(mesh, cam, width, height, algorithm="raycast",
-                                              options={"bvh": tree}), args.repeat)
+        hsr_ms, = median_ms([lambda: hsr.render(mesh, cam, width, height, algorithm="raycast",
+                                                options={"bvh": tree})], args.repeat)
         tris = hsr.Scene([mesh]).world_triangles().astype(np.float32)
         t0 = time.perf_counter()
         scene = rtcs.EmbreeScene()
@@ -81,13 +71,12 @@ def main(argv=None):
         origin, direction = origin.astype(np.float32), direction.astype(np.float32)
         scene.run(origin[:1], direction[:1])  # Embree builds its BVH lazily on first use
         emb_build = 1e3 * (time.perf_counter() - t0)
-        emb_ms = median_ms(lambda: scene.run(origin, direction, output=1), args.repeat)
+        emb_ms, = median_ms([lambda: scene.run(origin, direction, output=1)], args.repeat)
         res = scene.run(origin, direction, output=1)
         prim = np.where(res["geomID"] >= 0, res["primID"], -1).reshape(height, width)
         mine = hsr.render(mesh, cam, width, height, algorithm="raycast",
                           options={"bvh": tree}).face_id
-        covered = (prim >= 0) | (mine >= 0)
-        agree = (prim == mine)[covered].mean() * 100
+        agree = agreement_percent(prim, mine)
         print(f"{os.path.basename(path):22} {mesh.n_faces:7d} {width:>4}x{height:<5} "
               f"{hsr_ms:8.1f} {emb_ms:9.1f} {hsr_ms / emb_ms:6.2f} {tree.build_ms:9.1f} "
               f"{emb_build:9.1f} {agree:7.3f}%", flush=True)

@@ -14,15 +14,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
-import statistics
 import sys
-import time
 
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 import hsr  # noqa: E402
+from common import median_ms, peak_gb, progress  # noqa: E402
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 DEFAULT_MODELS = [os.path.join(MODELS, name) for name in ("african_head.obj", "spot.obj",
@@ -34,29 +32,6 @@ def load_model(spec: str):
         n = int(float(spec.split(":", 1)[1]))
         return hsr.scenes.terrain(n)[0].instances[0].mesh, f"terrain {n:.0e}"
     return hsr.load(spec), os.path.basename(spec)
-
-
-def progress(items, desc):
-    if sys.stderr.isatty():
-        from tqdm import tqdm
-
-        return tqdm(items, desc=desc, leave=False)
-    return items
-
-
-def median_ms(fns, repeat, rounds=3):
-    """Median milliseconds of each function. Each peer runs in blocks of ``repeat`` calls
-    (so neither pays for the other's cache and page state inside a block), and the blocks
-    alternate for ``rounds`` rounds so both see the same machine load over time."""
-    times = [[] for _ in fns]
-    for _ in range(rounds):
-        for fn, bucket in zip(fns, times):
-            fn()  # warm: JIT caches, buffers, driver state
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                fn()
-                bucket.append(time.perf_counter() - t0)
-    return [1e3 * statistics.median(t) for t in times]
 
 
 def main(argv=None):
@@ -89,20 +64,20 @@ def main(argv=None):
         cam = hsr.Camera.frame(mesh.bounds(), fov_y=45)
         run_hsr = lambda: hsr.render(mesh, cam, width, height)  # noqa: E731
         if gl is None:
-            hsr_ms, gl_ms = median_ms([run_hsr], args.repeat)[0], float("nan")
+            hsr_ms, gl_ms = median_ms([run_hsr], args.repeat, rounds=3)[0], float("nan")
         else:
             view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
             vao, vbo = gl.upload(hsr.Scene([mesh]).world_triangles())
             hsr_ms, gl_ms = median_ms(
                 [run_hsr, lambda: gl.render(None, view_proj, width, height, vao=vao)],
-                args.repeat)
+                args.repeat, rounds=3)
             vao.release()
             vbo.release()
         ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")
-        peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+        peak = peak_gb()
         print(f"{label:24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
               f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f} "
-              f"{peak_gb:8.2f}", flush=True)
+              f"{peak:8.2f}", flush=True)
     return 0
 
 
