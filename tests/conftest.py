@@ -39,3 +39,29 @@ def gl():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def coplanar_soup(n: int, seed: int = 3):
+    """(mesh, camera): ``n`` random triangles all in the plane z = -5, overlapping, so only
+    submission order can decide ties."""
+    import hsr
+
+    rng = np.random.default_rng(seed)
+    corners = rng.uniform(-1, 1, size=(n, 3, 2))
+    verts = np.concatenate([corners, np.full((n, 3, 1), -5.0)], axis=2).reshape(-1, 3)
+    mesh = hsr.Mesh(verts, np.arange(3 * n).reshape(-1, 3))
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=30, near=1, far=10)
+    return mesh, cam
+
+
+def against_zbuffer(mesh, algorithm, width, height, **kwargs):
+    """For a front and an oblique auto-framed view: (z-buffer frame, ``algorithm``'s frame,
+    share of the pixels either covers on which their face ids agree)."""
+    import hsr
+
+    for direction in ((0, 0, 1), (1, 0.5, -0.7)):
+        cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
+        a = hsr.render(mesh, cam, width, height)
+        b = hsr.render(mesh, cam, width, height, algorithm=algorithm, **kwargs)
+        covered = (a.face_id >= 0) | (b.face_id >= 0)
+        yield a, b, float((a.face_id == b.face_id)[covered].mean())

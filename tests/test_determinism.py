@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import hsr
+from conftest import coplanar_soup
 from hsr import scenes
 
 
@@ -35,12 +36,7 @@ def test_thread_count_does_not_change_results(models_dir, state):
 
 def test_coplanar_ties_are_deterministic():
     """Many coplanar overlapping triangles: only submission order can decide."""
-    rng = np.random.default_rng(3)
-    n = 300
-    corners = rng.uniform(-1, 1, size=(n, 3, 2))
-    verts = np.concatenate([corners, np.full((n, 3, 1), -5.0)], axis=2).reshape(-1, 3)
-    mesh = hsr.Mesh(verts, np.arange(3 * n).reshape(-1, 3))
-    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=30, near=1, far=10)
+    mesh, cam = coplanar_soup(300)
     results = [render_with_threads(k, mesh, cam, 200, 150, depth_func=f).face_id
                for k in (1, 2) for f in ("less", "lequal")]
     assert np.array_equal(results[0], results[2]) and np.array_equal(results[1], results[3])
