@@ -127,6 +127,19 @@ def _side(tri, nx, ny, nz, d, eps):
     return _ON
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _append_pieces(pieces, k, src_face, tris, face, n_poly, idx, count):
+    """Store the ``k`` pieces of a split polygon as new polygons ``n_poly...`` of source
+    face ``src_face`` and list them in ``idx`` from ``count``. Returns (n_poly, count)."""
+    for j in range(k):
+        tris[n_poly] = pieces[j]
+        face[n_poly] = src_face
+        idx[count] = n_poly
+        count += 1
+        n_poly += 1
+    return n_poly, count
+
+
 @njit(cache=True, nogil=True)
 def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
     n0 = tris_in.shape[0]
@@ -205,18 +218,10 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
                 k_f, k_b = split_triangle(tris[p], nx, ny, nz, d, eps, piece_f, piece_b)
                 tris = grow(tris, n_poly + k_f + k_b)
                 face = grow(face, n_poly + k_f + k_b)
-                for k in range(k_f):
-                    tris[n_poly] = piece_f[k]
-                    face[n_poly] = face[p]
-                    front_idx[nf] = n_poly
-                    nf += 1
-                    n_poly += 1
-                for k in range(k_b):
-                    tris[n_poly] = piece_b[k]
-                    face[n_poly] = face[p]
-                    back_idx[nb] = n_poly
-                    nb += 1
-                    n_poly += 1
+                n_poly, nf = _append_pieces(piece_f, k_f, face[p], tris, face, n_poly,
+                                            front_idx, nf)
+                n_poly, nb = _append_pieces(piece_b, k_b, face[p], tris, face, n_poly,
+                                            back_idx, nb)
         poly_count[node] = n_node_polys - poly_start[node]
         for child_n, child_idx, is_front in ((nf, front_idx, True), (nb, back_idx, False)):
             if child_n == 0:
