@@ -3,7 +3,10 @@
     python benchmarks/bench_zbuffer.py [MODEL ...] [--sizes 1024x1024,1920x1080] [--repeat 7]
 
 MODEL is a mesh file or ``terrain:N``, a generated displaced grid of N triangles (e.g.
-``terrain:1000000``, ``terrain:10000000``). For each model and size: hsr.render (warm;
+``terrain:1000000``, ``terrain:10000000``) seen from the scene's own low oblique camera
+(``terrain-edge:N``: the same grid framed from the side by ``Camera.frame``, nearly edge-on,
+so that it covers a thin strip: the per-triangle cost with almost no fill). Mesh files are
+framed by ``Camera.frame`` (front view, 45 degrees). For each model and size: hsr.render (warm;
 face_id + depth + flat colour) and moderngl (static vertex buffer; clear + draw + finish
 + read back face ids and depth), median over alternating blocks of --repeat runs, the
 ratio hsr / llvmpipe (< 1 means hsr is faster), triangles per second and the process's
@@ -28,10 +31,17 @@ DEFAULT_MODELS = [os.path.join(MODELS, name) for name in ("african_head.obj", "s
 
 
 def load_model(spec: str):
-    if spec.startswith("terrain:"):
-        n = int(float(spec.split(":", 1)[1]))
-        return hsr.scenes.terrain(n)[0].instances[0].mesh, f"terrain {n:.0e}"
-    return hsr.load(spec), os.path.basename(spec)
+    """(mesh, label, camera)."""
+    kind, _, count = spec.partition(":")
+    if kind in ("terrain", "terrain-edge") and count:
+        n = int(float(count))
+        scene, camera = hsr.scenes.terrain(n)
+        mesh = scene.instances[0].mesh
+        if kind == "terrain-edge":
+            camera = hsr.Camera.frame(mesh.bounds(), fov_y=45)
+        return mesh, f"{kind} {n:.0e}", camera
+    mesh = hsr.load(spec)
+    return mesh, os.path.basename(spec), hsr.Camera.frame(mesh.bounds(), fov_y=45)
 
 
 def main(argv=None):
@@ -53,15 +63,14 @@ def main(argv=None):
             print(f"# OpenGL peer unavailable ({exc}); timing hsr alone", file=sys.stderr)
 
     print(f"{'model':24} {'triangles':>9} {'size':>10} {'hsr ms':>8} {'gl ms':>8} "
-          f"{'hsr/gl':>7} {'Mtri/s':>7} {'peak GB':>8}")
+          f"{'hsr/gl':>7} {'Mtri/s':>7} {'covered':>7} {'peak GB':>8}")
     jobs = [(m, s) for m in args.models for s in sizes]
     meshes = {}
     for model, (width, height) in progress(jobs, "bench"):
         if model not in meshes:
             meshes.clear()  # keep one large mesh in memory at a time
             meshes[model] = load_model(model)
-        mesh, label = meshes[model]
-        cam = hsr.Camera.frame(mesh.bounds(), fov_y=45)
+        mesh, label, cam = meshes[model]
         run_hsr = lambda: hsr.render(mesh, cam, width, height)  # noqa: E731
         if gl is None:
             hsr_ms, gl_ms = median_ms([run_hsr], args.repeat, rounds=3)[0], float("nan")
@@ -74,10 +83,11 @@ def main(argv=None):
             vao.release()
             vbo.release()
         ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")
+        covered = run_hsr().stats["pixels_covered"] / (width * height)
         peak = peak_gb()
         print(f"{label:24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
               f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f} "
-              f"{peak:8.2f}", flush=True)
+              f"{covered:7.1%} {peak:8.2f}", flush=True)
     return 0
 
 
