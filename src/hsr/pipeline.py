@@ -3,7 +3,7 @@
 model/view/projection -> clip space -> clip (near, far, guard band) -> divide + viewport
 -> face culling -> :class:`ScreenTriangles`.
 
-Vertices are transformed once (NumPy, (V, 4) @ (4, 4)); a compiled per-face kernel
+Vertices are transformed once (a compiled loop, see ``transform_points``); a compiled per-face kernel
 classifies each face (degenerate / outside / needs clipping / simple) and projects the
 simple ones straight to window space. Only the (usually few) faces that cross a clip plane
 go through the Sutherland-Hodgman clipper in :mod:`hsr.clip`.
@@ -20,15 +20,50 @@ from .clip import clip_planes, clip_triangles
 from .conventions import GUARD_BAND_PIXELS
 from .mesh import Scene
 from .parallel import Workers
+from .raster import setup_one
 from .state import CullMode, FrontFace, RenderState
 
-__all__ = ["ScreenTriangles", "prepare", "scene_clip_vertices"]
+__all__ = ["Geometry", "ScreenTriangles", "prepare", "scene_clip_vertices", "screen_arrays"]
 
 # Face status codes of the classification kernel.
-SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP = 0, 1, 2, 3
+SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP, CULLED = 0, 1, 2, 3, 4
 
 
 @dataclass
+class Geometry:
+    """The scene in clip space, before classification: what :func:`prepare` starts from.
+
+    pos_model : (V, 3) model-space vertices (degeneracy is judged there).
+    pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into both.
+    planes : the clipping planes (:func:`hsr.clip.clip_planes`).
+    depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
+    stats : the dict that receives the triangle counts once faces are classified.
+    """
+
+    pos_model: np.ndarray
+    pos_clip: np.ndarray
+    faces: np.ndarray
+    width: int
+    height: int
+    state: RenderState
+    planes: np.ndarray
+    depth_scale: float
+    depth_offset: float
+    stats: dict
+    threads: int
+
+    @property
+    def guard_band(self) -> tuple[float, float]:
+        """(gx, gy): the guard band's |x| <= gx w, |y| <= gy w."""
+        return float(self.planes[2, 3]), float(self.planes[4, 3])
+
+    def keep_by_facing(self) -> tuple[bool, bool]:
+        """Whether faces of positive / negative window area (counter-clockwise /
+        clockwise, y up) survive glFrontFace + glCullFace."""
+        _, keep = _keep_mask(np.array([True, False]), self.state)
+        return bool(keep[0]), bool(keep[1])
+
+
 class ScreenTriangles:
     """Triangles in window space, ready for a visibility algorithm. N = triangles after
     clipping and culling, in submission order.
@@ -41,16 +76,35 @@ class ScreenTriangles:
     pos_clip : (V, 4) float64 clip-space vertices of the whole scene and
     faces : (F, 3) int64 their global faces, so that attributes can be interpolated on the
         *source* face whatever clipping cut out of it (see fragments.face_barycentrics).
+
+    A *deferred* set (``prepare(..., deferred=True)``) computes the four per-triangle
+    arrays on first use; until then ``pending`` is true and ``geometry`` holds the clip-space
+    scene, which lets the z-buffer stream faces from clip space straight into its set-up
+    without storing window coordinates at all.
     """
 
-    xy_window: np.ndarray
-    depth_window: np.ndarray
-    face_id: np.ndarray
-    front: np.ndarray
-    width: int
-    height: int
-    pos_clip: np.ndarray
-    faces: np.ndarray
+    def __init__(self, xy_window, depth_window, face_id, front, width, height, pos_clip,
+                 faces, geometry: Geometry | None = None):
+        self._arrays = None if xy_window is None else (xy_window, depth_window, face_id,
+                                                       front)
+        self.width, self.height = width, height
+        self.pos_clip, self.faces = pos_clip, faces
+        self.geometry = geometry
+
+    @property
+    def pending(self) -> bool:
+        return self._arrays is None
+
+    def _array(self, k):
+        if self._arrays is None:
+            with Workers(self.geometry.threads) as workers:
+                self._arrays = screen_arrays(self.geometry, workers)
+        return self._arrays[k]
+
+    xy_window = property(lambda self: self._array(0))
+    depth_window = property(lambda self: self._array(1))
+    face_id = property(lambda self: self._array(2))
+    front = property(lambda self: self._array(3))
 
     def __len__(self):
         return len(self.face_id)
@@ -136,25 +190,30 @@ def _codes(pos_clip, v, gx, gy):
     return code
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _classify_one(pos_model, pos_clip, a, b, c, gx, gy):
+    """Status of the face with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE."""
+    if _is_degenerate(pos_model, a, b, c):
+        return DEGENERATE
+    code_a, code_b, code_c = _codes(pos_clip, a, gx, gy), _codes(pos_clip, b, gx, gy), \
+        _codes(pos_clip, c, gx, gy)
+    # Trivial reject: all corners outside one frustum plane.
+    if code_a & code_b & code_c & 63:
+        return OUTSIDE
+    if (code_a | code_b | code_c) & 64:
+        return NEEDS_CLIP
+    return SIMPLE
+
+
 @njit(cache=True, nogil=True)
 def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, depth_scale,
                     depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     for f in range(lo, hi):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        if _is_degenerate(pos_model, a, b, c):
-            status[f] = DEGENERATE
+        status[f] = _classify_one(pos_model, pos_clip, faces[f, 0], faces[f, 1], faces[f, 2],
+                                  gx, gy)
+        if status[f] != SIMPLE:
             continue
-        code_a, code_b, code_c = _codes(pos_clip, a, gx, gy), _codes(pos_clip, b, gx, gy), \
-            _codes(pos_clip, c, gx, gy)
-        # Trivial reject: all corners outside one frustum plane.
-        if code_a & code_b & code_c & 63:
-            status[f] = OUTSIDE
-            continue
-        if (code_a | code_b | code_c) & 64:
-            status[f] = NEEDS_CLIP
-            continue
-        status[f] = SIMPLE
         for k in range(3):
             v = faces[f, k]
             xy[f, k, 0], xy[f, k, 1], depth[f, k] = _to_window(
@@ -162,6 +221,44 @@ def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, d
                 depth_scale, depth_offset)
         area[f] = ((xy[f, 1, 0] - xy[f, 0, 0]) * (xy[f, 2, 1] - xy[f, 0, 1])
                    - (xy[f, 2, 0] - xy[f, 0, 0]) * (xy[f, 1, 1] - xy[f, 0, 1]))
+
+
+@njit(cache=True, nogil=True)
+def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width, height,
+                         depth_scale, depth_offset, keep_ccw, keep_cw, offset_factor,
+                         offset_units, status, vert_fixed, edge_bias, bbox, zplane):
+    """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
+    path): classify faces ``lo .. hi`` as :func:`classify_faces` does, cull by facing
+    (``keep_ccw`` / ``keep_cw``: keep faces of positive / negative window area) and set up
+    the kept simple ones into record ``f - base`` (:func:`hsr.raster.setup_one`; every
+    other record gets an empty box). The corners go from clip space to the set-up without
+    being stored, which saves writing and re-reading 72 bytes per face.
+    Returns (per-row work delta, widest row) as :func:`hsr.raster.setup_triangles` gathers."""
+    half_w, half_h = 0.5 * width, 0.5 * height
+    delta = np.zeros(height + 1)
+    widest = 1
+    for f in range(lo, hi):
+        r = f - base
+        bbox[r, 0], bbox[r, 1], bbox[r, 2], bbox[r, 3] = 0, -1, 0, -1
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        status[f] = _classify_one(pos_model, pos_clip, a, b, c, gx, gy)
+        if status[f] != SIMPLE:
+            continue
+        x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2], pos_clip[a, 3],
+                                half_w, half_h, depth_scale, depth_offset)
+        x1, y1, z1 = _to_window(pos_clip[b, 0], pos_clip[b, 1], pos_clip[b, 2], pos_clip[b, 3],
+                                half_w, half_h, depth_scale, depth_offset)
+        x2, y2, z2 = _to_window(pos_clip[c, 0], pos_clip[c, 1], pos_clip[c, 2], pos_clip[c, 3],
+                                half_w, half_h, depth_scale, depth_offset)
+        # The same area expression as _classify_range, so facing is decided identically.
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if not (keep_ccw if area > 0 else keep_cw):
+            status[f] = CULLED
+            continue
+        widest = max(widest, setup_one(r, x0, y0, z0, x1, y1, z1, x2, y2, z2, width, height,
+                                       vert_fixed, edge_bias, bbox, zplane, offset_factor,
+                                       offset_units, delta))
+    return delta, widest
 
 
 @njit(cache=True)
@@ -182,22 +279,43 @@ def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
     return xy, depth, area
 
 
-def scene_clip_vertices(scene: Scene, view_proj: np.ndarray):
+def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, workers=None):
     """Model-space and clip-space vertices of all instances and their faces re-indexed
     into them: ``(pos_model (V, 3), pos_clip (V, 4), faces (F, 3))``, submission order.
     (Degeneracy is judged in model space, where a model matrix cannot hide it.)"""
+    workers = workers or Workers()
     model, clip, faces = [], [], []
     base = 0
     for inst in scene.instances:
-        mvp = view_proj @ inst.model
         mesh = inst.mesh
         model.append(mesh.positions)
-        clip.append(mesh.positions @ mvp[:, :3].T + mvp[:, 3])
+        clip.append(transform_points(workers, mesh.positions, view_proj @ inst.model))
         faces.append(mesh.faces + base if base else mesh.faces)
         base += len(mesh.positions)
     if len(clip) == 1:
-        return model[0], np.ascontiguousarray(clip[0]), faces[0]
+        return model[0], clip[0], faces[0]
     return np.concatenate(model), np.concatenate(clip), np.concatenate(faces)
+
+
+def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """(N, 4) = ``matrix`` (4, 4) applied to the points (N, 3) with w = 1.
+
+    A compiled loop rather than NumPy's ``@``: a large matrix product goes to OpenBLAS,
+    whose own threads keep spinning for a while after it returns and, on a machine with
+    few cores, take the CPU from the kernels that run next (measured: the 1M-triangle
+    terrain's set-up ran at half speed behind it)."""
+    out = np.empty((len(points), 4))
+    workers.run_range(_transform_range, len(points), np.ascontiguousarray(points),
+                      np.ascontiguousarray(matrix, dtype=np.float64), out, min_chunk=65536)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _transform_range(lo, hi, points, matrix, out):
+    for i in range(lo, hi):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for r in range(4):
+            out[i, r] = matrix[r, 0] * x + matrix[r, 1] * y + matrix[r, 2] * z + matrix[r, 3]
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
@@ -213,45 +331,62 @@ def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndar
 
 
 def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
-            state: RenderState, stats: dict, workers=None) -> ScreenTriangles:
-    """Run the geometry stage; fills ``stats`` with triangle counts."""
+            state: RenderState, stats: dict, workers=None, deferred: bool = False
+            ) -> ScreenTriangles:
+    """Run the geometry stage; fills ``stats`` with triangle counts. With ``deferred`` only
+    the vertices are transformed now; faces are classified, clipped and projected when the
+    screen triangles are first read (or streamed by the z-buffer, which fills ``stats``)."""
     workers = workers or Workers()
-    pos_model, pos_clip, faces = scene_clip_vertices(scene, view_proj)
-    planes = clip_planes(width, height, GUARD_BAND_PIXELS)
+    pos_model, pos_clip, faces = scene_clip_vertices(scene, view_proj, workers)
     near, far = state.depth_range
-    depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
-    status, xy, depth, area = classify_faces(
-        workers, pos_model, pos_clip, faces, planes, width, height, depth_scale, depth_offset)
-    counts = np.bincount(status, minlength=4)
-    stats["triangles_in"] = len(faces)
-    stats["degenerate"] = int(counts[DEGENERATE])
-    stats["outside"] = int(counts[OUTSIDE])
-    stats["clipped"] = int(counts[NEEDS_CLIP])
+    geometry = Geometry(pos_model, pos_clip, faces, width, height, state,
+                        clip_planes(width, height, GUARD_BAND_PIXELS), 0.5 * (far - near),
+                        0.5 * (far + near), stats, workers.threads)
+    if deferred:
+        return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,
+                               geometry)
+    return ScreenTriangles(*screen_arrays(geometry, workers), width, height, pos_clip, faces)
 
+
+def clip_and_project(geometry: Geometry, clip_faces: np.ndarray):
+    """Clip the faces ``clip_faces`` (global indices) and project the pieces that survive
+    culling. Facing is decided once per clipped polygon (sum of its fan's areas), as in GL.
+    Returns (xy, depth, parent face, front, number of polygons culled)."""
+    state, width, height = geometry.state, geometry.width, geometry.height
+    tri_clip = np.ascontiguousarray(geometry.pos_clip[geometry.faces[clip_faces]])
+    pieces, parent = clip_triangles(tri_clip, geometry.planes)
+    p_xy, p_depth, p_area = project_triangles(pieces, width, height, geometry.depth_scale,
+                                              geometry.depth_offset)
+    poly_area = np.bincount(parent, weights=p_area, minlength=len(clip_faces))
+    poly_front, poly_keep = _keep_mask(poly_area > 0, state)
+    has_pieces = np.bincount(parent, minlength=len(clip_faces)) > 0
+    n_culled = int(np.count_nonzero(has_pieces & ~poly_keep))
+    sel = np.flatnonzero(poly_keep[parent])
+    return (p_xy[sel], p_depth[sel], clip_faces[parent[sel]], poly_front[parent[sel]],
+            n_culled)
+
+
+def screen_arrays(geometry: Geometry, workers):
+    """Classify, clip, cull and project ``geometry``'s faces: (xy_window, depth_window,
+    face_id, front) in submission order; the counts go to ``geometry.stats``."""
+    state, faces, stats = geometry.state, geometry.faces, geometry.stats
+    status, xy, depth, area = classify_faces(
+        workers, geometry.pos_model, geometry.pos_clip, faces, geometry.planes,
+        geometry.width, geometry.height, geometry.depth_scale, geometry.depth_offset)
+    counts = np.bincount(status, minlength=4)
     simple = status == SIMPLE
     front, keep = _keep_mask(area > 0, state)
-    chosen_mask = simple & keep
     n_culled = int(np.count_nonzero(simple & ~keep))
     if counts[SIMPLE] == len(faces) and n_culled == 0:  # the common case: no copies
         parts = [(xy, depth, np.arange(len(faces)), front)]
     else:
-        chosen = np.flatnonzero(chosen_mask)
+        chosen = np.flatnonzero(simple & keep)
         parts = [(xy[chosen], depth[chosen], chosen, front[chosen])]
     if counts[NEEDS_CLIP]:
-        clip_faces = np.flatnonzero(status == NEEDS_CLIP)
-        tri_clip = np.ascontiguousarray(pos_clip[faces[clip_faces]])
-        pieces, parent = clip_triangles(tri_clip, planes)
-        p_xy, p_depth, p_area = project_triangles(pieces, width, height, depth_scale,
-                                                           depth_offset)
-        # Facing is decided once per clipped polygon (sum of its fan's areas), as in GL.
-        poly_area = np.bincount(parent, weights=p_area, minlength=len(clip_faces))
-        poly_front, poly_keep = _keep_mask(poly_area > 0, state)
-        has_pieces = np.bincount(parent, minlength=len(clip_faces)) > 0
-        n_culled += int(np.count_nonzero(has_pieces & ~poly_keep))
-        sel = np.flatnonzero(poly_keep[parent])
-        parts.append((p_xy[sel], p_depth[sel], clip_faces[parent[sel]],
-                      poly_front[parent[sel]]))
-    stats["culled"] = n_culled
+        *clipped, n_clip_culled = clip_and_project(geometry,
+                                                   np.flatnonzero(status == NEEDS_CLIP))
+        parts.append(tuple(clipped))
+        n_culled += n_clip_culled
     if len(parts) == 1:
         xy_w, depth_w, face_id, front_w = parts[0]
     else:
@@ -260,7 +395,12 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
         order = np.argsort(face_id, kind="stable")
         xy_w, depth_w, face_id, front_w = (
             xy_w[order], depth_w[order], face_id[order], front_w[order])
-    screen = ScreenTriangles(xy_w, depth_w, face_id, front_w, width, height,
-                             pos_clip, faces)
-    stats["screen_triangles"] = len(screen)
-    return screen
+    stats.update(geometry_counts(len(faces), counts, n_culled, len(face_id)))
+    return xy_w, depth_w, face_id, front_w
+
+
+def geometry_counts(n_faces, status_counts, n_culled, n_screen) -> dict:
+    """The geometry stage's entries of ``Frame.stats``."""
+    return {"triangles_in": int(n_faces), "degenerate": int(status_counts[DEGENERATE]),
+            "outside": int(status_counts[OUTSIDE]), "clipped": int(status_counts[NEEDS_CLIP]),
+            "culled": int(n_culled), "screen_triangles": int(n_screen)}

@@ -57,7 +57,7 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     vert_fixed = np.empty((n, 6), dtype=np.int32)
     edge_bias = np.empty((n, 3), dtype=np.int8)
     bbox = np.empty((n, 4), dtype=np.int32)
-    zplane = np.zeros((n, 5))
+    zplane = np.empty((n, 5))
     factor, units = (float(v) for v in polygon_offset)
     parts = workers.run_range(_setup_range, n, xy_window, depth_window, width, height,
                               vert_fixed, edge_bias, bbox, zplane, factor, units)
@@ -75,50 +75,61 @@ def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edg
     delta = np.zeros(height + 1)
     widest = 1
     for t in range(lo, hi):
-        x0 = np.int64(math.floor(xy_window[t, 0, 0] * _ONE + 0.5))
-        y0 = np.int64(math.floor(xy_window[t, 0, 1] * _ONE + 0.5))
-        x1 = np.int64(math.floor(xy_window[t, 1, 0] * _ONE + 0.5))
-        y1 = np.int64(math.floor(xy_window[t, 1, 1] * _ONE + 0.5))
-        x2 = np.int64(math.floor(xy_window[t, 2, 0] * _ONE + 0.5))
-        y2 = np.int64(math.floor(xy_window[t, 2, 1] * _ONE + 0.5))
-        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if area < 0:  # make the corner order counter-clockwise
-            x1, x2 = x2, x1
-            y1, y2 = y2, y1
-        vert_fixed[t, 0], vert_fixed[t, 1] = x0, y0
-        vert_fixed[t, 2], vert_fixed[t, 3] = x1, y1
-        vert_fixed[t, 4], vert_fixed[t, 5] = x2, y2
-        edge_bias[t, 0] = _bias(x1 - x0, y1 - y0)
-        edge_bias[t, 1] = _bias(x2 - x1, y2 - y1)
-        edge_bias[t, 2] = _bias(x0 - x2, y0 - y2)
-        if area == 0:  # covers no pixel centre
-            bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = 0, -1, 0, -1
-            continue
-        # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
-        bbox[t, 0] = max(-((-(min(x0, x1, x2) - _HALF)) // _ONE), 0)
-        bbox[t, 1] = min((max(x0, x1, x2) - _HALF) // _ONE, width - 1)
-        bbox[t, 2] = max(-((-(min(y0, y1, y2) - _HALF)) // _ONE), 0)
-        bbox[t, 3] = min((max(y0, y1, y2) - _HALF) // _ONE, height - 1)
-        if bbox[t, 0] <= bbox[t, 1] and bbox[t, 2] <= bbox[t, 3]:
-            box_w = np.int64(bbox[t, 1]) - bbox[t, 0] + 1
-            delta[bbox[t, 2]] += box_w
-            delta[bbox[t, 3] + 1] -= box_w
-            widest = max(widest, np.int64(bbox[t, 1]) + 1)
-        # Depth plane from the unsnapped positions.
-        fx0, fy0, fz0 = xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0]
-        ax, ay = xy_window[t, 1, 0] - fx0, xy_window[t, 1, 1] - fy0
-        bx, by = xy_window[t, 2, 0] - fx0, xy_window[t, 2, 1] - fy0
-        az, bz = depth_window[t, 1] - fz0, depth_window[t, 2] - fz0
-        det = ax * by - bx * ay
-        zplane[t, 0], zplane[t, 1], zplane[t, 2] = fx0, fy0, fz0
-        if det != 0.0:
-            zplane[t, 3] = (az * by - bz * ay) / det
-            zplane[t, 4] = (ax * bz - bx * az) / det
-        if offset_factor != 0.0 or offset_units != 0.0:
-            zplane[t, 2] += polygon_offset(zplane[t, 3], zplane[t, 4], depth_window[t, 0],
-                                           depth_window[t, 1], depth_window[t, 2],
-                                           offset_factor, offset_units)
+        widest = max(widest, setup_one(
+            t, xy_window[t, 0, 0], xy_window[t, 0, 1], depth_window[t, 0],
+            xy_window[t, 1, 0], xy_window[t, 1, 1], depth_window[t, 1],
+            xy_window[t, 2, 0], xy_window[t, 2, 1], depth_window[t, 2], width, height,
+            vert_fixed, edge_bias, bbox, zplane, offset_factor, offset_units, delta))
     return delta, widest
+
+
+@njit(cache=True, nogil=True, inline="always")
+def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, vert_fixed,
+              edge_bias, bbox, zplane, offset_factor, offset_units, delta):
+    """Set up one triangle (window corners ``f*``) into record ``t`` of the arrays
+    :func:`setup_triangles` describes; adds its box width to ``delta`` (per-row work) and
+    returns one past its right-most pixel (0 when it covers no pixel centre)."""
+    x0 = np.int64(math.floor(fx0 * _ONE + 0.5))
+    y0 = np.int64(math.floor(fy0 * _ONE + 0.5))
+    x1 = np.int64(math.floor(fx1 * _ONE + 0.5))
+    y1 = np.int64(math.floor(fy1 * _ONE + 0.5))
+    x2 = np.int64(math.floor(fx2 * _ONE + 0.5))
+    y2 = np.int64(math.floor(fy2 * _ONE + 0.5))
+    area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+    if area < 0:  # make the corner order counter-clockwise
+        x1, x2 = x2, x1
+        y1, y2 = y2, y1
+    vert_fixed[t, 0], vert_fixed[t, 1] = x0, y0
+    vert_fixed[t, 2], vert_fixed[t, 3] = x1, y1
+    vert_fixed[t, 4], vert_fixed[t, 5] = x2, y2
+    edge_bias[t, 0] = _bias(x1 - x0, y1 - y0)
+    edge_bias[t, 1] = _bias(x2 - x1, y2 - y1)
+    edge_bias[t, 2] = _bias(x0 - x2, y0 - y2)
+    zplane[t, 0], zplane[t, 1], zplane[t, 2], zplane[t, 3], zplane[t, 4] = \
+        fx0, fy0, fz0, 0.0, 0.0
+    # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
+    bx0 = max(-((-(min(x0, x1, x2) - _HALF)) // _ONE), 0)
+    bx1 = min((max(x0, x1, x2) - _HALF) // _ONE, width - 1)
+    by0 = max(-((-(min(y0, y1, y2) - _HALF)) // _ONE), 0)
+    by1 = min((max(y0, y1, y2) - _HALF) // _ONE, height - 1)
+    if area == 0 or bx0 > bx1 or by0 > by1:  # covers no pixel centre
+        bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = 0, -1, 0, -1
+        return 0
+    bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = bx0, bx1, by0, by1
+    delta[by0] += bx1 - bx0 + 1
+    delta[by1 + 1] -= bx1 - bx0 + 1
+    # Depth plane from the unsnapped positions.
+    ax, ay = fx1 - fx0, fy1 - fy0
+    bx, by = fx2 - fx0, fy2 - fy0
+    az, bz = fz1 - fz0, fz2 - fz0
+    det = ax * by - bx * ay
+    if det != 0.0:
+        zplane[t, 3] = (az * by - bz * ay) / det
+        zplane[t, 4] = (ax * bz - bx * az) / det
+    if offset_factor != 0.0 or offset_units != 0.0:
+        zplane[t, 2] += polygon_offset(zplane[t, 3], zplane[t, 4], fz0, fz1, fz2,
+                                       offset_factor, offset_units)
+    return bx1 + 1
 
 
 @njit(cache=True, nogil=True)
@@ -175,22 +186,37 @@ def depth_passes(func, z, stored):
 
 def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
                depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
-               face_buf, count_tested, count_written, want_counts, tie_by_face=False):
+               face_buf, count_tested, count_written, want_counts, tie_by_face=False,
+               pieces=None):
     """Fill on ``workers``, one call of :func:`fill_band` per band; returns (tested,
-    written) fragment counts summed over the bands."""
+    written) fragment counts summed over the bands. ``pieces`` = (face_base, clip_at,
+    piece_off) for records laid out by face (see :func:`fill_band`); by default record t
+    is triangle t of face ``tri_face[t]``."""
+    face_base, clip_at, piece_off = pieces if pieces is not None else (0, _NO_CLIP, _NO_PIECES)
     counts = workers.run(fill_band, bands, vert_fixed, edge_bias, bbox, zplane, tri_face,
-                         width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
-                         clear_depth, depth_buf, face_buf, count_tested, count_written,
-                         want_counts, tie_by_face)
+                         face_base, clip_at, piece_off, width, height, depth_test,
+                         depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
+                         face_buf, count_tested, count_written, want_counts, tie_by_face)
     return sum(c[0] for c in counts), sum(c[1] for c in counts)
 
 
+_NO_CLIP = np.zeros(0, dtype=np.int64)
+_NO_PIECES = np.zeros(1, dtype=np.int64)
+
+
 @njit(cache=True, nogil=True)
-def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
-              depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
-              face_buf, count_tested, count_written, want_counts, tie_by_face):
+def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_base, clip_at,
+              piece_off, width, height, depth_test, depth_func, depth_write, z_lo, z_hi,
+              clear_depth, depth_buf, face_buf, count_tested, count_written, want_counts,
+              tie_by_face):
     """Fill triangles, in submission order, into ``depth_buf`` / ``face_buf`` (image rows,
-    row 0 = top); ``face_buf`` receives ``tri_face[t]`` of the triangle t that passes.
+    row 0 = top); ``face_buf`` receives the face of the triangle that passes.
+
+    Records: the first ``n_main = len(bbox) - piece_off[-1]`` are one per slot f, of face
+    ``tri_face[f]`` (or ``face_base + f`` when ``tri_face`` is empty: records laid out by
+    face). Slot ``clip_at[k]`` (ascending) is replaced by the clipped pieces
+    ``n_main + piece_off[k] .. n_main + piece_off[k + 1]`` of the same face, so clipped
+    faces keep their place in submission order without reordering the records.
 
     This call fills window rows ``b_lo <= y < b_end`` (y up) only: a thread owns whole
     bands and walks every triangle overlapping them in order, so no two threads touch a
@@ -216,62 +242,70 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, width,
                 depth_buf[row, i] = clear_value
     n_tested = 0
     n_written = 0
-    for t in range(n):
-        y0, y1 = max(np.int64(bbox[t, 2]), b_lo), min(np.int64(bbox[t, 3]), b_hi)
-        x0, x1 = np.int64(bbox[t, 0]), np.int64(bbox[t, 1])
-        if y0 > y1 or x0 > x1:
-            continue
-        X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
-        X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
-        X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
-        px = x0 * _ONE + _HALF
-        py = y0 * _ONE + _HALF
-        # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
-        # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
-        e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + np.int64(edge_bias[t, 0])
-        e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + np.int64(edge_bias[t, 1])
-        e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + np.int64(edge_bias[t, 2])
-        step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
-        step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
-        step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE
-        zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
-        dzdx, dzdy = zplane[t, 3], zplane[t, 4]
-        face = tri_face[t]
-        for j in range(y0, y1 + 1):
-            e0, e1, e2 = e0_row, e1_row, e2_row
-            row = height - 1 - j
-            z_row = zz0 + dzdy * (j + 0.5 - zy0)
-            for i in range(x0, x1 + 1):
-                if (e0 | e1 | e2) >= 0:
-                    z = z_row + dzdx * (i + 0.5 - zx0)
-                    z = min(max(z, z_lo), z_hi)
-                    zf = np.float32(z)
-                    n_tested += 1
-                    if want_counts:
-                        count_tested[row, i] += 1
-                    if depth_func == FIRST_WINS:
-                        passed = face_buf[row, i] < 0
-                    elif tie_by_face:
-                        stored = depth_buf[row, i]
-                        passed = zf < stored or (zf == stored and (
-                            face < face_buf[row, i] if depth_func == 1 else
-                            face > face_buf[row, i]))
-                    else:
-                        passed = (not depth_test) or depth_passes(depth_func, zf,
-                                                                  depth_buf[row, i])
-                    if passed:
-                        face_buf[row, i] = face
-                        if write_depth:
-                            depth_buf[row, i] = zf
-                        n_written += 1
+    n_main = n - piece_off[-1]
+    by_face = tri_face.shape[0] == 0
+    k = 0
+    for f in range(n_main):
+        t_lo, t_hi = f, f + 1
+        if k < clip_at.shape[0] and clip_at[k] == f:
+            t_lo, t_hi = n_main + piece_off[k], n_main + piece_off[k + 1]
+            k += 1
+        face = face_base + f if by_face else tri_face[f]
+        for t in range(t_lo, t_hi):
+            y0, y1 = max(np.int64(bbox[t, 2]), b_lo), min(np.int64(bbox[t, 3]), b_hi)
+            x0, x1 = np.int64(bbox[t, 0]), np.int64(bbox[t, 1])
+            if y0 > y1 or x0 > x1:
+                continue
+            X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
+            X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
+            X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
+            px = x0 * _ONE + _HALF
+            py = y0 * _ONE + _HALF
+            # E_k(p) = (Xb - Xa) (py - Ya) - (Yb - Ya) (px - Xa) for edge a -> b; biased so
+            # that "inside" is E >= 0 for every edge, and (e0 | e1 | e2) >= 0 tests all three.
+            e0_row = (X1 - X0) * (py - Y0) - (Y1 - Y0) * (px - X0) + np.int64(edge_bias[t, 0])
+            e1_row = (X2 - X1) * (py - Y1) - (Y2 - Y1) * (px - X1) + np.int64(edge_bias[t, 1])
+            e2_row = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + np.int64(edge_bias[t, 2])
+            step_x0, step_y0 = -(Y1 - Y0) * _ONE, (X1 - X0) * _ONE
+            step_x1, step_y1 = -(Y2 - Y1) * _ONE, (X2 - X1) * _ONE
+            step_x2, step_y2 = -(Y0 - Y2) * _ONE, (X0 - X2) * _ONE
+            zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
+            dzdx, dzdy = zplane[t, 3], zplane[t, 4]
+            for j in range(y0, y1 + 1):
+                e0, e1, e2 = e0_row, e1_row, e2_row
+                row = height - 1 - j
+                z_row = zz0 + dzdy * (j + 0.5 - zy0)
+                for i in range(x0, x1 + 1):
+                    if (e0 | e1 | e2) >= 0:
+                        z = z_row + dzdx * (i + 0.5 - zx0)
+                        z = min(max(z, z_lo), z_hi)
+                        zf = np.float32(z)
+                        n_tested += 1
                         if want_counts:
-                            count_written[row, i] += 1
-                e0 += step_x0
-                e1 += step_x1
-                e2 += step_x2
-            e0_row += step_y0
-            e1_row += step_y1
-            e2_row += step_y2
+                            count_tested[row, i] += 1
+                        if depth_func == FIRST_WINS:
+                            passed = face_buf[row, i] < 0
+                        elif tie_by_face:
+                            stored = depth_buf[row, i]
+                            passed = zf < stored or (zf == stored and (
+                                face < face_buf[row, i] if depth_func == 1 else
+                                face > face_buf[row, i]))
+                        else:
+                            passed = (not depth_test) or depth_passes(depth_func, zf,
+                                                                      depth_buf[row, i])
+                        if passed:
+                            face_buf[row, i] = face
+                            if write_depth:
+                                depth_buf[row, i] = zf
+                            n_written += 1
+                            if want_counts:
+                                count_written[row, i] += 1
+                    e0 += step_x0
+                    e1 += step_x1
+                    e2 += step_x2
+                e0_row += step_y0
+                e1_row += step_y1
+                e2_row += step_y2
     return n_tested, n_written
 
 

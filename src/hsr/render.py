@@ -225,13 +225,17 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
             into, stats, t_start, view_proj, workers, occlusion_cull, options, hidden_line,
             transparency):
     background = np.asarray(background, dtype=np.uint8)
-    screen = prepare(scene, view_proj, width, height, state, stats, workers)
+    transparent = np.array([inst.opacity < 1.0 for inst in scene.instances])
+    # The plain z-buffer streams faces from clip space into its fill (classification and
+    # set-up then count as visibility time); everything else works on screen triangles.
+    streamed = (algorithm == "zbuffer" and not occlusion_cull and not transparent.any()
+                and state.polygon_mode == "fill")
+    screen = prepare(scene, view_proj, width, height, state, stats, workers, deferred=streamed)
     t_geometry = time.perf_counter()
 
     fill_state = state
     if hidden_line is not None and state.polygon_offset == (0.0, 0.0):
         fill_state = state.with_(polygon_offset=hidden_line.polygon_offset)
-    transparent = np.array([inst.opacity < 1.0 for inst in scene.instances])
     opaque_screen = screen
     if transparent.any():
         is_transparent = transparent[scene.instance_of(screen.face_id)]

@@ -1,0 +1,128 @@
+"""The z-buffer's streamed path: faces classified, culled and set up chunk by chunk
+straight from clip space, then filled. Checked against the ray reference with chunk sizes
+that put the pieces of clipped faces in many chunks, and against filling the prepared
+screen triangles (same face ids, same depth bits, same counts)."""
+
+import numpy as np
+import pytest
+
+import hsr
+from hsr import scenes
+from hsr.algorithms import zbuffer
+from hsr.mesh import as_scene
+from hsr.pipeline import prepare
+from hsr.state import RenderState
+from test_zbuffer_reference import check, small_scene
+
+W, H = 96, 72
+
+
+@pytest.fixture(params=[1, 7, 1 << 16], ids=["chunk1", "chunk7", "chunk64k"])
+def chunk(request, monkeypatch):
+    monkeypatch.setattr(zbuffer, "STREAM_CHUNK", request.param)
+    return request.param
+
+
+def inside_cubes():
+    scene, _ = small_scene("cubes")
+    cam = hsr.Camera.look_at(eye=(-1.5, 0.2, -6.6), target=(1.0, 0.5, -10.0), fov_y=80,
+                             near=0.2, far=30.0)
+    return scene, cam
+
+
+def soup(seed=3, n=120):
+    """Random triangles around and behind the eye, some degenerate: every status at once."""
+    rng = np.random.default_rng(seed)
+    verts = rng.uniform(-4.0, 4.0, size=(3 * n, 3)) + np.array([0.0, 0.0, -3.0])
+    faces = np.arange(3 * n).reshape(n, 3)
+    faces[::17, 2] = faces[::17, 1]  # repeated index
+    verts[faces[5::19, 2]] = verts[faces[5::19, 0]]  # zero area
+    cam = hsr.Camera.look_at(eye=(0, 0, 0), target=(0, 0, -1), fov_y=70, near=0.5, far=9.0)
+    return hsr.Mesh(verts, faces), cam
+
+
+def test_streamed_path_is_taken():
+    scene, cam = small_scene("cubes")
+    screen = prepare(as_scene(scene), np.eye(4), W, H, RenderState(), {}, deferred=True)
+    assert screen.pending
+    frame = hsr.render(scene, cam, W, H)
+    assert frame.fragments.screen.pending  # nothing asked for window-space triangles
+
+
+@pytest.mark.parametrize("scene_name", ["inside-cubes", "soup", "city"])
+def test_clipped_faces_across_chunks_match_the_reference(chunk, scene_name):
+    if scene_name == "inside-cubes":
+        scene, cam = inside_cubes()
+    elif scene_name == "soup":
+        scene, cam = soup()
+    else:
+        scene, _ = small_scene("city")
+        cam = hsr.Camera.look_at(eye=(0.0, 1.0, -2.0), target=(4.0, 0.5, -9.0), fov_y=90,
+                                 near=0.3, far=60.0)
+    frame, ref = check(scene, cam, max_ambiguous=0.05)
+    assert frame.stats["clipped"] > 0
+    assert (ref >= 0).sum() > 200
+
+
+CASES = {
+    "default": ("cubes", {}),
+    "inside-back": ("inside-cubes", {"cull": "back"}),
+    "soup-cw-front": ("soup", {"front_face": "cw", "cull": "front"}),
+    "soup-no-test": ("soup", {"depth_test": False}),
+    "offset": ("city", {"polygon_offset": (1.5, 4.0)}),
+    "greater": ("spheres", {"depth_func": "greater", "clear_depth": 0.0}),
+    "range": ("terrain", {"depth_range": (0.75, 0.25), "depth_func": "lequal"}),
+    "mask-off": ("penetration", {"depth_mask": False}),
+}
+KEYS = ["triangles_in", "degenerate", "outside", "clipped", "culled", "screen_triangles",
+        "triangles_rasterized", "fragments_tested", "fragments_written"]
+
+
+def case_scene(name):
+    if name == "inside-cubes":
+        return inside_cubes()
+    if name == "soup":
+        return soup()
+    return small_scene(name)
+
+
+def prepared(scene, cam, **state_fields):
+    """The z-buffer over the prepared (eagerly classified) screen triangles."""
+    state = RenderState(**state_fields)
+    stats = {}
+    view_proj = cam.projection_matrix(W / H) @ cam.view_matrix
+    screen = prepare(as_scene(scene), view_proj, W, H, state, stats)
+    fragments = zbuffer.resolve(screen, state, counts=True)
+    return fragments, {**stats, **fragments.stats}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_streamed_equals_prepared(chunk, case):
+    name, state = CASES[case]
+    scene, cam = case_scene(name)
+    frame = hsr.render(scene, cam, W, H, counts=True, **state)
+    fragments, stats = prepared(scene, cam, **state)
+    assert np.array_equal(frame.face_id, fragments.face_id)
+    assert np.array_equal(frame.depth.view(np.uint32), fragments.depth.view(np.uint32))
+    assert np.array_equal(frame.fragments.count_tested, fragments.count_tested)
+    assert np.array_equal(frame.fragments.count_written, fragments.count_written)
+    assert {k: frame.stats[k] for k in KEYS} == {k: stats[k] for k in KEYS}
+    assert frame.stats["fragments_tested"] > 0 or case == "soup-cw-front"
+
+
+def test_second_draw_into_a_frame(chunk):
+    """into=: the streamed fill goes over the earlier depth buffer without clearing."""
+    scene, cam = small_scene("cubes")
+    first = hsr.render(scene, cam, W, H)
+    mover = hsr.Scene()
+    for inst in scene.instances:
+        mover.add(inst.mesh, scenes.translate(0.4, 0.1, 0.3) @ inst.model)
+    second = hsr.render(mover, cam, W, H, into=first, depth_func="lequal")
+    state = RenderState(depth_func="lequal")
+    view_proj = cam.projection_matrix(W / H) @ cam.view_matrix
+    screen = prepare(mover, view_proj, W, H, state, {})
+    expect = zbuffer.resolve(screen, state, depth_buffer=first.depth.copy())
+    drawn = expect.face_id >= 0
+    assert np.array_equal(second.depth.view(np.uint32), expect.depth.view(np.uint32))
+    assert np.array_equal(second.face_id, np.where(drawn, expect.face_id, first.face_id))
+    assert drawn.any() and (~drawn & (first.face_id >= 0)).any()
