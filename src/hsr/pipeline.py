@@ -3,10 +3,15 @@
 model/view/projection -> clip space -> clip (near, far, guard band) -> divide + viewport
 -> face culling -> :class:`ScreenTriangles`.
 
-Vertices are transformed once (a compiled loop, see ``transform_points``); a compiled per-face kernel
-classifies each face (degenerate / outside / needs clipping / simple) and projects the
-simple ones straight to window space. Only the (usually few) faces that cross a clip plane
-go through the Sutherland-Hodgman clipper in :mod:`hsr.clip`.
+Vertices are transformed once (a compiled loop, see :func:`transform_points`); a compiled
+per-face kernel classifies each face (degenerate / outside / needs clipping / simple) and
+projects the simple ones straight to window space. Only the (usually few) faces that cross
+a clip plane go through the Sutherland-Hodgman clipper in :mod:`hsr.clip`.
+
+The plain z-buffer does not need the window-space triangles stored: with
+``prepare(..., deferred=True)`` it streams faces from clip space through
+:func:`classify_setup_range` (classification, culling and raster set-up in one pass) and
+the screen triangles are only computed if something else reads them.
 """
 
 from __future__ import annotations

@@ -52,7 +52,9 @@ class Frame:
         -1 for background.
     object_id : (H, W) int32 index of the visible instance in the scene, -1 for background.
     stats : counts and timings (triangles in / culled / clipped / degenerate / outside,
-        fragments tested / written, milliseconds per stage).
+        fragments tested / written, milliseconds per stage; the plain z-buffer classifies
+        and sets up faces as it fills, so its "geometry" time is the vertex transform and
+        the rest counts as "visibility").
     fragments : the algorithm's raw output (screen triangles, per-pixel triangle index).
     """
 
