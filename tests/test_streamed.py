@@ -126,3 +126,18 @@ def test_second_draw_into_a_frame(chunk):
     assert np.array_equal(second.depth.view(np.uint32), expect.depth.view(np.uint32))
     assert np.array_equal(second.face_id, np.where(drawn, expect.face_id, first.face_id))
     assert drawn.any() and (~drawn & (first.face_id >= 0)).any()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_band_counts(threads):
+    """Each triangle that covers a pixel centre is filled in every band it overlaps: once
+    with one band, at least once and at most once per band with more."""
+    scene, cam = small_scene("spheres")
+    frame = hsr.render(scene, cam, W, H, threads=threads)
+    stats = frame.stats
+    assert stats["bands"] == threads
+    if threads == 1:
+        assert stats["band_triangles"] == stats["triangles_rasterized"]
+    else:
+        assert stats["triangles_rasterized"] < stats["band_triangles"] \
+            <= threads * stats["triangles_rasterized"]

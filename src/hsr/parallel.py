@@ -39,19 +39,25 @@ class Workers:
             self._pool.shutdown()
             self._pool = None
 
-    def run(self, kernel, bounds, *args, on_done=None) -> list:
+    def run(self, kernel, bounds, *args, each=None, on_done=None) -> list:
         """``kernel(bounds[i], bounds[i + 1], *args)`` for every chunk; results in order.
-        ``on_done(lo, hi)`` is called as each chunk's result is collected (progress)."""
+        ``each``: one more argument per chunk (e.g. the rows of an array that each chunk
+        accumulates into on its own), passed last. ``on_done(lo, hi)`` is called as each
+        chunk's result is collected (progress)."""
         chunks = [(int(bounds[i]), int(bounds[i + 1])) for i in range(len(bounds) - 1)]
+        extra = [args + (each[k],) for k in range(len(chunks))] if each is not None else \
+            [args] * len(chunks)
         if self.threads == 1 or len(chunks) == 1:
             futures = None
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(self.threads)
-            futures = [self._pool.submit(kernel, lo, hi, *args) for lo, hi in chunks]
+            futures = [self._pool.submit(kernel, lo, hi, *extra[k])
+                       for k, (lo, hi) in enumerate(chunks)]
         results = []
         for k, (lo, hi) in enumerate(chunks):
-            results.append(kernel(lo, hi, *args) if futures is None else futures[k].result())
+            results.append(kernel(lo, hi, *extra[k]) if futures is None
+                           else futures[k].result())
             if on_done is not None:
                 on_done(lo, hi)
         return results

@@ -231,16 +231,16 @@ def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, d
 @njit(cache=True, nogil=True)
 def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width, height,
                          depth_scale, depth_offset, keep_ccw, keep_cw, offset_factor,
-                         offset_units, status, vert_fixed, edge_bias, bbox, zplane):
+                         offset_units, status, vert_fixed, edge_bias, bbox, zplane, delta):
     """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
     path): classify faces ``lo .. hi`` as :func:`classify_faces` does, cull by facing
     (``keep_ccw`` / ``keep_cw``: keep faces of positive / negative window area) and set up
     the kept simple ones into record ``f - base`` (:func:`hsr.raster.setup_one`; every
     other record gets an empty box). The corners go from clip space to the set-up without
     being stored, which saves writing and re-reading 72 bytes per face.
-    Returns (per-row work delta, widest row) as :func:`hsr.raster.setup_triangles` gathers."""
+    Adds the per-row work to ``delta`` ((H + 1,) zeros, one per call) and returns the
+    widest row, as :func:`hsr.raster.setup_triangles` gathers them."""
     half_w, half_h = 0.5 * width, 0.5 * height
-    delta = np.zeros(height + 1)
     widest = 1
     for f in range(lo, hi):
         r = f - base
@@ -263,7 +263,7 @@ def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width
         widest = max(widest, setup_one(r, x0, y0, z0, x1, y1, z1, x2, y2, z2, width, height,
                                        vert_fixed, edge_bias, bbox, zplane, offset_factor,
                                        offset_units, delta))
-    return delta, widest
+    return widest
 
 
 @njit(cache=True)

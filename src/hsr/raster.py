@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from .conventions import SUBPIXEL_BITS
+from .parallel import split_range
 
 __all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes", "FIRST_WINS",
            "rasterize"]
@@ -59,20 +60,20 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     bbox = np.empty((n, 4), dtype=np.int32)
     zplane = np.empty((n, 5))
     factor, units = (float(v) for v in polygon_offset)
-    parts = workers.run_range(_setup_range, n, xy_window, depth_window, width, height,
-                              vert_fixed, edge_bias, bbox, zplane, factor, units)
-    delta = parts[0][0] if len(parts) == 1 else np.sum([p[0] for p in parts], axis=0)
-    widest = max(p[1] for p in parts)
+    bounds = split_range(n, min(workers.threads, max(1, n // 4096)))
+    delta = np.zeros((len(bounds) - 1, height + 1))  # one per part: they run at once
+    widest = workers.run(_setup_range, bounds, xy_window, depth_window, width, height,
+                         vert_fixed, edge_bias, bbox, zplane, factor, units, each=delta)
     # Work of a row: the box widths of the triangles on it plus a share for clearing it.
-    row_work = np.cumsum(delta[:height]) + 0.05 * widest
+    row_work = np.cumsum(delta.sum(axis=0)[:height]) + 0.05 * max(widest)
     return vert_fixed, edge_bias, bbox, zplane, row_work
 
 
 @njit(cache=True, nogil=True)
 def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edge_bias,
-                 bbox, zplane, offset_factor, offset_units):
-    # Per-row work estimate of this chunk: +box width at its first row, - after its last.
-    delta = np.zeros(height + 1)
+                 bbox, zplane, offset_factor, offset_units, delta):
+    # Per-row work estimate of this chunk in ``delta`` (its own (H + 1,) zeros): + box
+    # width at a triangle's first row, - after its last.
     widest = 1
     for t in range(lo, hi):
         widest = max(widest, setup_one(
@@ -80,7 +81,7 @@ def _setup_range(lo, hi, xy_window, depth_window, width, height, vert_fixed, edg
             xy_window[t, 1, 0], xy_window[t, 1, 1], depth_window[t, 1],
             xy_window[t, 2, 0], xy_window[t, 2, 1], depth_window[t, 2], width, height,
             vert_fixed, edge_bias, bbox, zplane, offset_factor, offset_units, delta))
-    return delta, widest
+    return widest
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -188,8 +189,8 @@ def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, wi
                depth_test, depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
                face_buf, count_tested, count_written, want_counts, tie_by_face=False,
                pieces=None):
-    """Fill on ``workers``, one call of :func:`fill_band` per band; returns (tested,
-    written) fragment counts summed over the bands. ``pieces`` = (face_base, clip_at,
+    """Fill on ``workers``, one call of :func:`fill_band` per band; returns the fragments
+    tested, fragments written and (triangle, band) pairs filled, summed over the bands. ``pieces`` = (face_base, clip_at,
     piece_off) for records laid out by face (see :func:`fill_band`); by default record t
     is triangle t of face ``tri_face[t]``."""
     face_base, clip_at, piece_off = pieces if pieces is not None else (0, _NO_CLIP, _NO_PIECES)
@@ -197,7 +198,7 @@ def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, wi
                          face_base, clip_at, piece_off, width, height, depth_test,
                          depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
                          face_buf, count_tested, count_written, want_counts, tie_by_face)
-    return sum(c[0] for c in counts), sum(c[1] for c in counts)
+    return tuple(sum(c[k] for c in counts) for k in range(3))
 
 
 _NO_CLIP = np.zeros(0, dtype=np.int64)
@@ -227,7 +228,8 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
     depth then). With ``tie_by_face`` (LESS / LEQUAL only) equal depths are decided by
     face id as submission order would decide them (LESS: the lower id wins, LEQUAL: the
     higher), which makes the result independent of the drawing order (occlusion culling
-    draws objects front to back). Returns (fragments tested, fragments written).
+    draws objects front to back). Returns (fragments tested, fragments written, triangles
+    that overlap the band: the band's share of the binning).
     """
     n = bbox.shape[0]
     write_depth = depth_test and depth_write
@@ -242,6 +244,7 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
                 depth_buf[row, i] = clear_value
     n_tested = 0
     n_written = 0
+    n_binned = 0
     n_main = n - piece_off[-1]
     by_face = tri_face.shape[0] == 0
     k = 0
@@ -256,6 +259,7 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
             x0, x1 = np.int64(bbox[t, 0]), np.int64(bbox[t, 1])
             if y0 > y1 or x0 > x1:
                 continue
+            n_binned += 1
             X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
             X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
             X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
@@ -306,7 +310,7 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
                 e0_row += step_y0
                 e1_row += step_y1
                 e2_row += step_y2
-    return n_tested, n_written
+    return n_tested, n_written, n_binned
 
 
 def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, *,
@@ -341,7 +345,7 @@ def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, 
     # a walk over all triangles.
     bands = band_split(row_work, workers.threads)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    tested, written = fill_bands(
+    tested, written, _ = fill_bands(
         workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, width, height,
         depth_test, depth_func, depth_write, z_lo, z_hi, clear, depth, face, count_tested,
         count_written, counts)

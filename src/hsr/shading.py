@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from .errors import RenderError
 from .fog import Fog
 from .mesh import instance_of
+from .parallel import Workers, split_range
 from .texture import FILTERS, WRAPS, load_texture, sample
 
 __all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
@@ -43,17 +44,21 @@ def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, visible
     Only faces with ``visible[f]`` are computed (the others are never looked up).
     """
     per_face = base_rgb.shape[0] == faces.shape[0]
-    p = np.empty((3, 3))
     for f in range(lo, hi):
         if not visible[f]:
             continue
-        for k in range(3):
-            v = faces[f, k]
-            for r in range(3):
-                p[k, r] = (linear[r, 0] * positions[v, 0] + linear[r, 1] * positions[v, 1]
-                           + linear[r, 2] * positions[v, 2])
-        e1x, e1y, e1z = p[1, 0] - p[0, 0], p[1, 1] - p[0, 1], p[1, 2] - p[0, 2]
-        e2x, e2y, e2z = p[2, 0] - p[0, 0], p[2, 1] - p[0, 1], p[2, 2] - p[0, 2]
+        # Edges in model space, then through ``linear`` (a linear map keeps differences).
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        d1x, d1y, d1z = (positions[b, 0] - positions[a, 0], positions[b, 1] - positions[a, 1],
+                         positions[b, 2] - positions[a, 2])
+        d2x, d2y, d2z = (positions[c, 0] - positions[a, 0], positions[c, 1] - positions[a, 1],
+                         positions[c, 2] - positions[a, 2])
+        e1x = linear[0, 0] * d1x + linear[0, 1] * d1y + linear[0, 2] * d1z
+        e1y = linear[1, 0] * d1x + linear[1, 1] * d1y + linear[1, 2] * d1z
+        e1z = linear[2, 0] * d1x + linear[2, 1] * d1y + linear[2, 2] * d1z
+        e2x = linear[0, 0] * d2x + linear[0, 1] * d2y + linear[0, 2] * d2z
+        e2y = linear[1, 0] * d2x + linear[1, 1] * d2y + linear[1, 2] * d2z
+        e2z = linear[2, 0] * d2x + linear[2, 1] * d2y + linear[2, 2] * d2z
         nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
         length = np.sqrt(nx * nx + ny * ny + nz * nz)
         if length > 0.0:
@@ -75,36 +80,38 @@ def paint_faces(workers, face_id, face_rgb, background, image):
     covered pixels."""
     # Rows are the unit here: a few dozen rows of a large image are plenty of work.
     parts = workers.run_range(_scan_rows, face_id.shape[0], True, face_id, face_rgb,
-                              background, image, 0, min_chunk=32)
-    return sum(p[1] for p in parts)
+                              background, image, _NO_SEEN, min_chunk=32)
+    return sum(parts)
+
+
+_NO_SEEN = np.zeros(0, dtype=np.bool_)
 
 
 def visible_faces(face_id, n_faces, workers=None):
     """(F,) bool: faces that appear in the image (rows scanned in parallel, each chunk
     into its own mask)."""
-    none_rgb, none_bg = np.zeros((0, 3), np.uint8), np.zeros(3, np.uint8)
-    none_image = np.zeros((1, 1, 3), np.uint8)
-    args = (False, face_id, none_rgb, none_bg, none_image, n_faces)
-    if workers is None:
-        return _scan_rows(0, face_id.shape[0], *args)[0]
-    masks = [p[0] for p in workers.run_range(_scan_rows, face_id.shape[0], *args,
-                                             min_chunk=32)]
-    return np.logical_or.reduce(masks) if len(masks) > 1 else masks[0]
+    workers = workers or Workers(1)
+    rows = face_id.shape[0]
+    bounds = split_range(rows, min(workers.threads, max(1, rows // 32)))
+    seen = np.zeros((len(bounds) - 1, n_faces), dtype=np.bool_)
+    workers.run(_scan_rows, bounds, False, face_id, np.zeros((0, 3), np.uint8),
+                np.zeros(3, np.uint8), np.zeros((1, 1, 3), np.uint8), each=seen)
+    return np.logical_or.reduce(seen) if len(seen) > 1 else seen[0]
 
 
 @njit(cache=True, nogil=True)
-def _scan_rows(lo, hi, paint, face_id, face_rgb, background, image, n_faces):
+def _scan_rows(lo, hi, paint, face_id, face_rgb, background, image, seen):
     """One pass over image rows ``lo..hi``: with ``paint``, colour them from the per-face
-    table (returns the covered count); without, mark the faces seen (returns the (F,)
-    mask). One kernel for both halves of the per-face path: one compile on first use."""
-    seen = np.zeros(n_faces, dtype=np.bool_)
+    table (returns the covered count); without, mark the faces seen in ``seen`` (F,).
+    One kernel for both halves of the per-face path, and no allocation inside it: one
+    small compile on first use."""
     covered = 0
     if not paint:
         for r in range(lo, hi):
             for c in range(face_id.shape[1]):
                 if face_id[r, c] >= 0:
                     seen[face_id[r, c]] = True
-        return seen, covered
+        return covered
     use_table = face_rgb.shape[0] > 0
     for r in range(lo, hi):
         for c in range(face_id.shape[1]):
@@ -119,7 +126,7 @@ def _scan_rows(lo, hi, paint, face_id, face_rgb, background, image, n_faces):
                 image[r, c, 0] = background[0]
                 image[r, c, 1] = background[1]
                 image[r, c, 2] = background[2]
-    return seen, covered
+    return covered
 
 
 def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:

@@ -84,7 +84,7 @@ def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
         vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
             screen.xy_window[t0:t1], screen.depth_window[t0:t1], width, height, workers)
         bands = band_split(row_work, workers.threads)
-        t, w = fill_bands(
+        t, w, _ = fill_bands(
             workers, bands, vert_fixed, edge_bias, bbox, zplane, screen.face_id[t0:t1], width,
             height, True, state.depth_func.code, True, z_lo, z_hi, np.nan, depth, face,
             _NO_COUNTS, _NO_COUNTS, False, True)
@@ -130,17 +130,18 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     size = min(STREAM_CHUNK, n_faces)
     records = (np.empty((size, 6), dtype=np.int32), np.empty((size, 3), dtype=np.int8),
                np.empty((size, 4), dtype=np.int32), np.empty((size, 5)))
-    tested = written = rasterized = pieces_kept = clip_culled = 0
+    tested = written = binned = rasterized = pieces_kept = clip_culled = 0
     for c0 in range(0, n_faces, size):
         c1 = min(c0 + size, n_faces)
         chunk = tuple(r[:c1 - c0] for r in records)
-        parts = max(1, min(workers.threads, (c1 - c0) // 4096))
-        results = workers.run(classify_setup_range, c0 + split_range(c1 - c0, parts), c0,
-                              geometry.pos_model, geometry.pos_clip, geometry.faces, gx, gy,
-                              width, height, geometry.depth_scale, geometry.depth_offset,
-                              keep_ccw, keep_cw, factor, units, status, *chunk)
-        delta = np.sum([r[0] for r in results], axis=0)
-        row_work = np.cumsum(delta[:height]) + 0.05 * max(r[1] for r in results)
+        bounds = c0 + split_range(c1 - c0, max(1, min(workers.threads, (c1 - c0) // 4096)))
+        # One per-row work array per part: the parts run at once.
+        delta = np.zeros((len(bounds) - 1, height + 1))
+        widest = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
+                             geometry.pos_clip, geometry.faces, gx, gy, width, height,
+                             geometry.depth_scale, geometry.depth_offset, keep_ccw, keep_cw,
+                             factor, units, status, *chunk, each=delta)
+        row_work = np.cumsum(delta.sum(axis=0)[:height]) + 0.05 * max(widest)
         clip_at, piece_off = _BY_FACE, np.zeros(1, dtype=np.int64)
         clip_local = np.flatnonzero(status[c0:c1] == NEEDS_CLIP)
         if len(clip_local):
@@ -154,11 +155,12 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                 clip_at, n_pieces = np.unique(p_face - c0, return_counts=True)
                 piece_off = np.concatenate([[0], np.cumsum(n_pieces)]).astype(np.int64)
                 pieces_kept += len(p_face)
-        t, w = fill_bands(workers, band_split(row_work, workers.threads), *chunk, _BY_FACE,
+        bands = band_split(row_work, workers.threads)
+        t, w, b = fill_bands(workers, bands, *chunk, _BY_FACE,
                           width, height, state.depth_test, state.depth_func.code,
                           state.depth_mask, z_lo, z_hi, clear, depth, face, count_tested,
                           count_written, counts, pieces=(c0, clip_at, piece_off))
-        tested, written, clear = tested + t, written + w, np.nan
+        tested, written, binned, clear = tested + t, written + w, binned + b, np.nan
         box = chunk[2]
         rasterized += int(np.count_nonzero((box[:, 0] <= box[:, 1]) & (box[:, 2] <= box[:, 3])))
     status_counts = np.bincount(status, minlength=CULLED + 1)
@@ -166,6 +168,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                             status_counts[SIMPLE] + pieces_kept)
     geometry.stats.update(stats)
     stats.update({"triangles_rasterized": rasterized, "fragments_tested": int(tested),
-                  "fragments_written": int(written)})
+                  "fragments_written": int(written), "chunks": -(-n_faces // size),
+                  "bands": len(bands) - 1, "band_triangles": int(binned)})
     return Fragments(face, depth, screen, stats, count_tested if counts else None,
                      count_written if counts else None)
