@@ -62,8 +62,11 @@ class Workers:
                 on_done(lo, hi)
         return results
 
+    def split(self, n: int, min_chunk: int = 4096) -> np.ndarray:
+        """Boundaries cutting ``range(n)`` into one chunk per thread, none smaller than
+        ``min_chunk`` (below that a thread hand-off costs more than it saves)."""
+        return split_range(n, min(self.threads, max(1, n // min_chunk)))
+
     def run_range(self, kernel, n: int, *args, min_chunk: int = 4096) -> list:
-        """Split ``range(n)`` into one chunk per thread (none smaller than ``min_chunk``:
-        below that a thread hand-off costs more than it saves) and run ``kernel``."""
-        parts = min(self.threads, max(1, n // min_chunk))
-        return self.run(kernel, split_range(n, parts), *args)
+        """Run ``kernel`` over ``range(n)`` cut by :meth:`split`."""
+        return self.run(kernel, self.split(n, min_chunk), *args)

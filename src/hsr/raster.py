@@ -22,7 +22,6 @@ import numpy as np
 from numba import njit
 
 from .conventions import SUBPIXEL_BITS
-from .parallel import split_range
 
 __all__ = ["setup_triangles", "band_split", "fill_bands", "depth_passes", "FIRST_WINS",
            "rasterize"]
@@ -60,7 +59,7 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     bbox = np.empty((n, 4), dtype=np.int32)
     zplane = np.empty((n, 5))
     factor, units = (float(v) for v in polygon_offset)
-    bounds = split_range(n, min(workers.threads, max(1, n // 4096)))
+    bounds = workers.split(n)
     delta = np.zeros((len(bounds) - 1, height + 1))  # one per part: they run at once
     widest = workers.run(_setup_range, bounds, xy_window, depth_window, width, height,
                          vert_fixed, edge_bias, bbox, zplane, factor, units, each=delta)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from .errors import RenderError
 from .fog import Fog
 from .mesh import instance_of
-from .parallel import Workers, split_range
+from .parallel import Workers
 from .texture import FILTERS, WRAPS, load_texture, sample
 
 __all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
@@ -91,8 +91,7 @@ def visible_faces(face_id, n_faces, workers=None):
     """(F,) bool: faces that appear in the image (rows scanned in parallel, each chunk
     into its own mask)."""
     workers = workers or Workers(1)
-    rows = face_id.shape[0]
-    bounds = split_range(rows, min(workers.threads, max(1, rows // 32)))
+    bounds = workers.split(face_id.shape[0], min_chunk=32)
     seen = np.zeros((len(bounds) - 1, n_faces), dtype=np.bool_)
     workers.run(_scan_rows, bounds, False, face_id, np.zeros((0, 3), np.uint8),
                 np.zeros(3, np.uint8), np.zeros((1, 1, 3), np.uint8), each=seen)

@@ -8,7 +8,7 @@ import numpy as np
 from ..errors import RenderError
 from ..fragments import Fragments
 from ..occlusion import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
-from ..parallel import Workers, split_range
+from ..parallel import Workers
 from ..pipeline import (CULLED, NEEDS_CLIP, SIMPLE, Geometry, ScreenTriangles,
                         classify_setup_range, clip_and_project, geometry_counts)
 from ..raster import band_split, fill_bands, rasterize, setup_triangles
@@ -134,7 +134,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     for c0 in range(0, n_faces, size):
         c1 = min(c0 + size, n_faces)
         chunk = tuple(r[:c1 - c0] for r in records)
-        bounds = c0 + split_range(c1 - c0, max(1, min(workers.threads, (c1 - c0) // 4096)))
+        bounds = c0 + workers.split(c1 - c0)
         # One per-row work array per part: the parts run at once.
         delta = np.zeros((len(bounds) - 1, height + 1))
         widest = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
