@@ -52,20 +52,51 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
         gathered during the same pass.
     """
     n = xy_window.shape[0]
-    # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
-    # memory traffic, not arithmetic, is what set-up costs on large meshes.
-    vert_fixed = np.empty((n, 6), dtype=np.int32)
-    edge_bias = np.empty((n, 3), dtype=np.int8)
-    bbox = np.empty((n, 4), dtype=np.int32)
-    zplane = np.empty((n, 5))
+    vert_fixed, edge_bias, bbox, zplane = setup_records(n)
     factor, units = (float(v) for v in polygon_offset)
     bounds = workers.split(n)
     delta = np.zeros((len(bounds) - 1, height + 1))  # one per part: they run at once
     widest = workers.run(_setup_range, bounds, xy_window, depth_window, width, height,
                          vert_fixed, edge_bias, bbox, zplane, factor, units, each=delta)
-    # Work of a row: the box widths of the triangles on it plus a share for clearing it.
-    row_work = np.cumsum(delta.sum(axis=0)[:height]) + 0.05 * max(widest)
-    return vert_fixed, edge_bias, bbox, zplane, row_work
+    return vert_fixed, edge_bias, bbox, zplane, estimate_row_work(delta, widest)
+
+
+def setup_records(n: int):
+    """Empty set-up records for ``n`` triangles: (vert_fixed, edge_bias, bbox, zplane) as
+    :func:`setup_triangles` describes them."""
+    # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
+    # memory traffic, not arithmetic, is what set-up costs on large meshes.
+    return (np.empty((n, 6), dtype=np.int32), np.empty((n, 3), dtype=np.int8),
+            np.empty((n, 4), dtype=np.int32), np.empty((n, 5)))
+
+
+def estimate_row_work(delta: np.ndarray, widest) -> np.ndarray:
+    """(H,) estimated fill work per row from the set-up parts' per-row deltas
+    ((parts, H + 1)) and widest rows: the box widths of the triangles on a row plus a
+    share for clearing it."""
+    return np.cumsum(delta.sum(axis=0)[:-1]) + 0.05 * max(widest)
+
+
+def covers_pixels(bbox: np.ndarray) -> np.ndarray:
+    """(N,) bool: set-up boxes that hold at least one pixel centre."""
+    return (bbox[:, 0] <= bbox[:, 1]) & (bbox[:, 2] <= bbox[:, 3])
+
+
+def fill_targets(width, height, state, depth_buffer=None, counts=False):
+    """The buffers a fill draws into: ``(depth, face, clear, count_tested,
+    count_written)``. Fresh buffers are cleared by the fill itself (``clear`` = the
+    state's clear depth); over ``depth_buffer`` nothing is cleared (``clear`` = NaN) and
+    ``face`` starts at -1. The count arrays are (H, W) with ``counts``, else (1, 1)."""
+    if depth_buffer is None:
+        depth = np.empty((height, width), dtype=np.float32)
+        face = np.empty((height, width), dtype=np.int32)
+        clear = state.clear_depth
+    else:
+        depth, clear = depth_buffer, np.nan
+        face = np.full((height, width), -1, dtype=np.int32)
+    shape = (height, width) if counts else (1, 1)
+    return (depth, face, clear, np.zeros(shape, dtype=np.int32),
+            np.zeros(shape, dtype=np.int32))
 
 
 @njit(cache=True, nogil=True)
@@ -326,17 +357,8 @@ def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, 
     depth_test = state.depth_test if depth_test is None else depth_test
     depth_func = state.depth_func.code if depth_func is None else depth_func
     depth_write = state.depth_mask if depth_write is None else depth_write
-    if depth_buffer is None:
-        depth = np.empty((height, width), dtype=np.float32)
-        clear = state.clear_depth
-        face = np.empty((height, width), dtype=np.int32)  # cleared by the fill
-    else:
-        depth = depth_buffer
-        clear = np.nan
-        face = np.full((height, width), -1, dtype=np.int32)
-    shape = (height, width) if counts else (1, 1)
-    count_tested = np.zeros(shape, dtype=np.int32)
-    count_written = np.zeros(shape, dtype=np.int32)
+    depth, face, clear, count_tested, count_written = fill_targets(
+        width, height, state, depth_buffer, counts)
     vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
         np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window), width, height,
         workers, state.polygon_offset)

@@ -22,7 +22,7 @@ from ..errors import RenderError
 from ..fragments import Fragments
 from ..parallel import Workers
 from ..pipeline import ScreenTriangles
-from ..raster import _HALF, _ONE, band_split, setup_triangles
+from ..raster import _HALF, _ONE, band_split, covers_pixels, setup_triangles
 from ..state import DepthFunc, RenderState
 
 NAME = "scanline"
@@ -40,7 +40,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     width, height = screen.width, screen.height
     vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
         screen.xy_window, screen.depth_window, width, height, workers)
-    live = np.flatnonzero((bbox[:, 0] <= bbox[:, 1]) & (bbox[:, 2] <= bbox[:, 3]))
+    live = np.flatnonzero(covers_pixels(bbox))
     # Edge table: triangles ordered by the first scan line they touch.
     edge_table = live[np.argsort(bbox[live, 2], kind="stable")]
     face = np.empty((height, width), dtype=np.int32)

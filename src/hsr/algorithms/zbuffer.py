@@ -11,7 +11,8 @@ from ..occlusion import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
 from ..parallel import Workers
 from ..pipeline import (CULLED, NEEDS_CLIP, SIMPLE, Geometry, ScreenTriangles,
                         classify_setup_range, clip_and_project, geometry_counts)
-from ..raster import band_split, fill_bands, rasterize, setup_triangles
+from ..raster import (band_split, covers_pixels, estimate_row_work, fill_bands, fill_targets,
+                      rasterize, setup_records, setup_triangles)
 from ..state import DepthFunc, RenderState
 
 NAME = "zbuffer"
@@ -41,8 +42,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
         screen.xy_window, screen.depth_window, screen.face_id, screen.width, screen.height,
         state, workers, counts=counts, depth_buffer=depth_buffer)
     stats = {
-        "triangles_rasterized": int(np.count_nonzero((bbox[:, 0] <= bbox[:, 1])
-                                                     & (bbox[:, 2] <= bbox[:, 3]))),
+        "triangles_rasterized": int(np.count_nonzero(covers_pixels(bbox))),
         "fragments_tested": int(tested),
         "fragments_written": int(written),
     }
@@ -89,7 +89,7 @@ def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
             height, True, state.depth_func.code, True, z_lo, z_hi, np.nan, depth, face,
             _NO_COUNTS, _NO_COUNTS, False, True)
         tested, written = tested + t, written + w
-        drawn = bbox[(bbox[:, 0] <= bbox[:, 1]) & (bbox[:, 2] <= bbox[:, 3])]
+        drawn = bbox[covers_pixels(bbox)]
         n_rasterized += len(drawn)
         if len(drawn):
             update_hzb(depth, hzb, int(drawn[:, 0].min()), int(drawn[:, 1].max()),
@@ -112,24 +112,16 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     the result equals filling the prepared screen triangles."""
     geometry: Geometry = screen.geometry
     width, height, n_faces = geometry.width, geometry.height, len(geometry.faces)
-    if depth_buffer is None:
-        depth = np.empty((height, width), dtype=np.float32)
-        face = np.empty((height, width), dtype=np.int32)  # cleared by the first fill
-        clear = state.clear_depth
-    else:
-        depth, clear = depth_buffer, np.nan
-        face = np.full((height, width), -1, dtype=np.int32)
-    shape = (height, width) if counts else (1, 1)
-    count_tested = np.zeros(shape, dtype=np.int32)
-    count_written = np.zeros(shape, dtype=np.int32)
+    # Fresh buffers are cleared by the first chunk's fill.
+    depth, face, clear, count_tested, count_written = fill_targets(
+        width, height, state, depth_buffer, counts)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     gx, gy = geometry.guard_band
     keep_ccw, keep_cw = geometry.keep_by_facing()
     factor, units = (float(v) for v in state.polygon_offset)
     status = np.empty(n_faces, dtype=np.int8)
     size = min(STREAM_CHUNK, n_faces)
-    records = (np.empty((size, 6), dtype=np.int32), np.empty((size, 3), dtype=np.int8),
-               np.empty((size, 4), dtype=np.int32), np.empty((size, 5)))
+    records = setup_records(size)
     tested = written = binned = rasterized = pieces_kept = clip_culled = 0
     for c0 in range(0, n_faces, size):
         c1 = min(c0 + size, n_faces)
@@ -141,7 +133,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                              geometry.pos_clip, geometry.faces, gx, gy, width, height,
                              geometry.depth_scale, geometry.depth_offset, keep_ccw, keep_cw,
                              factor, units, status, *chunk, each=delta)
-        row_work = np.cumsum(delta.sum(axis=0)[:height]) + 0.05 * max(widest)
+        work = estimate_row_work(delta, widest)
         clip_at, piece_off = _BY_FACE, np.zeros(1, dtype=np.int64)
         clip_local = np.flatnonzero(status[c0:c1] == NEEDS_CLIP)
         if len(clip_local):
@@ -151,18 +143,17 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                 *p_records, p_row_work = setup_triangles(p_xy, p_depth, width, height,
                                                          workers, state.polygon_offset)
                 chunk = tuple(np.concatenate([a, b]) for a, b in zip(chunk, p_records))
-                row_work = row_work + p_row_work
+                work = work + p_row_work
                 clip_at, n_pieces = np.unique(p_face - c0, return_counts=True)
                 piece_off = np.concatenate([[0], np.cumsum(n_pieces)]).astype(np.int64)
                 pieces_kept += len(p_face)
-        bands = band_split(row_work, workers.threads)
+        bands = band_split(work, workers.threads)
         t, w, b = fill_bands(workers, bands, *chunk, _BY_FACE,
                           width, height, state.depth_test, state.depth_func.code,
                           state.depth_mask, z_lo, z_hi, clear, depth, face, count_tested,
                           count_written, counts, pieces=(c0, clip_at, piece_off))
         tested, written, binned, clear = tested + t, written + w, binned + b, np.nan
-        box = chunk[2]
-        rasterized += int(np.count_nonzero((box[:, 0] <= box[:, 1]) & (box[:, 2] <= box[:, 3])))
+        rasterized += int(np.count_nonzero(covers_pixels(chunk[2])))
     status_counts = np.bincount(status, minlength=CULLED + 1)
     stats = geometry_counts(n_faces, status_counts, status_counts[CULLED] + clip_culled,
                             status_counts[SIMPLE] + pieces_kept)
