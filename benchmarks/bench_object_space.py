@@ -11,10 +11,10 @@ import argparse
 import os
 import sys
 
+from common import agreement_percent, peak_gb, timed
 
 import hsr
-import hsr.bsp as bsp
-from common import agreement_percent, peak_gb, timed
+import hsr.algorithms.bsp_tree as bsp
 
 
 def main(argv=None):

@@ -18,10 +18,10 @@ import sys
 import time
 
 import numpy as np
+from common import agreement_percent, median_ms
 
 import hsr
-import hsr.raycast as rc
-from common import agreement_percent, median_ms
+import hsr.algorithms.bvh as rc
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 

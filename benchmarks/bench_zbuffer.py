@@ -19,11 +19,11 @@ import argparse
 import os
 import sys
 
-
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-import hsr  # noqa: E402
 from common import median_ms, peak_gb, progress  # noqa: E402
+
+import hsr  # noqa: E402
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 DEFAULT_MODELS = [os.path.join(MODELS, name) for name in ("african_head.obj", "spot.obj",

@@ -7,14 +7,22 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import need
 from PIL import Image
+from reference import ambiguous_pixels, reference_render, world_triangles
 
 import hsr
-from conftest import need
 from hsr import scenes
-from hsr.explain import (VIEWS, depth_step, explain, linear_z_depths, quantize_depth,
-                         resolvable_depth, window_depth, ybuffer)
-from reference import ambiguous_pixels, reference_render, world_triangles
+from hsr.explain.views import (
+    VIEWS,
+    depth_step,
+    explain,
+    linear_z_depths,
+    quantize_depth,
+    resolvable_depth,
+    window_depth,
+    ybuffer,
+)
 
 W, H = 96, 72
 
@@ -232,7 +240,7 @@ def test_report_in_a_real_browser(tmp_path, models_dir):
         need(False, "selenium is not installed (pip install -e '.[test]')")
     need(shutil.which("chromium") is not None and shutil.which("chromedriver") is not None,
          "Chromium / ChromeDriver not installed (apt-get install chromium chromium-driver)")
-    from hsr.report import write_report
+    from hsr.explain.report import write_report
 
     mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
     camera = hsr.Camera.frame(mesh.bounds())

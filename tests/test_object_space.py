@@ -2,13 +2,13 @@
 
 import numpy as np
 import pytest
-
-import hsr
-import hsr.bsp as bsp
 from conftest import against_zbuffer
-from hsr import scenes
 from reference import ambiguous_pixels, reference_render
 from test_zbuffer_reference import small_scene
+
+import hsr
+import hsr.algorithms.bsp_tree as bsp
+from hsr import scenes
 
 W, H = 96, 72
 
@@ -158,8 +158,9 @@ def rasterize_svg(path, width, height):
     """Paint an SVG's polygons in file order with the shared fill: (H, W) data-face ids."""
     import xml.etree.ElementTree as ET
 
+    from hsr.geometry.setup import setup_triangles
     from hsr.parallel import Workers
-    from hsr.raster import band_split, fill_bands, setup_triangles
+    from hsr.raster.fill import band_split, fill_bands
 
     root = ET.parse(path).getroot()
     polys = [el for el in root.iter() if el.tag.endswith("polygon")]

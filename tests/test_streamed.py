@@ -5,14 +5,14 @@ screen triangles (same face ids, same depth bits, same counts)."""
 
 import numpy as np
 import pytest
+from test_zbuffer_reference import check, small_scene
 
 import hsr
 from hsr import scenes
 from hsr.algorithms import zbuffer
-from hsr.mesh import as_scene
-from hsr.pipeline import prepare
-from hsr.state import RenderState
-from test_zbuffer_reference import check, small_scene
+from hsr.geometry.stage import prepare
+from hsr.geometry.state import RenderState
+from hsr.scene.mesh import as_scene
 
 W, H = 96, 72
 

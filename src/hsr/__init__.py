@@ -5,20 +5,33 @@
 >>> frame = hsr.render(scene, camera, width=320, height=240)
 >>> frame.face_id.shape
 (240, 320)
+
+The package follows the data path, one sub-package per stage (imports only go down it):
+:mod:`hsr.scene` (meshes, cameras, files) -> :mod:`hsr.geometry` (state, transform,
+clipping, culling, set-up) -> :mod:`hsr.raster` (the shared fill) -> :mod:`hsr.algorithms`
+(the six visibility algorithms) -> :mod:`hsr.appearance` (shading, textures, fog,
+transparency) and :mod:`hsr.lines` (polygon modes, hidden lines, SVG) -> :func:`hsr.render`
+-> :mod:`hsr.explain` (views, compare, report) -> :mod:`hsr.cli`.
 """
 
-from . import scenes
-from .algorithms import ALGORITHMS
-from .camera import Camera
+from .algorithms import ALGORITHMS, bsp, raycast
+from .appearance.fog import Fog
+from .appearance.shading import Look
 from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
-from .mesh import Instance, Mesh, Scene, load
+from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
+from .lines.raster import HiddenLine
+from .lines.vector import hidden_lines, write_lines_svg
 from .render import Frame, render
-from .state import CullMode, DepthFunc, FrontFace, RenderState
+from .scene import builtin as scenes
+from .scene.camera import Camera
+from .scene.load import load
+from .scene.mesh import Instance, Mesh, Scene
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Frame", "FrontFace",
-    "HsrError", "Instance", "Mesh", "MeshError", "OutputError", "RenderError", "RenderState",
-    "Scene", "load", "render", "scenes",
+    "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
+    "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
+    "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "bsp",
+    "hidden_lines", "load", "raycast", "render", "scenes", "write_lines_svg",
 ]

@@ -100,9 +100,9 @@ def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
 
 def build_parser() -> argparse.ArgumentParser:
     from .algorithms import ALGORITHMS
-    from .scenes import SCENES
-    from .shading import SHADING_MODES
-    from .state import CullMode, DepthFunc, FrontFace
+    from .appearance.shading import SHADING_MODES
+    from .geometry.state import CullMode, DepthFunc, FrontFace
+    from .scene.builtin import SCENES
 
     shared = (SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES)
     parser = _Parser(prog="hsr", description="Hidden-surface removal: render meshes headless.")
@@ -145,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--algorithms", default=",".join(ALGORITHMS),
                    help="comma-separated algorithms (default: all: %(default)s)")
     c.add_argument("--montage", help="write the images side by side with difference maps")
-    from .explain import VIEWS
+    from .explain.views import VIEWS
 
     e = sub.add_parser("explain", help="a picture that explains one part of hidden-surface "
                        "removal", description="Views: " + ", ".join(VIEWS) + ".")
@@ -176,7 +176,7 @@ def _auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
 
 
 def _camera_from_args(args, scene, default_camera):
-    from .camera import Camera
+    from .scene.camera import Camera
 
     up = _floats(args.up, 3, "--up")
     if args.eye is None and args.target is None and default_camera is not None:
@@ -228,9 +228,10 @@ def _options(pairs) -> dict:
 
 def _setup(args):
     """Scene, camera, size, state, background and options from the shared arguments."""
-    from . import scenes
-    from .mesh import Scene, load
-    from .state import RenderState
+    from .geometry.state import RenderState
+    from .scene import builtin as scenes
+    from .scene.load import load
+    from .scene.mesh import Scene
 
     width, height = _size(args.size)
     default_camera = None
@@ -276,8 +277,8 @@ def _setup(args):
 
 
 def _look(args):
-    from .fog import parse_fog
-    from .shading import Look
+    from .appearance.fog import parse_fog
+    from .appearance.shading import Look
 
     fog = None
     if args.fog:
@@ -286,7 +287,7 @@ def _look(args):
 
 
 def _hidden_line(args):
-    from .lines import HiddenLine
+    from .lines.raster import HiddenLine
 
     color = _color(args.line_color, "--line-color") if args.line_color else None
     offset = (_floats(args.polygon_offset, 2, "--polygon-offset") if args.polygon_offset
@@ -314,7 +315,7 @@ def _cmd_render(args) -> int:
     if args.ids_out:
         frame.save_ids(args.ids_out)
     if args.svg and args.lines:
-        from .vector_lines import hidden_lines, write_lines_svg
+        from .lines.vector import hidden_lines, write_lines_svg
 
         drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
         write_lines_svg(args.svg, drawing, background, hidden_line.line_color(background),
@@ -325,8 +326,8 @@ def _cmd_render(args) -> int:
     elif args.svg:
         _write_svg(args, frame, scene, camera, width, height, background)
     if args.error_map:
-        from .compare import difference_map
-        from .io import save_image
+        from .explain.compare import difference_map
+        from .scene.files import save_image
 
         truth = render(scene, camera, width, height, state=state, threads=args.threads)
         save_image(difference_map(frame, truth), args.error_map)
@@ -340,9 +341,9 @@ def _cmd_render(args) -> int:
 
 
 def _write_svg(args, frame, scene, camera, width, height, background):
+    from .appearance.shading import face_colors
+    from .lines.svg import write_polygons_svg
     from .parallel import Workers
-    from .shading import face_colors
-    from .svg import write_polygons_svg
 
     polygons = frame.fragments.buffers.get("polygons")
     if polygons is None or polygons[2] != "back_to_front":
@@ -369,7 +370,7 @@ def _algorithm_names(text: str) -> list:
 
 def _cmd_compare(args) -> int:
     from .algorithms import ALGORITHMS
-    from .compare import compare_algorithms, montage
+    from .explain.compare import compare_algorithms, montage
 
     names = _algorithm_names(args.algorithms)
     scene, camera, width, height, state, background, options = _setup(args)
@@ -390,7 +391,7 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_explain(args) -> int:
-    from .explain import explain
+    from .explain.views import explain
 
     scene, camera, width, height, state, _, _ = _setup(args)
     result = explain(args.view, scene, camera, width, height, state)
@@ -410,7 +411,7 @@ def _cmd_explain(args) -> int:
 def _cmd_report(args) -> int:
     import os
 
-    from .report import write_report
+    from .explain.report import write_report
 
     names = _algorithm_names(args.algorithms)
     scene, camera, width, height, state, _, _ = _setup(args)

@@ -1,5 +1,7 @@
-"""``hsr.render``: validate, run the geometry stage, ask the chosen algorithm what is
-visible, shade, and hand back a :class:`Frame`."""
+"""``hsr.render``: the data path in one function. Validate, then geometry
+(:mod:`hsr.geometry`), visibility (:mod:`hsr.algorithms`, or :mod:`hsr.lines` for polygon
+modes), appearance (:mod:`hsr.appearance`), then the optional passes (drawing over an
+earlier frame, transparency, hidden lines), and hand back a :class:`Frame`."""
 
 from __future__ import annotations
 
@@ -8,27 +10,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .algorithms import ALGORITHMS
-from .camera import Camera
+from .algorithms import ALGORITHMS, Needs
+from .algorithms import check as check_algorithm
+from .algorithms.fragments import Fragments
+from .algorithms.hiz import object_bounds
+from .appearance.fog import Fog
+from .appearance.shading import Look, ShadeContext, as_look, check_background, shade_visible
+from .appearance.transparency import check_order, transparent_mask, transparent_pass
 from .errors import RenderError
-from .fog import Fog
-from .fragments import Fragments
-from .lines import HiddenLine, hidden_line_pass, polygon_edges
-from .mesh import as_scene, instance_of
-from .occlusion import object_bounds
+from .geometry.stage import prepare
+from .geometry.state import RenderState
+from .geometry.viewport import MAX_SIZE, check_size
+from .lines.raster import HiddenLine, as_hidden_line
+from .lines.raster import check as check_lines
+from .lines.raster import draw_hidden_lines, fill_state, polygon_edges
 from .parallel import Workers
-from .pipeline import prepare
-from .shading import (Look, ShadeContext, face_colors, paint_faces, shade_depth,
-                      shade_fragments, to_uint8)
-from .state import RenderState
-from .transparency import transparent_pass
+from .scene.camera import Camera
+from .scene.mesh import as_scene, instance_of
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
-
-# Largest image side: keeps snapped window coordinates well inside int64 edge arithmetic
-# and buffers of a sane size.
-MAX_SIZE = 32768
-
 
 @dataclass
 class View:
@@ -86,29 +86,21 @@ class Frame:
 
     def save(self, path) -> None:
         """Write the colour image (PNG or any format Pillow knows)."""
-        from .io import save_image
+        from .scene.files import save_image
 
         save_image(self.color, path)
 
     def save_depth(self, path) -> None:
         """Write the depth buffer: ``.npy`` float32, or 16-bit PNG (depth * 65535)."""
-        from .io import save_depth
+        from .scene.files import save_depth
 
         save_depth(self.depth, path)
 
     def save_ids(self, path) -> None:
         """Write the face-id buffer as ``.npy`` int32."""
-        from .io import save_ids
+        from .scene.files import save_ids
 
         save_ids(self.face_id, path)
-
-
-def _check_size(width, height):
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise RenderError(f"{name} must be an integer, got {value!r}")
-        if not 0 < value <= MAX_SIZE:
-            raise RenderError(f"{name} must be in 1..{MAX_SIZE}, got {value}")
 
 
 def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
@@ -136,15 +128,20 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     algorithm (e.g. ``{"accel": "none"}`` or ``{"bvh": tree}`` for ``raycast``).
 
     Appearance (after visibility, the same for every algorithm): ``shading`` (see
-    :data:`hsr.shading.SHADING_MODES`), ``textures`` (use mesh textures), ``texture_filter``
-    (nearest | bilinear), ``texture_wrap`` (repeat | clamp), ``fog`` (:class:`hsr.fog.Fog`),
-    or all of them as one :class:`hsr.shading.Look`. ``hidden_line=True`` (or a
-    :class:`hsr.lines.HiddenLine`) draws only the visible edges over the filled depth
-    buffer. Instances with ``opacity < 1`` are blended after the opaque ones, sorted back
-    to front per object (``transparency="object"``) or per fragment (``"exact"``).
+    :data:`hsr.appearance.shading.SHADING_MODES`), ``textures`` (use mesh textures),
+    ``texture_filter`` (nearest | bilinear), ``texture_wrap`` (repeat | clamp), ``fog``
+    (:class:`hsr.Fog`), or all of them as one :class:`hsr.Look`. ``hidden_line=True`` (or a
+    :class:`hsr.HiddenLine`) draws only the visible edges over the filled depth buffer.
+    Instances with ``opacity < 1`` are blended after the opaque ones, sorted back to front
+    per object (``transparency="object"``) or per fragment (``"exact"``).
+
+    Raises :class:`~hsr.errors.MeshError` for a scene that is not a valid mesh or scene,
+    :class:`~hsr.errors.CameraError` for an invalid camera and
+    :class:`~hsr.errors.RenderError` for invalid arguments or a combination an algorithm
+    cannot honour exactly.
     """
     t_start = time.perf_counter()
-    _check_size(width, height)
+    check_size(width, height)
     if not isinstance(camera, Camera):
         raise RenderError(f"camera must be an hsr.Camera, got {type(camera).__name__}")
     camera.validate()
@@ -152,148 +149,66 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
         state = RenderState(**state_fields)
     elif state_fields:
         state = state.with_(**state_fields)
-    if algorithm not in ALGORITHMS:
-        raise RenderError(
-            f"unknown algorithm {algorithm!r}; choose from {', '.join(sorted(ALGORITHMS))}")
-    unknown = sorted(set(options or {}) - set(ALGORITHMS[algorithm].OPTIONS))
-    if unknown:
-        accepted = ", ".join(ALGORITHMS[algorithm].OPTIONS) or "none"
-        raise RenderError(f"{algorithm} has no option {', '.join(unknown)} (accepted: {accepted})")
-    if look is None:
-        look = Look(shading, textures, texture_filter, texture_wrap, fog)
-    elif not isinstance(look, Look):
-        raise RenderError(f"look must be an hsr.shading.Look, got {type(look).__name__}")
-    if hidden_line is True:
-        hidden_line = HiddenLine()
-    elif hidden_line is False:
-        hidden_line = None
-    elif hidden_line is not None and not isinstance(hidden_line, HiddenLine):
-        raise RenderError("hidden_line must be True, False or an hsr.lines.HiddenLine")
-    try:
-        bg = np.asarray(background, dtype=np.float64)
-    except (TypeError, ValueError):
-        bg = np.zeros(0)
-    if bg.shape != (3,) or not np.all((bg >= 0) & (bg <= 255)):
-        raise RenderError(f"background must be three numbers in 0..255, got {background!r}")
-    if transparency not in ("object", "exact"):
-        raise RenderError(f"transparency must be object or exact, got {transparency!r}")
+    look = as_look(look, shading, textures, texture_filter, texture_wrap, fog)
+    background = check_background(background)
+    check_order(transparency)
+    hidden_line = as_hidden_line(hidden_line)
     if into is not None and (into.width, into.height) != (width, height):
         raise RenderError("into= frame has a different size")
     scene = as_scene(scene)
-    _check_combination(scene, algorithm, state, hidden_line, occlusion_cull, counts, into)
+    options = dict(options or {})
+    transparent = transparent_mask(scene)
+    # Each stage states what it cannot combine: the line stage (polygon modes), then the
+    # algorithm, asked for exactly what this render needs of it.
+    check_lines(state, hidden_line, algorithm, transparent=bool(transparent.any()),
+                into=into is not None, counts=counts)
+    check_algorithm(algorithm, options, fill_state(state, hidden_line),
+                    Needs(counts=counts, into=into is not None, occlusion=occlusion_cull,
+                          subset=bool(transparent.any())))
 
     stats: dict = {"algorithm": algorithm, "width": width, "height": height}
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
         return _render(scene, camera, width, height, algorithm, state, look, background,
                        counts, into, stats, t_start, view_proj, workers, occlusion_cull,
-                       dict(options or {}), hidden_line, transparency)
-
-
-# Algorithms that fill through the shared raster code (and so honour polygon offset and
-# can draw a subset of the scene's triangles).
-_RASTER_FILLS = ("zbuffer", "painter", "newell")
-
-
-def _check_combination(scene, algorithm, state, hidden_line, occlusion_cull, counts, into):
-    transparent = any(inst.opacity < 1.0 for inst in scene.instances)
-    if occlusion_cull:
-        if algorithm != "zbuffer":
-            raise RenderError("occlusion culling works with the zbuffer algorithm")
-        if counts:
-            raise RenderError("occlusion culling does not record per-pixel counts")
-        if state.polygon_offset != (0.0, 0.0) or hidden_line is not None or transparent:
-            raise RenderError("occlusion culling does not combine with polygon offset, "
-                              "hidden lines or transparency")
-    if into is not None and algorithm != "zbuffer":
-        raise RenderError("into= (drawing without a clear) needs the zbuffer algorithm")
-    if state.polygon_mode != "fill":
-        if algorithm != "zbuffer":
-            raise RenderError(f"polygon mode {state.polygon_mode.value} draws lines or points "
-                              f"with the z-buffer; {algorithm} only fills")
-        if hidden_line is not None or transparent or into is not None or counts:
-            raise RenderError(f"polygon mode {state.polygon_mode.value} does not combine with "
-                              f"hidden lines, transparency, into= or counts")
-    offset = state.polygon_offset != (0.0, 0.0) or hidden_line is not None
-    if offset and algorithm not in _RASTER_FILLS + ("bsp",):
-        raise RenderError(f"polygon offset (and hidden lines) need a raster fill: "
-                          f"{', '.join(_RASTER_FILLS + ('bsp',))}, not {algorithm}")
-    if transparent and algorithm not in _RASTER_FILLS:
-        raise RenderError(f"transparency draws the opaque objects with one of "
-                          f"{', '.join(_RASTER_FILLS)}, not {algorithm}")
+                       options, hidden_line, transparency, transparent)
 
 
 def _render(scene, camera, width, height, algorithm, state, look, background, counts,
             into, stats, t_start, view_proj, workers, occlusion_cull, options, hidden_line,
-            transparency):
-    background = np.asarray(background, dtype=np.uint8)
-    transparent = np.array([inst.opacity < 1.0 for inst in scene.instances])
-    # The plain z-buffer streams faces from clip space into its fill (classification and
-    # set-up then count as visibility time); everything else works on screen triangles.
+            transparency, transparent):
+    # 1. Geometry: world -> clip -> window space. The plain z-buffer streams faces from
+    # clip space into its fill (classification and set-up then count as visibility time);
+    # everything else works on the stored screen triangles.
     streamed = (algorithm == "zbuffer" and not occlusion_cull and not transparent.any()
                 and state.polygon_mode == "fill")
     screen = prepare(scene, view_proj, width, height, state, stats, workers, deferred=streamed)
     t_geometry = time.perf_counter()
 
-    fill_state = state
-    if hidden_line is not None and state.polygon_offset == (0.0, 0.0):
-        fill_state = state.with_(polygon_offset=hidden_line.polygon_offset)
-    opaque_screen = screen
-    if transparent.any():
-        is_transparent = transparent[scene.instance_of(screen.face_id)]
-        opaque_screen = screen.subset(~is_transparent)
-
-    module = ALGORITHMS[algorithm]
-    if state.polygon_mode != "fill":
-        face_id, depth, line_stats = polygon_edges(scene, screen, view_proj, state)
-        fragments = Fragments(face_id, depth, screen, line_stats)
-    else:
-        extra = dict(options, view=View(scene, camera, view_proj, width, height))
-        if occlusion_cull:
-            extra["occlusion"] = object_bounds(scene, view_proj)
-        if into is not None:
-            fragments = module.resolve(opaque_screen, fill_state, depth_buffer=into.depth.copy(),
-                                       counts=counts, workers=workers, **extra)
-        else:
-            fragments = module.resolve(opaque_screen, fill_state, counts=counts,
-                                       workers=workers, **extra)
-        fragments.screen = screen
+    # 2. Visibility: the chosen algorithm (or the line stage, for polygon modes) decides
+    # the face and depth of every pixel.
+    fragments = _visibility(scene, camera, screen, width, height, algorithm, state, counts,
+                            into, view_proj, workers, occlusion_cull, options, hidden_line,
+                            transparent)
     t_visibility = time.perf_counter()
 
-    face_id = fragments.face_id
-    color = np.empty((height, width, 3), dtype=np.uint8)
+    # 3. Appearance: colour from the visible face of each pixel.
     ctx = ShadeContext(scene, camera, screen, look, workers)
-    if state.polygon_mode != "fill" or not ctx.per_pixel:
-        mode = look.shading if state.polygon_mode == "fill" else (
-            look.shading if look.shading in ("flat", "normal", "random") else "flat")
-        covered = paint_faces(workers, face_id, face_colors(mode, scene, camera, workers,
-                                                            face_id), background, color)
-        if look.shading == "depth" and state.polygon_mode == "fill":
-            shade_depth(color, face_id, fragments.depth, camera, state.depth_range)
-    else:
-        covered = paint_faces(workers, face_id, np.zeros((0, 3), np.uint8), background, color)
-        rows, cols = np.nonzero(face_id >= 0)
-        if len(rows):
-            color[rows, cols] = to_uint8(shade_fragments(
-                ctx, rows, cols, face_id[rows, cols], fragments.depth[rows, cols]))
+    color, covered = shade_visible(ctx, fragments, state, background)
+    face_id = fragments.face_id
+    # 4. Optional passes, each a call into its stage.
     if into is not None:
         drawn = face_id >= 0
         color = np.where(drawn[..., None], color, into.color)
         face_id = np.where(drawn, face_id, into.face_id).astype(np.int32)
         covered = int(np.count_nonzero(face_id >= 0))
     if transparent.any():
+        is_transparent = transparent[scene.instance_of(screen.face_id)]
         stats.update(transparent_pass(ctx, screen.subset(is_transparent), fragments.depth,
                                       state, color, order=transparency))
     if hidden_line is not None:
-        if hidden_line.fill == "background":
-            color[:] = background
-        line_face, line_stats = hidden_line_pass(scene, camera, screen, view_proj,
-                                                 fragments.depth.copy(), hidden_line,
-                                                 state.depth_range)
-        color[line_face >= 0] = np.asarray(hidden_line.line_color(background), dtype=np.uint8)
-        fragments.buffers["lines"] = line_face
-        stats.update(line_stats)
-        stats["line_pixels"] = int(np.count_nonzero(line_face >= 0))
+        stats.update(draw_hidden_lines(scene, camera, screen, view_proj, fragments,
+                                       hidden_line, state, background, color))
     t_end = time.perf_counter()
 
     stats.update(fragments.stats)
@@ -305,3 +220,25 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
         "total": 1e3 * (t_end - t_start),
     }
     return Frame(color, fragments.depth, face_id, stats, fragments, scene.face_offsets())
+
+
+def _visibility(scene, camera, screen, width, height, algorithm, state, counts, into,
+                view_proj, workers, occlusion_cull, options, hidden_line, transparent):
+    """Fragments of the opaque faces: polygon modes draw edges or corners; otherwise the
+    algorithm fills (pushed back by the hidden lines' polygon offset, over ``into``'s
+    depth buffer when given)."""
+    if state.polygon_mode != "fill":
+        face_id, depth, line_stats = polygon_edges(scene, screen, view_proj, state)
+        return Fragments(face_id, depth, screen, line_stats)
+    opaque_screen = screen
+    if transparent.any():
+        opaque_screen = screen.subset(~transparent[scene.instance_of(screen.face_id)])
+    extra = dict(options, view=View(scene, camera, view_proj, width, height))
+    if occlusion_cull:
+        extra["occlusion"] = object_bounds(scene, view_proj)
+    if into is not None:
+        extra["depth_buffer"] = into.depth.copy()
+    fragments = ALGORITHMS[algorithm].resolve(opaque_screen, fill_state(state, hidden_line),
+                                              counts=counts, workers=workers, **extra)
+    fragments.screen = screen
+    return fragments

@@ -1,13 +1,32 @@
 """The visibility algorithms. Each module has ``NAME``, ``DESCRIPTION``, ``OPTIONS`` (the
-keys it accepts from ``render(..., options=...)``) and
+keys it accepts from ``render(..., options=...)``), ``check(state, needs)`` (raises
+:class:`~hsr.errors.RenderError` for a request it cannot honour exactly) and
 ``resolve(screen, state, ...) -> Fragments``; :data:`ALGORITHMS` is the registry the API
-and the CLI read."""
+and the CLI read. The data structures live beside their algorithm: the BVH
+(:mod:`.bvh`) next to the ray caster, the BSP tree (:mod:`.bsp_tree`) next to its walk,
+hierarchical-z occlusion culling (:mod:`.hiz`) next to the z-buffer."""
 
 from __future__ import annotations
 
+from ..errors import RenderError
 from . import bsp, newell, painter, raycast, scanline, zbuffer
+from .support import Needs
 
 ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast, painter, newell,
                                                  bsp)}
 
-__all__ = ["ALGORITHMS"]
+__all__ = ["ALGORITHMS", "Needs", "check"]
+
+
+def check(name: str, options: dict, state, needs: Needs) -> None:
+    """Raise :class:`RenderError` unless algorithm ``name`` exists, accepts every key of
+    ``options`` and honours ``state`` with ``needs`` exactly."""
+    if name not in ALGORITHMS:
+        raise RenderError(
+            f"unknown algorithm {name!r}; choose from {', '.join(sorted(ALGORITHMS))}")
+    module = ALGORITHMS[name]
+    unknown = sorted(set(options) - set(module.OPTIONS))
+    if unknown:
+        accepted = ", ".join(module.OPTIONS) or "none"
+        raise RenderError(f"{name} has no option {', '.join(unknown)} (accepted: {accepted})")
+    module.check(state, needs)

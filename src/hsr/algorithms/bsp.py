@@ -1,5 +1,5 @@
 """BSP-tree visibility (Fuchs, Kedem & Naylor 1980): build once in world space
-(:mod:`hsr.bsp`), then for each view walk the tree back to front and paint through the
+(:mod:`hsr.algorithms.bsp_tree`), then for each view walk the tree back to front and paint through the
 shared fill with no depth test; or walk it front to back and fill only pixels not yet
 covered (a coverage mask), which writes each pixel once."""
 
@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import bsp as bsp_tree
 from ..errors import RenderError
-from ..fragments import Fragments
-from ..mesh import Mesh, Scene
+from ..geometry.stage import ScreenTriangles, prepare
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..pipeline import ScreenTriangles, prepare
-from ..raster import FIRST_WINS, rasterize
-from ..state import DepthFunc, RenderState
+from ..raster.fill import FIRST_WINS, rasterize
+from ..scene.mesh import Mesh, Scene
+from . import bsp_tree
+from .bsp_tree import BSPTree, build
+from .fragments import Fragments
+from .support import Needs, refuse_unsupported
 
 NAME = "bsp"
 OPTIONS = ("tree", "heuristic", "traversal")  # accepted keys of render(..., options=...)
@@ -33,6 +35,11 @@ def ordered_screen(tree, view, state, workers, traversal):
     screen = prepare(Scene([mesh]), view.view_proj, view.width, view.height, state, stats,
                      workers)
     return screen, tree.face_id[order][screen.face_id], stats
+
+
+def check(state: RenderState, needs: Needs) -> None:
+    """Raise :class:`RenderError` for a request bsp cannot honour exactly."""
+    refuse_unsupported(NAME, state, needs, allowed=("counts", "offset"))
 
 
 def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
@@ -59,6 +66,6 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     stats.update(fragments_tested=int(tested), fragments_written=int(written),
                  pieces_drawn=len(pieces))
     fragments = Fragments(face, depth, screen, stats, count_tested, count_written)
-    # The ordered pieces are an exact vector picture (hsr.svg) when painted in order.
+    # The ordered pieces are an exact vector picture (hsr.lines.svg) when painted in order.
     fragments.buffers["polygons"] = (pieces.xy_window, source, traversal)
     return fragments

@@ -22,15 +22,21 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..clip import grow, split_triangle
-from ..fragments import Fragments
+from ..geometry.clip import grow, split_triangle
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..raster import rasterize
-from ..state import DepthFunc
+from ..raster.fill import rasterize
+from .fragments import Fragments
+from .support import Needs, refuse_unsupported
 
 NAME = "newell"
 OPTIONS = ()  # accepted keys of render(..., options=...)
 DESCRIPTION = "Newell-Newell-Sancha: depth sort + 5 tests, reorder, split cycles"
+
+
+def check(state: RenderState, needs: Needs) -> None:
+    """Raise :class:`RenderError` for a request newell cannot honour exactly."""
+    refuse_unsupported(NAME, state, needs, allowed=("counts", "subset", "offset"))
 
 
 def resolve(screen, state, workers: Workers | None = None, counts: bool = False,

@@ -4,7 +4,7 @@ and paint them in that order with no depth test, so nearer ones cover farther on
 It is *expected* to be wrong where no back-to-front order of whole triangles exists
 (cyclic overlap, penetration) or where the sort key misorders two overlapping triangles;
 ``stats["pixels_wrong"]`` counts the pixels where it differs from the z-buffer, and
-:func:`hsr.compare.difference_map` draws them.
+:func:`hsr.explain.compare.difference_map` draws them.
 """
 
 from __future__ import annotations
@@ -12,11 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RenderError
-from ..fragments import Fragments
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..raster import rasterize
-from ..state import DepthFunc, RenderState
+from ..raster.fill import rasterize
 from . import zbuffer
+from .fragments import Fragments
+from .support import Needs, refuse_unsupported
 
 NAME = "painter"
 OPTIONS = ("key", "check")  # accepted keys of render(..., options=...)
@@ -36,6 +37,11 @@ def sort_far_to_near(depth_window: np.ndarray, key: str) -> np.ndarray:
     else:
         raise RenderError(f"painter key must be one of {', '.join(KEYS)}; got {key!r}")
     return np.argsort(-k, kind="stable")
+
+
+def check(state: RenderState, needs: Needs) -> None:
+    """Raise :class:`RenderError` for a request painter cannot honour exactly."""
+    refuse_unsupported(NAME, state, needs, allowed=("counts", "subset", "offset"))
 
 
 def resolve(screen, state: RenderState, workers: Workers | None = None,

@@ -5,16 +5,26 @@ is the literal O(pixels x triangles) loop, for small scenes and teaching."""
 from __future__ import annotations
 
 from ..errors import RenderError
-from ..fragments import Fragments
+from ..geometry.stage import ScreenTriangles
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..pipeline import ScreenTriangles
-from ..raycast import BVH, build, cast
-from ..state import DepthFunc, RenderState
+from .bvh import BVH, build, cast
+from .fragments import Fragments
+from .support import Needs, refuse_unsupported
 
 NAME = "raycast"
 OPTIONS = ("accel", "bvh", "force", "buffers")  # accepted keys of render(..., options=...)
 DESCRIPTION = "one ray per pixel in world space; BVH (binned SAH) or naive; watertight test"
 NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" without force
+
+
+def check(state: RenderState, needs: Needs) -> None:
+    """Raise :class:`RenderError` for a request raycast cannot honour exactly."""
+    if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
+        raise RenderError("raycast implements the depth test with func less or lequal")
+    if needs.counts:
+        raise RenderError("raycast does not record per-pixel fragment counts")
+    refuse_unsupported(NAME, state, needs)
 
 
 def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
@@ -24,10 +34,6 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     plane for orthographic cameras) and ``barycentrics`` in ``fragments.buffers``."""
     if view is None:
         raise RenderError("raycast needs the scene and camera (call it through hsr.render)")
-    if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
-        raise RenderError("raycast implements the depth test with func less or lequal")
-    if counts:
-        raise RenderError("raycast does not record per-pixel fragment counts")
     if accel not in ("bvh", "none"):
         raise RenderError(f"raycast accel must be 'bvh' or 'none', got {accel!r}")
     workers = workers or Workers()

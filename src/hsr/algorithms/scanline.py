@@ -19,23 +19,32 @@ import numpy as np
 from numba import njit
 
 from ..errors import RenderError
-from ..fragments import Fragments
+from ..geometry.setup import HALF as _HALF
+from ..geometry.setup import ONE as _ONE
+from ..geometry.setup import covers_pixels, setup_triangles
+from ..geometry.stage import ScreenTriangles
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..pipeline import ScreenTriangles
-from ..raster import _HALF, _ONE, band_split, covers_pixels, setup_triangles
-from ..state import DepthFunc, RenderState
+from ..raster.fill import band_split
+from .fragments import Fragments
+from .support import Needs, refuse_unsupported
 
 NAME = "scanline"
 OPTIONS = ()  # accepted keys of render(..., options=...)
 DESCRIPTION = "Watkins scan-line: active edge list, spans, incremental depth along the line"
 
 
-def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
-            counts: bool = False, **_) -> Fragments:
+def check(state: RenderState, needs: Needs) -> None:
+    """Raise :class:`RenderError` for a request scanline cannot honour exactly."""
     if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
         raise RenderError("scanline implements the depth test with func less or lequal")
-    if counts:
+    if needs.counts:
         raise RenderError("scanline does not record per-pixel fragment counts")
+    refuse_unsupported(NAME, state, needs)
+
+
+def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
+            counts: bool = False, **_) -> Fragments:
     workers = workers or Workers()
     width, height = screen.width, screen.height
     vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(

@@ -6,14 +6,23 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RenderError
-from ..fragments import Fragments
-from ..occlusion import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
+from ..geometry.setup import covers_pixels, estimate_row_work, setup_records, setup_triangles
+from ..geometry.stage import (
+    CULLED,
+    NEEDS_CLIP,
+    SIMPLE,
+    Geometry,
+    ScreenTriangles,
+    classify_setup_range,
+    clip_and_project,
+    geometry_counts,
+)
+from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
-from ..pipeline import (CULLED, NEEDS_CLIP, SIMPLE, Geometry, ScreenTriangles,
-                        classify_setup_range, clip_and_project, geometry_counts)
-from ..raster import (band_split, covers_pixels, estimate_row_work, fill_bands, fill_targets,
-                      rasterize, setup_records, setup_triangles)
-from ..state import DepthFunc, RenderState
+from ..raster.fill import band_split, fill_bands, fill_targets, rasterize
+from .fragments import Fragments
+from .hiz import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
+from .support import Needs, refuse_unsupported
 
 NAME = "zbuffer"
 OPTIONS = ()  # accepted keys of render(..., options=...)
@@ -25,6 +34,21 @@ _BY_FACE = np.zeros(0, dtype=np.int64)  # fill_band: records laid out by face
 STREAM_CHUNK = 1 << 16
 
 
+def check(state: RenderState, needs: Needs) -> None:
+    """The z-buffer honours every depth state; occlusion culling needs the nearest surface
+    to win and no per-pixel counts, polygon offset or transparency."""
+    if needs.occlusion:
+        if not (state.depth_test and state.depth_mask
+                and state.depth_func in (DepthFunc.LESS, DepthFunc.LEQUAL)):
+            raise RenderError("occlusion culling needs the depth test and depth writes on and "
+                              "depth func less or lequal")
+        if needs.counts:
+            raise RenderError("occlusion culling does not record per-pixel counts")
+        if state.polygon_offset != (0.0, 0.0) or needs.subset:
+            raise RenderError("occlusion culling does not combine with polygon offset, "
+                              "hidden lines or transparency")
+
+
 def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarray | None = None,
             counts: bool = False, workers: Workers | None = None,
             occlusion: ObjectBounds | None = None, **_) -> Fragments:
@@ -32,7 +56,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
     ``state.clear_depth``, or is ``depth_buffer`` ((H, W) float32, updated in place: draws
     accumulate as in OpenGL without glClear). ``face_id`` marks what this draw wrote.
     With ``occlusion`` (the scene's object bounds) objects are drawn front to back and
-    those hidden behind what is drawn are skipped (:mod:`hsr.occlusion`)."""
+    those hidden behind what is drawn are skipped (:mod:`hsr.algorithms.hiz`)."""
     workers = workers or Workers()
     if occlusion is not None:
         return _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion)
@@ -50,10 +74,6 @@ def resolve(screen: ScreenTriangles, state: RenderState, depth_buffer: np.ndarra
 
 
 def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
-    if not (state.depth_test and state.depth_mask
-            and state.depth_func in (DepthFunc.LESS, DepthFunc.LEQUAL)):
-        raise RenderError("occlusion culling needs the depth test and depth writes on and "
-                          "depth func less or lequal")
     width, height = screen.width, screen.height
     if depth_buffer is None:
         depth = np.full((height, width), state.clear_depth, dtype=np.float32)

@@ -12,7 +12,7 @@ Clip space and NDC
 A point is inside the view volume when ``-w <= x, y, z <= w``. Triangles are clipped in
 homogeneous clip space, before the divide, against the near and far planes
 (``z >= -w`` and ``z <= w``) and against a guard band in x and y (Sutherland-Hodgman,
-:mod:`hsr.clip`). Clipping before the divide is what keeps a triangle that crosses the eye
+:mod:`hsr.geometry.clip`). Clipping before the divide is what keeps a triangle that crosses the eye
 plane (``w`` changes sign) from wrapping around through infinity. After the divide,
 ``x_ndc = x / w`` etc. lie in [-1, 1].
 
@@ -54,7 +54,7 @@ linearly along the *screen* segment to ``x' = 0`` gives
 ``2 + (0 - (-0.5)) * (10 - 2) / (0.1 - (-0.5)) = 8.666``, but ``M`` is at ``z = 6``.
 Interpolating ``1/z`` instead gives ``1/2 + 0.5 * (1/10 - 1/2) / 0.6 = 0.16666`` and
 ``1 / 0.16666 = 6``: exact. Linear-in-screen ``z`` would rank surfaces wrongly; linear
-``1/z`` (hence linear window depth) never does. ``hsr.conventions.midpoint_depth_example()``
+``1/z`` (hence linear window depth) never does. ``hsr.geometry.conventions.midpoint_depth_example()``
 reproduces these numbers.
 
 Attributes (colour, uv, normals) are interpolated *perspective-correctly*: screen-space

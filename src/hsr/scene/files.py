@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 
-from .errors import OutputError
+from ..errors import OutputError
 
 __all__ = ["save_image", "save_depth", "save_ids"]
 

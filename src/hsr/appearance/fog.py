@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import RenderError
+from ..errors import RenderError
 
 __all__ = ["Fog", "MODES", "parse_fog"]
 

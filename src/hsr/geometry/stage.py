@@ -6,7 +6,7 @@ model/view/projection -> clip space -> clip (near, far, guard band) -> divide + 
 Vertices are transformed once (a compiled loop, see :func:`transform_points`); a compiled
 per-face kernel classifies each face (degenerate / outside / needs clipping / simple) and
 projects the simple ones straight to window space. Only the (usually few) faces that cross
-a clip plane go through the Sutherland-Hodgman clipper in :mod:`hsr.clip`.
+a clip plane go through the Sutherland-Hodgman clipper in :mod:`hsr.geometry.clip`.
 
 The plain z-buffer does not need the window-space triangles stored: with
 ``prepare(..., deferred=True)`` it streams faces from clip space through
@@ -21,11 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..parallel import Workers
+from ..scene.mesh import Scene, is_degenerate
 from .clip import clip_planes, clip_triangles
 from .conventions import GUARD_BAND_PIXELS
-from .mesh import Scene
-from .parallel import Workers
-from .raster import setup_one
+from .setup import setup_one
 from .state import CullMode, FrontFace, RenderState
 
 __all__ = ["Geometry", "ScreenTriangles", "prepare", "scene_clip_vertices", "screen_arrays"]
@@ -40,7 +40,7 @@ class Geometry:
 
     pos_model : (V, 3) model-space vertices (degeneracy is judged there).
     pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into both.
-    planes : the clipping planes (:func:`hsr.clip.clip_planes`).
+    planes : the clipping planes (:func:`hsr.geometry.clip.clip_planes`).
     depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
     stats : the dict that receives the triangle counts once faces are classified.
     """
@@ -127,37 +127,11 @@ def _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset):
             z * inv_w * depth_scale + depth_offset)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _is_degenerate(positions, a, b, c):
-    # Repeated index, or zero area relative to the edge lengths (collinear corners): such
-    # a face covers no pixel in OpenGL either, so it is skipped and counted.
-    if a == b or b == c or a == c:
-        return True
-    e1x, e1y, e1z = (positions[b, 0] - positions[a, 0], positions[b, 1] - positions[a, 1],
-                     positions[b, 2] - positions[a, 2])
-    e2x, e2y, e2z = (positions[c, 0] - positions[a, 0], positions[c, 1] - positions[a, 1],
-                     positions[c, 2] - positions[a, 2])
-    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
-    area2_sq = nx * nx + ny * ny + nz * nz
-    scale = max(e1x * e1x + e1y * e1y + e1z * e1z, e2x * e2x + e2y * e2y + e2z * e2z)
-    return area2_sq <= 1e-24 * scale * scale
-
-
-@njit(cache=True)
-def degenerate_faces(positions, faces):
-    """(F,) bool: faces with a repeated vertex or zero area (see ``_is_degenerate``)."""
-    n = faces.shape[0]
-    out = np.empty(n, dtype=np.bool_)
-    for f in range(n):
-        out[f] = _is_degenerate(positions, faces[f, 0], faces[f, 1], faces[f, 2])
-    return out
-
-
 def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, depth_scale,
                    depth_offset):
     """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
     window coordinates, depth and twice the signed window area (y up). ``planes`` are
-    :func:`hsr.clip.clip_planes`' (near, far, guard band); the kernel tests them directly."""
+    :func:`hsr.geometry.clip.clip_planes`' (near, far, guard band); the kernel tests them directly."""
     gx, gy = float(planes[2, 3]), float(planes[4, 3])
     n = faces.shape[0]
     status = np.empty(n, dtype=np.int8)
@@ -198,7 +172,7 @@ def _codes(pos_clip, v, gx, gy):
 @njit(cache=True, nogil=True, inline="always")
 def _classify_one(pos_model, pos_clip, a, b, c, gx, gy):
     """Status of the face with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE."""
-    if _is_degenerate(pos_model, a, b, c):
+    if is_degenerate(pos_model, a, b, c):
         return DEGENERATE
     code_a, code_b, code_c = _codes(pos_clip, a, gx, gy), _codes(pos_clip, b, gx, gy), \
         _codes(pos_clip, c, gx, gy)
@@ -235,11 +209,11 @@ def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width
     """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
     path): classify faces ``lo .. hi`` as :func:`classify_faces` does, cull by facing
     (``keep_ccw`` / ``keep_cw``: keep faces of positive / negative window area) and set up
-    the kept simple ones into record ``f - base`` (:func:`hsr.raster.setup_one`; every
+    the kept simple ones into record ``f - base`` (:func:`hsr.geometry.setup.setup_one`; every
     other record gets an empty box). The corners go from clip space to the set-up without
     being stored, which saves writing and re-reading 72 bytes per face.
     Adds the per-row work to ``delta`` ((H + 1,) zeros, one per call) and returns the
-    widest row, as :func:`hsr.raster.setup_triangles` gathers them."""
+    widest row, as :func:`hsr.geometry.setup.setup_triangles` gathers them."""
     half_w, half_h = 0.5 * width, 0.5 * height
     widest = 1
     for f in range(lo, hi):

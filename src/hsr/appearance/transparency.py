@@ -18,9 +18,27 @@ import math
 import numpy as np
 from numba import njit
 
-from .raster import _HALF, _ONE, depth_passes, setup_triangles
+from ..errors import RenderError
+from ..geometry.setup import HALF as _HALF
+from ..geometry.setup import ONE as _ONE
+from ..geometry.setup import setup_triangles
+from ..raster.fill import depth_passes
 
-__all__ = ["fragment_stream", "blend_in_order", "object_order", "transparent_pass"]
+__all__ = ["ORDERS", "check_order", "transparent_mask", "fragment_stream", "blend_in_order",
+           "object_order", "transparent_pass"]
+
+ORDERS = ("object", "exact")
+
+
+def check_order(order: str) -> None:
+    """``render(transparency=...)``: per-object sorting or the exact per-fragment sort."""
+    if order not in ORDERS:
+        raise RenderError(f"transparency must be object or exact, got {order!r}")
+
+
+def transparent_mask(scene) -> np.ndarray:
+    """(instances,) bool: the instances drawn blended (opacity < 1)."""
+    return np.array([inst.opacity < 1.0 for inst in scene.instances])
 
 
 @njit(cache=True, nogil=True)

@@ -11,8 +11,8 @@ import time
 
 import numpy as np
 
-from .errors import OutputError
-from .explain import VIEWS, explain
+from ..errors import OutputError
+from .views import VIEWS, explain
 
 __all__ = ["build_report", "write_report"]
 
@@ -71,9 +71,9 @@ def _numbers_html(numbers: dict) -> str:
 def build_report(scene, camera, title: str, width: int = 480, height: int = 360, state=None,
                  algorithms=None, progress: bool = False) -> str:
     """The report page as a string."""
-    from .algorithms import ALGORITHMS
+    from ..algorithms import ALGORITHMS
+    from ..render import render
     from .compare import compare_algorithms
-    from .render import render
 
     t0 = time.perf_counter()
     names = list(algorithms or ALGORITHMS)

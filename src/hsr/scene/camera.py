@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import CameraError
+from ..errors import CameraError
 
 __all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matrix"]
 

@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
+from ..errors import HsrError
 from .camera import Camera
-from .errors import HsrError
 from .mesh import Mesh, Scene
 
 __all__ = ["SCENES", "get", "cube", "uv_sphere", "cubes", "cyclic", "penetration", "spheres",
@@ -269,7 +269,7 @@ def _scale3(x, y, z) -> np.ndarray:
 def checker():
     """A textured plane at a grazing angle (seed 002's homework): perspective-correct
     texture coordinates keep the squares straight and shrinking with distance."""
-    from .texture import checkerboard
+    from .images import checkerboard
 
     pos = np.array([[-3, 0, 3], [3, 0, 3], [3, 0, -3], [-3, 0, -3]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 2, 3]])

@@ -22,10 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from .mesh import as_scene
-from .lines import HiddenLine, chosen_edges, clip_segments
-from .pipeline import prepare
-from .state import RenderState
+from ..geometry.stage import prepare
+from ..geometry.state import RenderState
+from ..geometry.viewport import check_size
+from ..scene.mesh import as_scene
+from .raster import HiddenLine, chosen_edges, clip_segments
 from .svg import write_svg
 
 __all__ = ["LineDrawing", "hidden_lines", "write_lines_svg"]
@@ -266,10 +267,9 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     ``progress`` (default: when stderr is a terminal) shows a bar on big meshes."""
     import sys
 
-    from .parallel import Workers
-    from .render import _check_size
+    from ..parallel import Workers
 
-    _check_size(width, height)
+    check_size(width, height)
     camera.validate()
     scene = as_scene(scene)
     settings = settings or HiddenLine()

@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from .errors import OutputError
+from ..errors import OutputError
 
 __all__ = ["write_polygons_svg", "write_svg"]
 

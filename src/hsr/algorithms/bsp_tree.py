@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .clip import grow, split_triangle
-from .errors import RenderError
-from .mesh import as_scene
+from ..errors import RenderError
+from ..geometry.clip import grow, split_triangle
+from ..scene.mesh import as_scene
 
 __all__ = ["BSPTree", "build", "back_to_front", "front_to_back", "HEURISTICS"]
 

@@ -19,14 +19,16 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .conventions import GUARD_BAND_PIXELS
-from .errors import RenderError
-from .mesh import instance_of
-from .raster import _ONE, depth_passes
+from ..errors import RenderError
+from ..geometry.conventions import GUARD_BAND_PIXELS
+from ..geometry.setup import ONE as _ONE
+from ..raster.fill import depth_passes
+from ..scene.mesh import instance_of
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
            "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
-           "SILHOUETTE", "NONMANIFOLD"]
+           "SILHOUETTE", "NONMANIFOLD", "as_hidden_line", "fill_state", "check",
+           "draw_hidden_lines"]
 
 BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD = 1, 2, 4, 8
 EDGE_KINDS = ("all", "feature")
@@ -298,6 +300,40 @@ def draw_points(points_window, point_face, width, height, depth_test, depth_func
     return tested, written
 
 
+def as_hidden_line(value) -> HiddenLine | None:
+    """``render(hidden_line=...)``: True = default settings, False or None = off."""
+    if value is True:
+        return HiddenLine()
+    if value is False or value is None:
+        return None
+    if not isinstance(value, HiddenLine):
+        raise RenderError("hidden_line must be True, False or an hsr.HiddenLine")
+    return value
+
+
+def fill_state(state, hidden_line: HiddenLine | None):
+    """The state the surfaces are filled with: hidden lines push the fill back by their
+    polygon offset unless the state sets one."""
+    if hidden_line is not None and state.polygon_offset == (0.0, 0.0):
+        return state.with_(polygon_offset=hidden_line.polygon_offset)
+    return state
+
+
+def check(state, hidden_line: HiddenLine | None, algorithm: str, *, transparent: bool,
+          into: bool, counts: bool) -> None:
+    """The combinations the line stage cannot draw: polygon modes draw lines or points
+    with the z-buffer, alone."""
+    if state.polygon_mode == "fill":
+        return
+    mode = state.polygon_mode.value
+    if algorithm != "zbuffer":
+        raise RenderError(f"polygon mode {mode} draws lines or points with the z-buffer; "
+                          f"{algorithm} only fills")
+    if hidden_line is not None or transparent or into or counts:
+        raise RenderError(f"polygon mode {mode} does not combine with hidden lines, "
+                          f"transparency, into= or counts")
+
+
 def drawn_faces(screen, n_faces) -> np.ndarray:
     """(F,) bool: faces that reached window space (not degenerate, culled or outside)."""
     drawn = np.zeros(n_faces, dtype=bool)
@@ -367,3 +403,18 @@ def hidden_line_pass(scene, camera, screen, view_proj, depth_filled, settings: H
                                  line_face)
     return line_face, {"edges": int(keep.sum()), "line_fragments_tested": int(tested),
                        "line_fragments_written": int(written)}
+
+
+def draw_hidden_lines(scene, camera, screen, view_proj, fragments, settings: HiddenLine,
+                      state, background, color) -> dict:
+    """The hidden-line pass of a render: clear ``color`` to the background (for a classic
+    drawing), draw the visible edges over the filled depth into it, record the line
+    buffer in ``fragments.buffers["lines"]``. Returns the line stats."""
+    if settings.fill == "background":
+        color[:] = background
+    line_face, stats = hidden_line_pass(scene, camera, screen, view_proj,
+                                        fragments.depth.copy(), settings, state.depth_range)
+    color[line_face >= 0] = np.asarray(settings.line_color(background), dtype=np.uint8)
+    fragments.buffers["lines"] = line_face
+    stats["line_pixels"] = int(np.count_nonzero(line_face >= 0))
+    return stats

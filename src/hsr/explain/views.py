@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .camera import Camera
-from .conventions import midpoint_depth_example
-from .errors import RenderError
-from .mesh import Mesh, Scene, as_scene
-from .render import render
-from .state import RenderState
+from ..errors import RenderError
+from ..geometry.conventions import midpoint_depth_example
+from ..geometry.state import RenderState
+from ..render import render
+from ..scene.camera import Camera
+from ..scene.mesh import Mesh, Scene, as_scene
 
 __all__ = ["Explanation", "VIEWS", "explain", "depth_formats", "resolvable_depth",
            "quantize_depth", "ybuffer", "YBUFFER_SEGMENTS"]
@@ -50,8 +50,8 @@ class Explanation:
         """PNG of the image, or an animated GIF of the frames for a ``.gif`` path."""
         from PIL import Image
 
-        from .io import _check_dir
-        from .errors import OutputError
+        from ..errors import OutputError
+        from ..scene.files import _check_dir
 
         _check_dir(path)
         try:
@@ -181,7 +181,7 @@ def _triangles_image(frame, faces):
 # ------------------------------------------------------------------------------- views
 
 def depth_view(scene, camera, width, height, state):
-    from .shading import linear_eye_depth
+    from ..appearance.shading import linear_eye_depth
 
     frame = render(scene, camera, width, height, state=state)
     covered = frame.face_id >= 0
@@ -248,9 +248,9 @@ def _painting_frames(scene, camera, xy_window, face, width, height, state, capti
                      n_frames=24):
     """Animation frames of polygons (window xy, source face) painted in the given order,
     each over the last, no depth test."""
-    from .parallel import Workers
-    from .raster import rasterize
-    from .shading import face_colors, paint_faces
+    from ..appearance.shading import face_colors, paint_faces
+    from ..parallel import Workers
+    from ..raster.fill import rasterize
 
     frames = []
     depth = np.zeros(xy_window.shape[:2])
@@ -267,7 +267,7 @@ def _painting_frames(scene, camera, xy_window, face, width, height, state, capti
 
 
 def painter_view(scene, camera, width, height, state, n_frames: int = 24):
-    from .algorithms.painter import sort_far_to_near
+    from ..algorithms.painter import sort_far_to_near
     from .compare import difference_map
 
     painted = render(scene, camera, width, height, state=state, algorithm="painter")
@@ -335,16 +335,16 @@ def linear_z_depths(screen, camera, depth_range=(0.0, 1.0)):
     """Per-corner depths of the screen triangles as *eye* depth mapped to [0, 1] over
     near..far: interpolating these linearly across the screen is the mistake seed 000
     warns about (z is not linear in screen space, 1/z is)."""
-    from .shading import linear_eye_depth
+    from ..appearance.shading import linear_eye_depth
 
     eye = linear_eye_depth(screen.depth_window, camera, depth_range)
     return (eye - camera.near) / (camera.far - camera.near)
 
 
 def linear_z_view(scene, camera, width, height, state):
-    from .parallel import Workers
-    from .raster import rasterize
-    from .shading import face_colors, paint_faces
+    from ..appearance.shading import face_colors, paint_faces
+    from ..parallel import Workers
+    from ..raster.fill import rasterize
 
     right = render(scene, camera, width, height, state=state)
     screen = right.fragments.screen
@@ -444,7 +444,7 @@ def zfight_winner(scene, camera, width, height, fmt):
     """(H, W) int8: which floor wins each pixel (0 lower, 1 upper, -1 none) when both are
     drawn in order with GL_LESS into a depth buffer of format ``fmt``. Exact eye depths
     come from perspective-correct barycentrics on each floor."""
-    from .fragments import barycentrics_at
+    from ..algorithms.fragments import barycentrics_at
 
     base = render(scene, camera, width, height, depth_test=False)
     screen = base.fragments.screen

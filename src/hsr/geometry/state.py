@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from .errors import RenderError
+from ..errors import RenderError
 
 __all__ = ["DepthFunc", "CullMode", "FrontFace", "PolygonMode", "RenderState"]
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .pipeline import ScreenTriangles
+from ..geometry.stage import ScreenTriangles
 
 __all__ = ["Fragments", "face_barycentrics", "barycentrics_at"]
 

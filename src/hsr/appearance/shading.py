@@ -10,26 +10,27 @@ vertex, the intensity interpolated perspective-correctly: Gouraud 1971), ``norma
 
 A mesh with texture coordinates and a texture (``Mesh.texture``, from an .mtl ``map_Kd`` or
 given by the caller) is textured in ``flat`` and ``gouraud``: texel x Lambert intensity.
-Fog (:mod:`hsr.fog`) is applied last. The per-face modes without texture or fog take a
+Fog (:mod:`hsr.appearance.fog`) is applied last. The per-face modes without texture or fog take a
 fast path (a colour per visible face, painted by face id); everything else is computed
 per fragment by :func:`shade_fragments`, which the transparency pass also uses."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 from numba import njit
 
-from dataclasses import dataclass, field
-
-from .errors import RenderError
+from ..errors import RenderError
+from ..parallel import Workers
+from ..scene.images import load_texture
+from ..scene.mesh import instance_of
 from .fog import Fog
-from .mesh import instance_of
-from .parallel import Workers
-from .texture import FILTERS, WRAPS, load_texture, sample
+from .texture import FILTERS, WRAPS, sample
 
 __all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
            "paint_faces", "shade_depth", "face_random_colors", "linear_eye_depth",
-           "vertex_normals"]
+           "vertex_normals", "as_look", "check_background", "shade_visible"]
 
 SHADING_MODES = ("flat", "gouraud", "normal", "random", "depth")
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
@@ -201,7 +202,7 @@ class Look:
     shading : one of :data:`SHADING_MODES`.
     textures : use the meshes' textures where they have one and texture coordinates.
     texture_filter : ``nearest`` or ``bilinear``; texture_wrap : ``repeat`` or ``clamp``.
-    fog : a :class:`hsr.fog.Fog` or None.
+    fog : a :class:`hsr.Fog` or None.
     """
 
     shading: str = "flat"
@@ -221,7 +222,27 @@ class Look:
             raise RenderError(f"texture wrap must be one of {', '.join(WRAPS)}; "
                               f"got {self.texture_wrap!r}")
         if self.fog is not None and not isinstance(self.fog, Fog):
-            raise RenderError(f"fog must be an hsr.fog.Fog, got {type(self.fog).__name__}")
+            raise RenderError(f"fog must be an hsr.Fog, got {type(self.fog).__name__}")
+
+
+def as_look(look, shading, textures, texture_filter, texture_wrap, fog) -> Look:
+    """The render's :class:`Look`: ``look`` if given, else one from the separate arguments."""
+    if look is None:
+        return Look(shading, textures, texture_filter, texture_wrap, fog)
+    if not isinstance(look, Look):
+        raise RenderError(f"look must be an hsr.Look, got {type(look).__name__}")
+    return look
+
+
+def check_background(background) -> np.ndarray:
+    """(3,) uint8 background colour from three numbers in 0..255."""
+    try:
+        rgb = np.asarray(background, dtype=np.float64)
+    except (TypeError, ValueError):
+        rgb = np.zeros(0)
+    if rgb.shape != (3,) or not np.all((rgb >= 0) & (rgb <= 255)):
+        raise RenderError(f"background must be three numbers in 0..255, got {background!r}")
+    return rgb.astype(np.uint8)
 
 
 def _textured(look, mesh) -> bool:
@@ -308,7 +329,7 @@ def _instance_groups(scene, faces):
 def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.ndarray:
     """(K, 3) float64 colours (0..255) of K fragments: pixel centres (``rows``, ``cols``)
     on global ``faces`` at window depth ``depth_window``. Fog included."""
-    from .fragments import barycentrics_at
+    from ..algorithms.fragments import barycentrics_at
 
     look, scene, camera = ctx.look, ctx.scene, ctx.camera
     k_count = len(faces)
@@ -376,3 +397,28 @@ def _face_mask_image(faces, n_faces):
 def to_uint8(rgb: np.ndarray) -> np.ndarray:
     """Round float colours to uint8 (GL's conversion: round to nearest, clamp)."""
     return np.clip(np.floor(rgb + 0.5), 0, 255).astype(np.uint8)
+
+
+def shade_visible(ctx: ShadeContext, fragments, state, background):
+    """Colour every pixel from its visible face (``fragments``): a colour per face where
+    the look allows it, else per fragment. Returns ((H, W, 3) uint8, pixels covered)."""
+    face_id = fragments.face_id
+    height, width = face_id.shape
+    color = np.empty((height, width, 3), dtype=np.uint8)
+    look = ctx.look
+    if state.polygon_mode != "fill" or not ctx.per_pixel:
+        # Lines and points take a per-face colour (no fragment to shade between corners).
+        mode = look.shading if state.polygon_mode == "fill" else (
+            look.shading if look.shading in ("flat", "normal", "random") else "flat")
+        covered = paint_faces(ctx.workers, face_id,
+                              face_colors(mode, ctx.scene, ctx.camera, ctx.workers, face_id),
+                              background, color)
+        if look.shading == "depth" and state.polygon_mode == "fill":
+            shade_depth(color, face_id, fragments.depth, ctx.camera, state.depth_range)
+        return color, covered
+    covered = paint_faces(ctx.workers, face_id, np.zeros((0, 3), np.uint8), background, color)
+    rows, cols = np.nonzero(face_id >= 0)
+    if len(rows):
+        color[rows, cols] = to_uint8(shade_fragments(
+            ctx, rows, cols, face_id[rows, cols], fragments.depth[rows, cols]))
+    return color, covered

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .algorithms import ALGORITHMS
-from .render import Frame, render
+from ..algorithms import ALGORITHMS
+from ..render import Frame, render
 
 __all__ = ["Comparison", "compare_algorithms", "montage", "difference_map"]
 

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .mesh import Scene, as_scene
-from .parallel import split_range
+from ..parallel import split_range
+from ..scene.mesh import Scene, as_scene
 
 __all__ = ["BVH", "build", "world_triangles", "cast"]
 

@@ -1,0 +1,53 @@
+"""``hsr.load``: a mesh from a file (OBJ by hsr's own reader, every other format through
+trimesh with ``process=False``: no merging, no reordering), a trimesh object or arrays.
+
+trimesh keeps file order for single-material OBJ files but regroups faces by material when
+an OBJ has several ``usemtl`` blocks, so OBJ files are read by :mod:`hsr.scene.obj`.
+"""
+
+from __future__ import annotations
+
+import os
+
+from ..errors import MeshError
+from .mesh import Mesh, as_mesh, from_trimesh
+from .obj import read_obj
+
+__all__ = ["load"]
+
+
+def load(source) -> Mesh:
+    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh`` or a
+    ``(vertices, faces)`` pair. Face order is kept exactly. Raises :class:`MeshError`."""
+    if not isinstance(source, (str, os.PathLike)):
+        return as_mesh(source)
+    path = os.fspath(source)
+    if not os.path.exists(path):
+        raise MeshError(f"file not found: {path}")
+    if os.path.isdir(path):
+        raise MeshError(f"{path} is a directory, not a mesh file")
+    if path.lower().endswith(".obj"):
+        return read_obj(path)
+    return _load_with_trimesh(path)
+
+
+def _load_with_trimesh(path: str) -> Mesh:
+    import trimesh  # imported lazily: it is slow to import and OBJ does not need it
+
+    try:
+        loaded = trimesh.load(path, process=False)
+    except Exception as exc:  # trimesh raises many types for malformed files
+        raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
+    if isinstance(loaded, trimesh.Scene):
+        geometries = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        if not geometries:
+            raise MeshError(f"{path}: no triangles found (empty or unrecognised file)")
+        if len(geometries) > 1:
+            raise MeshError(
+                f"{path}: the file holds {len(geometries)} meshes; hsr cannot keep one face "
+                "order across them, export a single mesh"
+            )
+        loaded = geometries[0]
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise MeshError(f"{path}: no triangles found ({type(loaded).__name__})")
+    return from_trimesh(loaded, os.path.basename(path))

@@ -1,0 +1,269 @@
+"""Triangle meshes and the ``Scene`` of mesh instances that every renderer consumes:
+validation, face degeneracy, conversion from trimesh objects and ``(vertices, faces)``.
+
+Face order is part of hsr's contract (``face_id`` is the index in the loaded face list and
+ties are decided by submission order): nothing here reorders faces. Reading files is
+:mod:`hsr.scene.load` (and :mod:`hsr.scene.obj` for Wavefront OBJ).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from ..errors import MeshError
+
+__all__ = ["Mesh", "Scene", "Instance", "as_mesh", "as_scene", "instance_of",
+           "degenerate_faces", "is_degenerate"]
+
+
+@dataclass(eq=False)
+class Mesh:
+    """A triangle mesh in model space.
+
+    Attributes
+    ----------
+    positions : (V, 3) float64 array, model-space vertex positions.
+    faces : (F, 3) int64 array of vertex indices; counter-clockwise = front by default.
+    corner_uv : (F, 3, 2) float64 or None, texture coordinates per face corner
+        (OBJ convention: v = 0 is the bottom row of the image).
+    corner_normals : (F, 3, 3) float64 or None, normals per face corner.
+    face_colors : (F, 3) uint8 or None, a base colour per face.
+    texture : path or (H, W, 3|4) uint8 array or None, the diffuse texture.
+    name : a label used in messages.
+    """
+
+    positions: np.ndarray
+    faces: np.ndarray
+    corner_uv: np.ndarray | None = None
+    corner_normals: np.ndarray | None = None
+    face_colors: np.ndarray | None = None
+    texture: object = None
+    name: str = "mesh"
+
+    def __post_init__(self):
+        self.positions, self.faces = _validate_arrays(self.positions, self.faces, self.name)
+        n_faces = len(self.faces)
+        self.corner_uv = _validate_corner(self.corner_uv, (n_faces, 3, 2), "corner_uv", self.name)
+        self.corner_normals = _validate_corner(
+            self.corner_normals, (n_faces, 3, 3), "corner_normals", self.name
+        )
+        if self.face_colors is not None:
+            colors = np.asarray(self.face_colors)
+            if colors.shape != (n_faces, 3):
+                raise MeshError(
+                    f"{self.name}: face_colors must have shape ({n_faces}, 3), got {colors.shape}"
+                )
+            self.face_colors = np.clip(colors, 0, 255).astype(np.uint8)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit normals from the counter-clockwise winding (zero for degenerate faces)."""
+        tri = self.positions[self.faces]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+
+    def degenerate_mask(self) -> np.ndarray:
+        """(F,) bool: faces with a repeated vertex index or zero area (collinear corners).
+
+        Such faces cover no pixel in OpenGL either; renderers skip and count them.
+        """
+        return degenerate_faces(self.positions, self.faces)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) array: min and max corner of the vertices that faces use."""
+        used = np.zeros(len(self.positions), dtype=bool)
+        used[self.faces.ravel()] = True
+        pos = self.positions if used.all() else self.positions[used]
+        return np.stack([pos.min(axis=0), pos.max(axis=0)])
+
+
+def _validate_arrays(positions, faces, name):
+    try:
+        positions = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name}: vertex positions are not numeric ({exc})") from None
+    try:
+        faces_in = np.asarray(faces)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name}: faces are not an integer array ({exc})") from None
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise MeshError(f"{name}: vertex positions must have shape (V, 3), got {positions.shape}")
+    if faces_in.size == 0:
+        raise MeshError(f"{name}: mesh is empty (no faces)")
+    if faces_in.ndim != 2 or faces_in.shape[1] != 3:
+        raise MeshError(f"{name}: faces must have shape (F, 3), got {faces_in.shape}")
+    if not np.issubdtype(faces_in.dtype, np.integer):
+        if not np.issubdtype(faces_in.dtype, np.floating) or np.any(faces_in != np.round(faces_in)):
+            raise MeshError(f"{name}: face indices must be integers")
+    faces = faces_in.astype(np.int64)
+    if len(positions) == 0:
+        raise MeshError(f"{name}: mesh is empty (no vertices)")
+    bad = (faces < 0) | (faces >= len(positions))
+    if bad.any():
+        f = int(np.argwhere(bad)[0][0])
+        raise MeshError(
+            f"{name}: face {f} has vertex index {int(faces[bad][0])} outside 0..{len(positions) - 1}"
+        )
+    finite = np.isfinite(positions).all(axis=1)
+    used = np.zeros(len(positions), dtype=bool)
+    used[faces.ravel()] = True
+    if not finite[used].all():
+        v = int(np.argwhere(~finite & used)[0][0])
+        raise MeshError(f"{name}: vertex {v} has a NaN or infinite coordinate")
+    return np.ascontiguousarray(positions), np.ascontiguousarray(faces)
+
+
+def _validate_corner(values, shape, what, name):
+    if values is None:
+        return None
+    values = np.asarray(values, dtype=np.float64)
+    if values.shape != shape:
+        raise MeshError(f"{name}: {what} must have shape {shape}, got {values.shape}")
+    if not np.isfinite(values).all():
+        raise MeshError(f"{name}: {what} has a NaN or infinite value")
+    return values
+
+
+@dataclass(eq=False)
+class Instance:
+    """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p).
+    ``opacity`` < 1 makes the instance transparent (alpha blended, see hsr.appearance.transparency)."""
+
+    mesh: Mesh
+    model: np.ndarray = field(default_factory=lambda: np.eye(4))
+    opacity: float = 1.0
+
+    def __post_init__(self):
+        model = np.asarray(self.model, dtype=np.float64)
+        if model.shape != (4, 4) or not np.isfinite(model).all():
+            raise MeshError(f"{self.mesh.name}: model matrix must be a finite 4x4 array")
+        self.model = model
+        try:
+            opacity = float(self.opacity)
+        except (TypeError, ValueError):
+            raise MeshError(f"{self.mesh.name}: opacity must be a number, "
+                            f"got {self.opacity!r}") from None
+        if not 0.0 <= opacity <= 1.0:
+            raise MeshError(f"{self.mesh.name}: opacity must be in [0, 1], got {self.opacity!r}")
+        self.opacity = opacity
+
+
+class Scene:
+    """Mesh instances drawn in order. ``face_id`` is global: the faces of the first
+    instance come first, then the second's, and so on (submission order)."""
+
+    def __init__(self, instances=()):
+        self.instances: list[Instance] = []
+        for item in instances:
+            if isinstance(item, Instance):
+                self.instances.append(item)
+            elif isinstance(item, Mesh):
+                self.add(item)
+            else:
+                self.add(*item)
+
+    def add(self, mesh: Mesh, model=None, opacity: float = 1.0) -> "Scene":
+        if not isinstance(mesh, Mesh):
+            mesh = as_mesh(mesh)
+        self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity))
+        return self
+
+    def __len__(self):
+        return len(self.instances)
+
+    @property
+    def n_faces(self) -> int:
+        return sum(inst.mesh.n_faces for inst in self.instances)
+
+    def face_offsets(self) -> np.ndarray:
+        """(n_instances + 1,) start of each instance's faces in the global face list."""
+        return np.concatenate([[0], np.cumsum([i.mesh.n_faces for i in self.instances])]).astype(
+            np.int64
+        )
+
+    def instance_of(self, face_id) -> np.ndarray:
+        """Instance index of each global face id (see :func:`instance_of`)."""
+        return instance_of(self.face_offsets(), face_id)
+
+    def world_triangles(self) -> np.ndarray:
+        """(F, 3, 3) world-space corners of every face, in submission order."""
+        parts = []
+        for inst in self.instances:
+            tri = inst.mesh.positions[inst.mesh.faces]
+            parts.append(tri @ inst.model[:3, :3].T + inst.model[:3, 3])
+        return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) world-space bounding box of all instances."""
+        tri = self.world_triangles().reshape(-1, 3)
+        return np.stack([tri.min(axis=0), tri.max(axis=0)])
+
+
+def instance_of(face_offsets: np.ndarray, face_id) -> np.ndarray:
+    """Index of the instance owning each global face id, given the scene's face offsets
+    (:meth:`Scene.face_offsets`); -1 for face id -1."""
+    return np.searchsorted(face_offsets, face_id, side="right") - 1
+
+
+def as_mesh(source) -> Mesh:
+    """A Mesh from a Mesh, a trimesh.Trimesh or a ``(vertices, faces)`` pair."""
+    if isinstance(source, Mesh):
+        return source
+    if isinstance(source, tuple) and len(source) == 2:
+        return Mesh(source[0], source[1], name="arrays")
+    if type(source).__name__ == "Trimesh":
+        return from_trimesh(source, "trimesh")
+    raise MeshError(f"cannot make a mesh from {type(source).__name__}")
+
+
+def as_scene(source) -> Scene:
+    """A Scene from a Scene, a Mesh, a trimesh.Trimesh, a (vertices, faces) pair or a list."""
+    if isinstance(source, Scene):
+        if len(source) == 0:
+            raise MeshError("scene is empty")
+        return source
+    if isinstance(source, list):
+        return Scene([as_mesh(s) for s in source])
+    return Scene([as_mesh(source)])
+
+
+def from_trimesh(tm, name: str) -> Mesh:
+    faces = np.asarray(tm.faces)
+    corner_uv = None
+    uv = getattr(tm.visual, "uv", None)
+    if uv is not None and len(uv) == len(tm.vertices):
+        corner_uv = np.asarray(uv, dtype=np.float64)[faces]
+    return Mesh(np.asarray(tm.vertices), faces, corner_uv=corner_uv, name=name)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def is_degenerate(positions, a, b, c):
+    # Repeated index, or zero area relative to the edge lengths (collinear corners): such
+    # a face covers no pixel in OpenGL either, so it is skipped and counted.
+    if a == b or b == c or a == c:
+        return True
+    e1x, e1y, e1z = (positions[b, 0] - positions[a, 0], positions[b, 1] - positions[a, 1],
+                     positions[b, 2] - positions[a, 2])
+    e2x, e2y, e2z = (positions[c, 0] - positions[a, 0], positions[c, 1] - positions[a, 1],
+                     positions[c, 2] - positions[a, 2])
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    area2_sq = nx * nx + ny * ny + nz * nz
+    scale = max(e1x * e1x + e1y * e1y + e1z * e1z, e2x * e2x + e2y * e2y + e2z * e2z)
+    return area2_sq <= 1e-24 * scale * scale
+
+
+@njit(cache=True)
+def degenerate_faces(positions, faces):
+    """(F,) bool: faces with a repeated vertex or zero area (see ``is_degenerate``)."""
+    n = faces.shape[0]
+    out = np.empty(n, dtype=np.bool_)
+    for f in range(n):
+        out[f] = is_degenerate(positions, faces[f, 0], faces[f, 1], faces[f, 2])
+    return out

@@ -1,0 +1,118 @@
+"""The package layout follows the data path (issue: one folder per stage): imports only go
+down it, and no module imports another that imports it back (directly or through others,
+lazily or not). Read from the source with ``ast``, so a lazy import inside a function
+counts as much as one at the top."""
+
+import ast
+import os
+
+SRC = os.path.join(os.path.dirname(__file__), "..", "src", "hsr")
+
+# Stage of each package along the data path; modules at the root are the public face
+# (render, cli) or helpers every stage may use (errors, parallel).
+STAGES = {"errors": 0, "parallel": 0, "scene": 1, "geometry": 2, "raster": 3,
+          "algorithms": 4, "appearance": 5, "lines": 5, "render": 6, "__init__": 6,
+          "explain": 7, "cli": 8, "__main__": 9}
+
+
+def _modules():
+    out = {}
+    for folder, _, files in os.walk(SRC):
+        for name in files:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                rel = os.path.relpath(path, SRC)[:-3].replace(os.sep, ".")
+                out["hsr" if rel == "__init__" else "hsr." + rel.removesuffix(".__init__")] = path
+    return out
+
+
+def _imports(module, path, known):
+    package = module if path.endswith("__init__.py") else module.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(open(path).read())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[:len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if not target.startswith("hsr"):
+                continue
+            for alias in node.names:  # "from . import x" may name a module
+                sub = f"{target}.{alias.name}"
+                found.add(sub if sub in known else target)
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith("hsr"))
+    return {t for t in found if t in known and t != module}
+
+
+def _graph():
+    known = _modules()
+    return {m: _imports(m, p, known) for m, p in known.items()}
+
+
+def _stage(module):
+    parts = module.split(".")
+    return STAGES["__init__" if len(parts) == 1 else parts[1]]
+
+
+def test_every_package_is_a_known_stage():
+    for module in _graph():
+        assert module == "hsr" or module.split(".")[1] in STAGES, module
+
+
+def test_imports_only_go_down_the_data_path():
+    wrong = [(m, t) for m, targets in _graph().items() for t in targets
+             if _stage(t) > _stage(m)
+             and not (m == "hsr" and t.split(".")[1] not in ("explain", "cli"))]
+    assert not wrong, f"imports of a later stage: {wrong}"
+
+
+def test_no_import_cycles():
+    graph = _graph()
+    state = {}
+
+    def visit(m, path):
+        state[m] = "open"
+        for t in graph[m]:
+            if state.get(t) == "open":
+                raise AssertionError("import cycle: " + " -> ".join(path + [t]))
+            if t not in state:
+                visit(t, path + [t])
+        state[m] = "done"
+
+    for module in graph:
+        if module not in state:
+            visit(module, [module])
+
+
+def test_the_layout_test_sees_lazy_imports():
+    """The checker must be able to fail: a lazy import inside a function is found."""
+    graph = _graph()
+    assert "hsr.explain.compare" in graph["hsr.explain.views"]  # imported inside functions
+    assert "hsr.scene.mesh" in graph["hsr.geometry.stage"]
+
+
+def test_readme_tree_names_only_files_that_exist():
+    readme = open(os.path.join(SRC, "..", "..", "README.md")).read()
+    section = readme.split("## Architecture", 1)[1].split("\n## ", 1)[0]
+    tree = section.split("src/hsr/", 1)[1].split("```", 1)[0]
+    folder, named = "", []
+    for line in tree.splitlines():
+        if not line.strip():
+            continue
+        words = line.split()
+        if words[0].endswith("/"):
+            folder = words[0]
+            continue
+        for word in words:
+            if not word.endswith(".py"):
+                break
+            named.append(os.path.join(folder if line.startswith("    ") else "", word))
+    assert len(named) > 30
+    missing = [n for n in named if not os.path.isfile(os.path.join(SRC, n))]
+    assert not missing, f"README names files that do not exist: {missing}"
+    listed = {os.path.normpath(n) for n in named}
+    actual = {os.path.relpath(p, SRC) for p in _modules().values()}
+    unlisted = sorted(a for a in actual - listed if not a.endswith("__init__.py"))
+    assert not unlisted, f"modules missing from the README tree: {unlisted}"
