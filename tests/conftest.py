@@ -8,6 +8,8 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 MODELS_DIR = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "shared",
                                           "models"))
+CASES_DIR = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "shared",
+                                         "cases"))
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
 
@@ -23,6 +25,12 @@ def need(condition: bool, reason: str):
 def models_dir():
     need(os.path.isdir(MODELS_DIR), f"shared models not found at {MODELS_DIR}")
     return MODELS_DIR
+
+
+@pytest.fixture(scope="session")
+def cases_dir():
+    need(os.path.isdir(CASES_DIR), f"shared failure cases not found at {CASES_DIR}")
+    return CASES_DIR
 
 
 @pytest.fixture(scope="session")

@@ -11,23 +11,24 @@ import os
 
 from ..errors import MeshError
 from .mesh import Mesh, as_mesh, from_trimesh
+from .files import MAX_MESH_BYTES, check_regular
 from .obj import read_obj
 
 __all__ = ["load"]
 
 
-def load(source) -> Mesh:
+def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
     """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh`` or a
-    ``(vertices, faces)`` pair. Face order is kept exactly. Raises :class:`MeshError`."""
+    ``(vertices, faces)`` pair. Face order is kept exactly. Only regular files of at most
+    ``max_bytes`` are read. Raises :class:`MeshError` for anything missing, unreadable,
+    malformed, too large or invalid (bad indices, NaN or infinite coordinates used by a
+    face, no faces)."""
     if not isinstance(source, (str, os.PathLike)):
         return as_mesh(source)
     path = os.fspath(source)
-    if not os.path.exists(path):
-        raise MeshError(f"file not found: {path}")
-    if os.path.isdir(path):
-        raise MeshError(f"{path} is a directory, not a mesh file")
     if path.lower().endswith(".obj"):
-        return read_obj(path)
+        return read_obj(path, max_bytes=max_bytes)
+    check_regular(path, "mesh file", max_bytes)
     return _load_with_trimesh(path)
 
 

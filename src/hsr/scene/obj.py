@@ -1,135 +1,189 @@
 """The Wavefront OBJ reader: keeps file order exactly, fan-triangulates n-gons
-``(v0, v1, v2), (v0, v2, v3), ...``, reads ``mtllib`` materials (``Kd``, ``map_Kd``)."""
+``(v0, v1, v2), (v0, v2, v3), ...``, reads ``mtllib`` materials (``Kd``, ``map_Kd``).
+
+The grammar (Wavefront's OBJ specification, as exporters write it): a statement is a tag and
+its arguments separated by spaces or tabs, ``#`` starts a comment that runs to the end of
+the line, a backslash at the end of a line continues it, leading white space and a UTF-8
+byte-order mark are ignored. Statements: ``v x y z [w]``, ``vt u [v [w]]``,
+``vn x y z``, ``f c1 c2 c3 ...`` with corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``
+(1-based, or negative: counted back from the elements defined so far), ``mtllib``,
+``usemtl``. Other known statements (groups, smoothing, lines, free-form geometry) are
+skipped; an unknown statement whose tag starts with ``v`` or ``f`` is refused, because
+skipping a vertex-like line would shift every index after it.
+
+Two readers implement it and must agree (a test runs both on every case): a regular-
+expression reader for the common files (C speed) and a careful line-by-line reader that
+handles everything and names the line of an error. Both see the same normalised text and
+share the conversion of numbers and corners.
+"""
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 
 import numpy as np
 
 from ..errors import MeshError
+from .files import MAX_MESH_BYTES, MAX_MTL_BYTES, read_regular
 from .mesh import Mesh
 
-__all__ = ["read_obj"]
+__all__ = ["read_obj", "MAX_LINE_BYTES"]
+
+# A longer line is not OBJ text (a binary file, or a generator gone wrong).
+MAX_LINE_BYTES = 1 << 20
+# Largest index magnitude accepted before it is compared with the element counts.
+_MAX_INDEX = 1 << 62
+
+_SKIPPED = frozenset((
+    "vp", "l", "p", "o", "g", "s", "mg", "cstype", "deg", "bmat", "step", "curv", "curv2",
+    "surf", "parm", "trim", "hole", "scrv", "sp", "end", "con", "bevel", "c_interp",
+    "d_interp", "lod", "maplib", "usemap", "shadow_obj", "trace_obj", "ctech", "stech",
+    "call", "csh"))
+# A line the regular-expression reader does not take: not empty, and its tag is neither
+# one it reads nor one both readers skip.
+_OTHER_TAG = re.compile(r"^(?!(?:(?:v|vt|vn|f|%s)(?: |$)|$))" % "|".join(sorted(_SKIPPED)),
+                        re.M)
+_INT = r"-?\d+"
+# One corner: v, v/vt, v//vn or v/vt/vn, nothing else.
+_CORNER = re.compile(rf"({_INT})(?:/({_INT})(?:/({_INT}))?|//({_INT}))?")
+# Whole face blocks of one corner form (tokens joined by single spaces).
+_UNIFORM = {form: re.compile(rf"{pat}(?: {pat})*") for form, pat in (
+    ("v", _INT), ("v/vt", rf"{_INT}/{_INT}"), ("v//vn", rf"{_INT}//{_INT}"),
+    ("v/vt/vn", rf"{_INT}/{_INT}/{_INT}"))}
 
 
-def read_obj(path: str) -> Mesh:
-    """Read a Wavefront OBJ file keeping file order; n-gons are fan-triangulated.
-
-    Supports ``v``, ``vt``, ``vn``, ``f`` with ``i``, ``i/j``, ``i//k``, ``i/j/k`` and
-    negative (relative) indices, ``mtllib``/``usemtl`` (``Kd`` colours and the first
-    ``map_Kd`` texture). Other statements are ignored. Raises :class:`MeshError` with the
-    line number on anything malformed. One pass over the lines sorts them by tag; the
-    numbers are then converted by NumPy in bulk (the bunny's 105k lines in ~0.1 s).
-    """
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot read ({exc.strerror})") from None
+def read_obj(path, method: str = "auto", max_bytes: int = MAX_MESH_BYTES) -> Mesh:
+    """Read a Wavefront OBJ file. ``method``: ``auto`` (the regular-expression reader where
+    it applies, else the careful one), ``regex`` (the same: files it cannot take go to the
+    careful reader) or ``careful`` (always line by line). Raises :class:`MeshError` naming
+    the line on anything malformed, for a file that is not a regular file or is larger
+    than ``max_bytes``, and for a broken material file."""
+    if method not in ("auto", "regex", "careful"):
+        raise MeshError(f"OBJ read method must be auto, regex or careful, got {method!r}")
+    path = os.fspath(path)
     name = os.path.basename(path)
-    plain = _read_plain_triangles(text, name)
-    if plain is not None:
-        return plain
-    scanned = _scan_fast(text)
+    text = _normalise(read_regular(path, "mesh file", max_bytes), name)
+    scanned = None if method == "careful" else scan_regex(text, name)
     if scanned is not None:
         try:
-            return _build_obj(path, name, *scanned)
+            return _build(path, name, scanned)
         except MeshError:
             pass  # read it again carefully, to report the line
-    return _build_obj(path, name, *_scan_careful(text, name))
+    return _build(path, name, scan_careful(text, name))
 
 
-def _read_plain_triangles(text: str, name: str):
-    """The most common OBJ of all (scans such as the bunny): only ``v x y z`` and
-    ``f i j k`` with positive indices. Two regular expressions and two NumPy conversions;
-    None when the file has anything else (the general reader takes it)."""
-    if "/" in text or "\t" in text or "vt" in text or "vn" in text or "mtl" in text \
-            or "-" in text.split("\nf", 1)[-1]:
-        return None
-    tri = re.findall(r"^f +(\d+) +(\d+) +(\d+) *$", text, re.M)
-    pos = re.findall(r"^v +(\S+) +(\S+) +(\S+) *$", text, re.M)
-    if (not tri or len(tri) != len(re.findall(r"^f", text, re.M))
-            or len(pos) != len(re.findall(r"^v", text, re.M))):
-        return None
-    try:
-        positions = np.array(pos, dtype=np.float64)
-    except ValueError:
-        return None  # let the careful reader name the line
-    faces = np.array(tri, dtype=np.int64) - 1
-    if faces.min() < 0 or faces.max() >= len(positions):
-        return None
-    return Mesh(positions, faces, name=name)
+def _normalise(data: bytes, name: str) -> str:
+    """OBJ text with the grammar's noise removed, identically for both readers: no
+    byte-order mark, ``\\n`` line ends, continuation lines joined, comments dropped,
+    runs of spaces and tabs folded to one space, no space at either end of a line."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    _check_line_lengths(data, name)
+    text = data.decode("utf-8", errors="replace")
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    if "\\\n" in text:
+        text = text.replace("\\\n", " ")
+    if "#" in text:
+        text = re.sub(r"#[^\n]*", "", text)
+    if "\t" in text or "  " in text or "\f" in text or "\v" in text:
+        text = re.sub(r"[ \t\f\v]+", " ", text)
+    if "\n " in text or " \n" in text or text[:1] == " " or text[-1:] == " ":
+        text = re.sub(r"^ +| +$", "", text, flags=re.M)
+    return text
 
 
-def _scan_careful(text: str, name: str):
-    """Sort the lines of an OBJ file by tag, keeping line numbers and, for each face, how
-    many v / vt / vn came before it (for negative indices)."""
+def _check_line_lengths(data: bytes, name: str) -> None:
+    if len(data) <= MAX_LINE_BYTES:
+        return
+    ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == 10)
+    starts = np.concatenate([[0], ends + 1])
+    lengths = np.concatenate([ends, [len(data)]]) - starts
+    longest = int(np.argmax(lengths))
+    if lengths[longest] > MAX_LINE_BYTES:
+        raise MeshError(f"{name}:{longest + 1}: line of {int(lengths[longest]):,} bytes, "
+                        f"longer than {MAX_LINE_BYTES:,}: not OBJ text")
+
+
+class _Scanned:
+    """What a reader found: rows of v / vt / vn as (line number, argument text), face rows
+    (argument text) with their line numbers and the counts of v / vt / vn defined before
+    each (for negative indices), material events (face number, name) and mtllib names.
+    Line numbers are 0 where the regular-expression reader does not know them."""
+
+    def __init__(self, v, vt, vn, f, f_lines, f_nv, f_nt, f_nn, mat_events, mtllibs):
+        self.v, self.vt, self.vn, self.f = v, vt, vn, f
+        self.f_lines, self.f_nv, self.f_nt, self.f_nn = f_lines, f_nv, f_nt, f_nn
+        self.mat_events, self.mtllibs = mat_events, mtllibs
+
+
+def scan_careful(text: str, name: str) -> _Scanned:
+    """Line by line: sort the statements by tag, keeping line numbers."""
     v_rows, vt_rows, vn_rows = [], [], []
     f_rows, f_lines, f_nv, f_nt, f_nn = [], [], [], [], []
-    mat_events: list[tuple[int, str]] = []  # (face number where it starts, material)
+    mat_events: list[tuple[int, str]] = []
     mtllibs: list[str] = []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        head = line[:2]
-        if head == "v ":
-            v_rows.append((lineno, line))
-        elif head == "f ":
-            f_rows.append(line[2:])
+    for lineno, line in enumerate(text.split("\n"), 1):
+        if not line:
+            continue
+        tag, _, rest = line.partition(" ")
+        if tag == "v":
+            v_rows.append((lineno, rest))
+        elif tag == "f":
+            f_rows.append(rest)
             f_lines.append(lineno)
             f_nv.append(len(v_rows))
             f_nt.append(len(vt_rows))
             f_nn.append(len(vn_rows))
-        elif head == "vt":
-            vt_rows.append((lineno, line))
-        elif head == "vn":
-            vn_rows.append((lineno, line))
-        elif line.startswith("usemtl"):
-            parts = line.split()
-            mat_events.append((len(f_rows), parts[1] if len(parts) > 1 else ""))
-        elif line.startswith("mtllib"):
-            mtllibs.extend(line.split()[1:])
-        elif head.strip() == "f" or head in ("v\t", "f\t"):
-            raise MeshError(f"{name}:{lineno}: cannot parse {line.strip()[:60]!r}")
-    return v_rows, vt_rows, vn_rows, f_rows, f_lines, f_nv, f_nt, f_nn, mat_events, mtllibs
+        elif tag == "vt":
+            vt_rows.append((lineno, rest))
+        elif tag == "vn":
+            vn_rows.append((lineno, rest))
+        elif tag == "usemtl":
+            mat_events.append((len(f_rows), rest))
+        elif tag == "mtllib":
+            mtllibs.extend(rest.split())
+        elif tag not in _SKIPPED and tag[0] in "vf":
+            raise MeshError(f"{name}:{lineno}: unknown statement {line[:60]!r}")
+    return _Scanned(v_rows, vt_rows, vn_rows, f_rows, f_lines, f_nv, f_nt, f_nn, mat_events,
+                    mtllibs)
 
 
-def _scan_fast(text: str):
-    """The same as :func:`_scan_careful` with regular expressions (C speed), for the
-    common files: no tabs, no materials, no negative indices. None when not applicable;
-    line numbers are left 0 (a failure is re-read carefully to report its line)."""
-    if "\t" in text or "usemtl" in text or "mtllib" in text:
+def scan_regex(text: str, name: str) -> _Scanned | None:
+    """The same as :func:`scan_careful` with regular expressions, for the common files: no
+    materials and no negative indices. None when it does not apply (the careful reader
+    takes the file)."""
+    if _OTHER_TAG.search(text):
+        return None  # materials, or an unknown statement to report with its line
+    f_rows = re.findall(r"^f(?: (.*))?$", text, re.M)
+    if any("-" in row for row in f_rows):
         return None
-    f_rows = re.findall(r"^f (.*)$", text, re.M)
-    if len(f_rows) != len(re.findall(r"^f", text, re.M)) or "-" in "".join(f_rows):
-        return None
-    v_rows = [(0, r) for r in re.findall(r"^(v .*)$", text, re.M)]
-    if len(v_rows) != len(re.findall(r"^v(?![tn])", text, re.M)):
-        return None
-    vt_rows = [(0, r) for r in re.findall(r"^(vt .*)$", text, re.M)]
-    vn_rows = [(0, r) for r in re.findall(r"^(vn .*)$", text, re.M)]
+    v_rows = [(0, r) for r in re.findall(r"^v(?: (.*))?$", text, re.M)]
+    vt_rows = [(0, r) for r in re.findall(r"^vt(?: (.*))?$", text, re.M)]
+    vn_rows = [(0, r) for r in re.findall(r"^vn(?: (.*))?$", text, re.M)]
     zeros = [0] * len(f_rows)
-    return v_rows, vt_rows, vn_rows, f_rows, zeros, zeros, zeros, zeros, [], []
+    return _Scanned(v_rows, vt_rows, vn_rows, f_rows, zeros, zeros, zeros, zeros, [], [])
 
 
-def _build_obj(path, name, v_rows, vt_rows, vn_rows, f_rows, f_lines, f_nv, f_nt, f_nn,
-               mat_events, mtllibs) -> Mesh:
-    if not f_rows:
+def _build(path, name, s: _Scanned) -> Mesh:
+    if not s.f:
         raise MeshError(f"{name}: mesh is empty (no faces)")
-    positions = _obj_numbers(v_rows, 3, 3, name, "vertex")
-    uvs = _obj_numbers(vt_rows, 1, 2, name, "texture coordinate")
-    normals = _obj_numbers(vn_rows, 3, 3, name, "normal")
+    positions = _numbers(s.v, 3, 3, name, "vertex")
+    uvs = _numbers(s.vt, 1, 2, name, "texture coordinate")
+    normals = _numbers(s.vn, 3, 3, name, "normal")
 
-    tokens = [row.split() for row in f_rows]
-    counts = np.fromiter((len(t) for t in tokens), dtype=np.int64, count=len(tokens))
+    # Normalised text: one space between tokens, none at the ends.
+    counts = np.fromiter((row.count(" ") + 1 if row else 0 for row in s.f), dtype=np.int64,
+                         count=len(s.f))
     if counts.min() < 3:
         bad = int(np.argmax(counts < 3))
-        raise MeshError(f"{name}:{f_lines[bad]}: a face needs at least 3 vertices")
-    flat = [tok for toks in tokens for tok in toks]
-    refs = _obj_face_refs(flat, name)  # (corners, 3) int64: v, vt, vn (0 = absent)
+        raise MeshError(f"{name}:{s.f_lines[bad]}: a face needs at least 3 vertices")
     corner_face = np.repeat(np.arange(len(counts)), counts)
-    limits = (np.array(f_nv)[corner_face], np.array(f_nt)[corner_face],
-              np.array(f_nn)[corner_face])
+    refs = _face_refs(" ".join(s.f), name, s.f_lines, corner_face)  # v, vt, vn; 0 = absent
+    limits = (np.array(s.f_nv)[corner_face], np.array(s.f_nt)[corner_face],
+              np.array(s.f_nn)[corner_face])
     totals = (len(positions), len(uvs), len(normals))
     what = ("vertex", "texture", "normal")
     resolved = np.empty_like(refs)
@@ -143,8 +197,8 @@ def _build_obj(path, name, v_rows, vt_rows, vn_rows, f_rows, f_lines, f_nv, f_nt
             bad |= ref == 0
         if bad.any():
             k = int(np.argmax(bad))
-            raise MeshError(f"{name}:{f_lines[corner_face[k]]}: {what[c]} index {int(ref[k])} "
-                            f"outside 1..{totals[c]}")
+            raise MeshError(f"{name}:{s.f_lines[corner_face[k]]}: {what[c]} index "
+                            f"{int(ref[k])} outside 1..{totals[c]}")
         resolved[:, c] = np.where(present, idx, -1)
 
     # Fan triangulation in file order: polygon (c0, c1, ..., cn-1) -> (c0, ck, ck+1).
@@ -159,21 +213,28 @@ def _build_obj(path, name, v_rows, vt_rows, vn_rows, f_rows, f_lines, f_nv, f_nt
                       if len(normals) and (resolved[:, 2] >= 0).all() else None)
     materials: list[str] = []
     poly_mat = np.full(len(counts), -1, dtype=np.int64)
-    for first_face, mat in mat_events:
+    for first_face, mat in s.mat_events:
         if mat not in materials:
             materials.append(mat)
         poly_mat[first_face:] = materials.index(mat)
-    face_colors, texture = _read_materials(path, mtllibs, materials, poly_mat[tri_poly])
+    face_colors, texture = _read_materials(path, s.mtllibs, materials, poly_mat[tri_poly])
     return Mesh(positions, faces, corner_uv=corner_uv, corner_normals=corner_normals,
                 face_colors=face_colors, texture=texture, name=name)
 
 
-def _obj_numbers(rows, min_count, keep, name, what) -> np.ndarray:
-    """(N, keep) float64 from OBJ lines ``tag a b c ...``; extra values (w, colours) are
+def _numbers(rows, min_count, keep, name, what) -> np.ndarray:
+    """(N, keep) float64 from OBJ rows ``a b c ...``; extra values (w, colours) are
     dropped, missing optional ones are zero."""
     if not rows:
         return np.zeros((0, keep))
-    fields = [line.split()[1:] for _, line in rows]
+    block = "\n".join(text for _, text in rows)
+    for width in (keep, keep + 1):  # rows of one width (e.g. vt u v w): in bulk
+        if _fields(width).fullmatch(block):
+            try:
+                return np.array(block.split(), dtype=np.float64).reshape(-1, width)[:, :keep]
+            except ValueError:
+                break  # a bad number: named below
+    fields = [text.split() for _, text in rows]
     widths = {len(f) for f in fields}
     try:
         if len(widths) == 1 and min(widths) >= keep:
@@ -186,52 +247,74 @@ def _obj_numbers(rows, min_count, keep, name, what) -> np.ndarray:
             out[i, : len(values)] = values
         return out
     except ValueError:
-        for (lineno, line), f in zip(rows, fields):
+        for (lineno, text), f in zip(rows, fields):
             try:
                 if len(f) < min_count:
                     raise ValueError
                 [float(x) for x in f[:keep]]
             except ValueError:
-                raise MeshError(f"{name}:{lineno}: bad {what} {line.strip()[:60]!r}") from None
+                raise MeshError(f"{name}:{lineno}: bad {what} {text[:60]!r}") from None
         raise MeshError(f"{name}: bad {what} data") from None
 
 
-def _obj_face_refs(flat, name) -> np.ndarray:
-    """(corners, 3) int64 (v, vt, vn) from face tokens like ``7``, ``7/2``, ``7//3``,
-    ``7/2/3``; absent fields are 0."""
-    out = np.zeros((len(flat), 3), dtype=np.int64)
-    joined = " ".join(flat)
-    n_slash = joined.count("/")
+def _face_refs(joined, name, f_lines, corner_face) -> np.ndarray:
+    """(corners, 3) int64 (v, vt, vn) from the face tokens joined by single spaces; absent
+    fields are 0. Every token must be a corner of the grammar; a block of one form is
+    converted in bulk."""
+    flat = joined.split(" ")
     try:
-        if n_slash == 0:
+        if _UNIFORM["v"].fullmatch(joined):
+            out = np.zeros((len(flat), 3), dtype=np.int64)
             out[:, 0] = np.array(flat, dtype=np.int64)
-            return out
-        n_double = joined.count("//")
-        if n_slash == 2 * len(flat) and (n_double in (0, len(flat))):
-            # Uniform v/t/n or v//n: bulk conversion.
-            nums = np.array(joined.replace("//", "/0/").replace("/", " ").split(),
-                            dtype=np.int64).reshape(-1, 3)
-            return nums
-        if n_slash == len(flat) and n_double == 0:
-            out[:, :2] = np.array(joined.replace("/", " ").split(), dtype=np.int64).reshape(-1, 2)
-            return out
-    except ValueError:
-        pass
+            return _check_magnitude(out)
+        if _UNIFORM["v/vt/vn"].fullmatch(joined):
+            return _check_magnitude(np.array(joined.replace("/", " ").split(),
+                                             dtype=np.int64).reshape(-1, 3))
+        if _UNIFORM["v//vn"].fullmatch(joined):
+            return _check_magnitude(np.array(joined.replace("//", "/0/").replace("/", " ")
+                                             .split(), dtype=np.int64).reshape(-1, 3))
+        if _UNIFORM["v/vt"].fullmatch(joined):
+            out = np.zeros((len(flat), 3), dtype=np.int64)
+            out[:, :2] = np.array(joined.replace("/", " ").split(),
+                                  dtype=np.int64).reshape(-1, 2)
+            return _check_magnitude(out)
+    except (OverflowError, ValueError):
+        pass  # an index too large for int64: the loop below names it
+    out = np.zeros((len(flat), 3), dtype=np.int64)
     for i, tok in enumerate(flat):  # mixed forms, or a bad token to report
-        parts = tok.split("/")
-        try:
-            if len(parts) > 3 or not parts[0]:
-                raise ValueError
-            for c, p in enumerate(parts):
-                out[i, c] = int(p) if p else 0
-        except ValueError:
-            raise MeshError(f"{name}: bad face vertex {tok!r}") from None
+        m = _CORNER.fullmatch(tok)
+        where = f"{name}:{f_lines[corner_face[i]]}" if f_lines[corner_face[i]] else name
+        if m is None:
+            raise MeshError(f"{where}: bad face vertex {tok!r} (a corner is v, v/vt, v//vn "
+                            f"or v/vt/vn)")
+        v, vt, vn, vn_only = m.groups()
+        for c, part in enumerate((v, vt, vn or vn_only)):
+            if part is not None:
+                value = int(part)
+                if abs(value) >= _MAX_INDEX:
+                    raise MeshError(f"{where}: index {part[:30]} is out of range")
+                out[i, c] = value
     return out
+
+
+@functools.lru_cache(maxsize=8)
+def _fields(width: int) -> re.Pattern:
+    """Lines of exactly ``width`` space-separated fields."""
+    one = r"[^ \n]+" + r" [^ \n]+" * (width - 1)
+    return re.compile(rf"{one}(?:\n{one})*")
+
+
+def _check_magnitude(refs: np.ndarray) -> np.ndarray:
+    if refs.size and np.abs(refs).max() >= _MAX_INDEX:
+        raise OverflowError  # the token loop reports it
+    return refs
 
 
 def _read_materials(obj_path, mtllibs, materials, face_mat):
     """Kd colours per face and the first map_Kd texture path from the OBJ's .mtl files.
-    A missing .mtl is not an error (many OBJ files name one they do not ship)."""
+    A missing .mtl is not an error (many OBJ files name one they do not ship); one that
+    exists but cannot be read, or a ``Kd`` that is not three finite numbers, is. Finite
+    ``Kd`` values outside [0, 1] are clamped to it (OpenGL clamps colours the same way)."""
     if not mtllibs or not materials:
         return None, None
     base = os.path.dirname(obj_path)
@@ -239,25 +322,30 @@ def _read_materials(obj_path, mtllibs, materials, face_mat):
     texture = None
     for lib in mtllibs:
         mtl_path = os.path.join(base, lib)
-        if not os.path.exists(mtl_path):
+        if not os.path.lexists(mtl_path):
             continue
+        text = read_regular(mtl_path, "material file", MAX_MTL_BYTES).decode(
+            "utf-8", errors="replace")
         current = None
-        with open(mtl_path, encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                parts = line.split()
-                if not parts:
-                    continue
-                if parts[0] == "newmtl" and len(parts) > 1:
-                    current = parts[1]
-                elif parts[0] == "Kd" and current is not None and len(parts) >= 4:
-                    try:
-                        kd[current] = tuple(float(x) for x in parts[1:4])
-                    except ValueError:
-                        continue
-                elif parts[0] == "map_Kd" and texture is None and len(parts) > 1:
-                    candidate = os.path.join(base, parts[-1])
-                    if os.path.exists(candidate):
-                        texture = candidate
+        for lineno, line in enumerate(text.splitlines(), 1):
+            parts = line.split("#", 1)[0].split()
+            if not parts:
+                continue
+            if parts[0] == "newmtl" and len(parts) > 1:
+                current = parts[1]
+            elif parts[0] == "Kd" and current is not None and len(parts) >= 4:
+                try:
+                    rgb = tuple(float(x) for x in parts[1:4])
+                except ValueError:
+                    rgb = (float("nan"),)
+                if not all(np.isfinite(rgb)):
+                    raise MeshError(f"{lib}:{lineno}: Kd must be three finite numbers, "
+                                    f"got {' '.join(parts[1:4])!r}")
+                kd[current] = rgb
+            elif parts[0] == "map_Kd" and texture is None and len(parts) > 1:
+                candidate = os.path.join(base, parts[-1])
+                if os.path.exists(candidate):
+                    texture = candidate
     if not kd:
         return None, texture
     table = np.array([kd.get(m, (0.8, 0.8, 0.8)) for m in materials] + [(0.8, 0.8, 0.8)])
