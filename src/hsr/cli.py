@@ -304,6 +304,8 @@ def _cmd_render(args) -> int:
     if args.hidden_layer and not args.lines:
         raise CliError("--hidden-layer goes with --svg FILE --lines")
     hidden_line = _hidden_line(args)
+    if args.algorithm in ("newell", "bsp") and not args.quiet and sys.stderr.isatty():
+        options.setdefault("progress", True)
     frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
                    look=_look(args), background=background,
                    occlusion_cull=args.occlusion_cull, threads=args.threads, options=options,
@@ -336,8 +338,24 @@ def _cmd_render(args) -> int:
         print(f"wrote {args.output} ({width}x{height}, {args.algorithm}): "
               f"{s['triangles_in']} triangles, {s['degenerate']} degenerate, "
               f"{s['culled']} culled, {s['clipped']} clipped, "
-              f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms")
+              f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
+              + _algorithm_summary(s))
     return 0
+
+
+def _algorithm_summary(stats) -> str:
+    """What an algorithm has to say for itself on the summary line: painter's wrong
+    pixels, the polygons (and pixels) Newell left to its fallback, BSP splits."""
+    parts = []
+    if "pixels_wrong" in stats:
+        parts.append(f"{stats['pixels_wrong']} pixels wrong (painter's order)")
+    if "unresolved" in stats:
+        parts.append(f"{stats['unresolved']} unresolved polygons "
+                     f"({stats.get('unresolved_pixels', 0)} pixels drawn by the depth-test "
+                     f"fallback)")
+    if "bsp_nodes" in stats:
+        parts.append(f"{stats['bsp_nodes']} BSP nodes, {stats['splits']} splits")
+    return "".join("; " + p for p in parts)
 
 
 def _write_svg(args, frame, scene, camera, width, height, background):
@@ -346,6 +364,10 @@ def _write_svg(args, frame, scene, camera, width, height, background):
     from .parallel import Workers
 
     polygons = frame.fragments.buffers.get("polygons")
+    if args.algorithm == "newell" and frame.stats.get("unresolved"):
+        raise CliError(f"--svg: newell could not order {frame.stats['unresolved']} polygons "
+                       f"(see --option max_actions / max_pair_tests), so no exact vector "
+                       f"picture exists; use --algorithm bsp")
     if polygons is None or polygons[2] != "back_to_front":
         raise CliError("--svg needs --algorithm bsp (back-to-front traversal) or newell")
     if args.shading == "depth":
