@@ -303,3 +303,74 @@ def test_newell_work_is_bounded_on_a_dense_soup():
     assert frame.stats["pair_tests"] <= 200_000 + 3000
     covered = (z.face_id >= 0) | (frame.face_id >= 0)
     assert (z.face_id == frame.face_id)[covered].mean() > 0.999
+
+
+def _bounded(code: str, seconds: int = 240, memory_gb: int = 2):
+    """Run ``code`` in a fresh interpreter with an address-space cap and a time-out, so
+    that a runaway (the regression these tests guard against) fails instead of taking the
+    machine. Returns its stdout."""
+    import subprocess
+    import sys
+
+    prelude = (f"import resource\nresource.setrlimit(resource.RLIMIT_AS, "
+               f"({memory_gb} << 30, {memory_gb} << 30))\n")
+    out = subprocess.run([sys.executable, "-c", prelude + code], capture_output=True,
+                         text=True, timeout=seconds)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return out.stdout
+
+
+@pytest.mark.parametrize("name", ["bsp_two_triangles.obj", "bsp_blowup.obj"])
+def test_bsp_build_ends_on_the_runaway_cases(cases_dir, name):
+    """These two valid files made the build split a piece by its own rounded plane forever
+    (12.7 GB seen). Now: a handful of nodes, and the picture equals the reference."""
+    import os
+
+    path = os.path.join(cases_dir, name)
+    out = _bounded(f"import hsr\nm = hsr.load({path!r})\nt = hsr.bsp.build(m)\n"
+                   f"print(t.n_nodes, t.splits)")
+    nodes, splits = (int(v) for v in out.split())
+    assert nodes <= 16 and splits <= 16
+    mesh = hsr.load(path)
+    cam = hsr.Camera.frame(mesh.bounds())
+    frame = hsr.render(mesh, cam, W, H, algorithm="bsp")
+    ref, _ = reference_render(mesh, cam, W, H)
+    amb = ambiguous_pixels(mesh, cam, W, H)
+    assert np.count_nonzero((frame.face_id != ref) & ~amb) == 0
+    assert frame.stats["bsp_build_ms"] > 0 and frame.stats["splits"] == splits
+
+
+def test_bsp_build_is_bounded():
+    mesh, _ = _soup(np.random.default_rng(5), 300, 1.0)
+    with pytest.raises(hsr.RenderError, match="grew past max_polygons = 310"):
+        hsr.bsp.build(mesh, max_polygons=310)
+    tree = hsr.bsp.build(mesh)
+    assert len(tree.triangles) <= bsp.default_max_polygons(300)
+    with pytest.raises(hsr.RenderError, match="max_polygons"):
+        hsr.bsp.build(mesh, max_polygons=0)
+
+
+def test_pieces_keep_their_source_plane():
+    """Every piece lies in the plane of the face it was cut from (a thin piece must not
+    be given a plane of its own from its rounded corners)."""
+    mesh, _ = _soup(np.random.default_rng(11), 40, 1.0)
+    tree = hsr.bsp.build(mesh)
+    assert tree.splits > 10
+    tris = mesh.positions[mesh.faces][tree.face_id]
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    dist = np.einsum("pkj,pj->pk", tree.triangles - tris[:, :1], normal)
+    assert np.abs(dist).max() < 1e-9
+
+
+@pytest.mark.parametrize("algorithm", ["zbuffer", "scanline", "raycast", "painter", "newell",
+                                       "bsp"])
+def test_all_degenerate_scene_draws_nothing(cases_dir, algorithm):
+    """Every face degenerate (../shared/cases/all_degenerate.obj): an empty picture, the
+    faces counted, no IndexError from an empty BSP tree."""
+    import os
+
+    mesh = hsr.load(os.path.join(cases_dir, "all_degenerate.obj"))
+    cam = hsr.Camera.look_at((3, 3, 6), (1, 1, 1))
+    frame = hsr.render(mesh, cam, 32, 24, algorithm=algorithm)
+    assert (frame.face_id == -1).all() and frame.stats["degenerate"] == 2

@@ -70,3 +70,32 @@ class Workers:
     def run_range(self, kernel, n: int, *args, min_chunk: int = 4096) -> list:
         """Run ``kernel`` over ``range(n)`` cut by :meth:`split`."""
         return self.run(kernel, self.split(n, min_chunk), *args)
+
+
+def run_with_progress(kernel, args, report, total: int, desc: str):
+    """``kernel(*args)`` on a thread (a ``nogil`` kernel runs while Python waits) with a
+    progress bar that follows ``report[0]`` (items done) and ``report[1]`` (items in all,
+    which may grow). Returns the kernel's result; re-raises its exception."""
+    import threading
+
+    from tqdm import tqdm
+
+    outcome = {}
+
+    def target():
+        try:
+            outcome["value"] = kernel(*args)
+        except BaseException as exc:  # re-raised on the caller's thread
+            outcome["error"] = exc
+
+    worker = threading.Thread(target=target, daemon=True)
+    worker.start()
+    with tqdm(total=total, desc=desc, unit="poly", leave=False) as bar:
+        while worker.is_alive():
+            worker.join(0.1)
+            bar.total = max(total, int(report[1]))
+            bar.n = int(report[0])
+            bar.refresh()
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]

@@ -8,6 +8,8 @@ hierarchical-z occlusion culling (:mod:`.hiz`) next to the z-buffer."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import RenderError
 from . import bsp, newell, painter, raycast, scanline, zbuffer
 from .support import Needs
@@ -15,7 +17,7 @@ from .support import Needs
 ALGORITHMS = {module.NAME: module for module in (zbuffer, scanline, raycast, painter, newell,
                                                  bsp)}
 
-__all__ = ["ALGORITHMS", "Needs", "check"]
+__all__ = ["ALGORITHMS", "Needs", "check", "check_option"]
 
 
 def check(name: str, options: dict, state, needs: Needs) -> None:
@@ -29,4 +31,23 @@ def check(name: str, options: dict, state, needs: Needs) -> None:
     if unknown:
         accepted = ", ".join(module.OPTIONS) or "none"
         raise RenderError(f"{name} has no option {', '.join(unknown)} (accepted: {accepted})")
+    for key, value in options.items():
+        check_option(name, key, value, module.OPTIONS[key])
     module.check(state, needs)
+
+
+def check_option(name: str, key: str, value, kind) -> None:
+    """``kind`` is what an algorithm's option takes: ``bool``, ``int`` (>= 0), a tuple of
+    allowed strings, or a class whose instances it accepts (a prebuilt BVH or BSP tree)."""
+    if kind is bool:
+        ok, wanted = isinstance(value, (bool, np.bool_)), "true or false"
+    elif kind is int:
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
+        wanted = "an integer >= 0"
+    elif isinstance(kind, tuple):
+        ok, wanted = value in kind, "one of " + ", ".join(kind)
+    else:
+        ok, wanted = isinstance(value, kind), f"an {kind.__module__.split('.')[0]}." \
+            f"{kind.__name__}"
+    if not ok:
+        raise RenderError(f"{name} option {key} must be {wanted}, got {value!r}")

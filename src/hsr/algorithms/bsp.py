@@ -19,9 +19,11 @@ from .fragments import Fragments
 from .support import Needs, refuse_unsupported
 
 NAME = "bsp"
-OPTIONS = ("tree", "heuristic", "traversal")  # accepted keys of render(..., options=...)
-DESCRIPTION = "Fuchs-Kedem-Naylor BSP tree: split by planes, walk back to front, paint"
 TRAVERSALS = ("back_to_front", "front_to_back")
+# Accepted keys of render(..., options=...) and what each takes (see Options).
+OPTIONS = {"tree": BSPTree, "heuristic": bsp_tree.HEURISTICS, "traversal": TRAVERSALS,
+           "max_polygons": int, "progress": bool}
+DESCRIPTION = "Fuchs-Kedem-Naylor BSP tree: split by planes, walk back to front, paint"
 
 
 def ordered_screen(tree, view, state, workers, traversal):
@@ -29,6 +31,10 @@ def ordered_screen(tree, view, state, workers, traversal):
     Returns (screen, source face of each screen triangle)."""
     walk = bsp_tree.back_to_front if traversal == "back_to_front" else bsp_tree.front_to_back
     order = walk(tree, view.camera)
+    if len(order) == 0:  # nothing but degenerate faces: nothing to draw
+        return (ScreenTriangles(np.zeros((0, 3, 2)), np.zeros((0, 3)), np.zeros(0, np.int64),
+                                np.zeros(0, bool), view.width, view.height, np.zeros((0, 4)),
+                                np.zeros((0, 3), np.int64)), np.zeros(0, np.int64), {})
     soup = tree.triangles[order]
     mesh = Mesh(soup.reshape(-1, 3), np.arange(3 * len(soup)).reshape(-1, 3), name="bsp")
     stats: dict = {}
@@ -44,7 +50,10 @@ def check(state: RenderState, needs: Needs) -> None:
 
 def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None = None,
             counts: bool = False, view=None, tree=None, heuristic: str = "balanced",
-            traversal: str = "back_to_front", **_) -> Fragments:
+            traversal: str = "back_to_front", max_polygons: int | None = None,
+            progress: bool = False, **_) -> Fragments:
+    """BSP visibility: ``tree`` (from :func:`hsr.bsp.build`) or one built now with
+    ``heuristic`` and ``max_polygons``; ``progress`` shows the build on the terminal."""
     if view is None:
         raise RenderError("bsp needs the scene and camera (call it through hsr.render)")
     if traversal not in TRAVERSALS:
@@ -52,11 +61,15 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     workers = workers or Workers()
     stats = {"traversal": traversal}
     if tree is None:
-        tree = bsp_tree.build(view.scene, heuristic)
-        stats["bsp_build_ms"] = tree.build_ms
+        tree = bsp_tree.build(view.scene, heuristic, max_polygons=max_polygons,
+                              progress=progress)
+    elif not isinstance(tree, BSPTree):
+        raise RenderError(f"bsp option tree must be an hsr.bsp.BSPTree (from hsr.bsp.build), "
+                          f"got {type(tree).__name__}")
     elif tree.n_faces != view.scene.n_faces:
         raise RenderError("the BSP tree was built for another scene")
-    stats.update(bsp_nodes=tree.n_nodes, splits=tree.splits, bsp_depth=tree.depth())
+    stats.update(bsp_nodes=tree.n_nodes, splits=tree.splits, bsp_depth=tree.depth(),
+                 bsp_build_ms=tree.build_ms)
     pieces, source, _ = ordered_screen(tree, view, state, workers, traversal)
     # Back to front: paint over whatever is there; front to back: first fragment wins.
     func = DepthFunc.ALWAYS.code if traversal == "back_to_front" else FIRST_WINS

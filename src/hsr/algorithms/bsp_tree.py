@@ -12,6 +12,15 @@ Splitter choice (``heuristic``): among up to ``candidates`` polygons of a node, 
 evenly through it, pick the one minimising ``split_weight * splits + |front - back|``
 ("balanced", the default, trades splits against balance), ``splits`` alone
 ("min_splits"), or simply take the first polygon ("first", the textbook version).
+
+Robustness: every polygon carries the plane of its source face, computed once from the
+whole face (pieces inherit it, so a thin piece never gets a plane of its own from its
+rounded corners); the splitter lies on its own plane by definition, never tested against
+it; corners within ``eps`` (scaled to the scene's extent) of a plane count as on it, so a
+plane that only grazes a polygon does not cut it. Every polygon is placed in exactly one
+node and pieces are cut only by planes of other polygons, so the build ends; it is also
+bounded: past ``max_polygons`` (default 64 n + 100,000, at most 20 million) it stops with a
+:class:`RenderError` instead of filling the memory.
 """
 
 from __future__ import annotations
@@ -24,6 +33,7 @@ from numba import njit
 
 from ..errors import RenderError
 from ..geometry.clip import grow, split_triangle
+from ..parallel import run_with_progress
 from ..scene.mesh import as_scene
 
 __all__ = ["BSPTree", "build", "back_to_front", "front_to_back", "HEURISTICS"]
@@ -64,7 +74,9 @@ class BSPTree:
         return len(self.face_id) - len(np.unique(self.face_id))
 
     def depth(self) -> int:
-        """Longest root-to-leaf path (number of nodes)."""
+        """Longest root-to-leaf path (number of nodes); 0 for an empty tree."""
+        if self.n_nodes == 0:
+            return 0
         best, stack = 0, [(0, 1)]
         while stack:
             node, d = stack.pop()
@@ -75,38 +87,59 @@ class BSPTree:
         return best
 
 
+def default_max_polygons(n_faces: int) -> int:
+    """The default bound on the polygons (faces and pieces) a tree may hold."""
+    return int(min(64 * n_faces + 100_000, 20_000_000))
+
+
 def build(scene, heuristic: str = "balanced", candidates: int = 8,
-          split_weight: float = 8.0) -> BSPTree:
-    """Build the BSP tree of ``scene``'s world-space triangles (degenerate ones left out)."""
+          split_weight: float = 8.0, max_polygons: int | None = None,
+          progress: bool = False) -> BSPTree:
+    """Build the BSP tree of ``scene``'s world-space triangles (degenerate ones left out).
+    Raises :class:`RenderError` for an unknown heuristic or when the tree would hold more
+    than ``max_polygons`` polygons (see :func:`default_max_polygons`). ``progress`` shows
+    a bar on the terminal."""
     if heuristic not in HEURISTICS:
         raise RenderError(f"bsp heuristic must be one of {', '.join(HEURISTICS)}; "
                           f"got {heuristic!r}")
     t0 = time.perf_counter()
     scene = as_scene(scene)
     tris = scene.world_triangles()
-    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    length = np.linalg.norm(normal, axis=1)
-    scale = np.maximum(np.einsum("ij,ij->i", tris[:, 1] - tris[:, 0], tris[:, 1] - tris[:, 0]),
-                       np.einsum("ij,ij->i", tris[:, 2] - tris[:, 0], tris[:, 2] - tris[:, 0]))
-    keep = np.flatnonzero(length > 1e-12 * scale)
-    extent = float(np.abs(tris).max()) if len(tris) else 1.0
+    limit = default_max_polygons(len(tris)) if max_polygons is None else max_polygons
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+        raise RenderError(f"bsp max_polygons must be a positive integer, got {limit!r}")
+    if limit < len(tris):
+        raise RenderError(f"bsp max_polygons = {limit:,} is less than the scene's "
+                          f"{len(tris):,} faces")
+    with np.errstate(all="ignore"):  # huge coordinates: their faces are left out below
+        normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        length = np.linalg.norm(normal, axis=1)
+        scale = np.maximum(np.einsum("ij,ij->i", tris[:, 1] - tris[:, 0],
+                                     tris[:, 1] - tris[:, 0]),
+                           np.einsum("ij,ij->i", tris[:, 2] - tris[:, 0],
+                                     tris[:, 2] - tris[:, 0]))
+        keep = np.flatnonzero(np.isfinite(length) & np.isfinite(scale)
+                              & (length > 1e-12 * scale))
+        unit = normal[keep] / length[keep, None]
+        # The plane through the centroid: its corners lie on it to rounding.
+        planes = np.concatenate([unit, -np.einsum("ij,ij->i", unit,
+                                                  tris[keep].mean(axis=1))[:, None]], axis=1)
+    extent = float(np.abs(tris[keep]).max()) if len(keep) else 1.0
     n_cand = 1 if heuristic == "first" else max(1, int(candidates))
     weight = 1.0 if heuristic == "min_splits" else float(split_weight)
     balance = 0.0 if heuristic == "min_splits" else 1.0
-    arrays = _build(np.ascontiguousarray(tris[keep]), keep.astype(np.int64), n_cand, weight,
-                    balance, 1e-9 * max(extent, 1e-300))
-    return BSPTree(*arrays, n_faces=len(tris), build_ms=1e3 * (time.perf_counter() - t0),
+    report = np.zeros(3, dtype=np.int64)  # polygons placed, polygons made, done
+    args = (np.ascontiguousarray(tris[keep]), keep.astype(np.int64),
+            np.ascontiguousarray(planes), n_cand, weight, balance, 1e-9 * max(extent, 1e-300),
+            int(limit), report)
+    out = run_with_progress(_build, args, report, len(keep), "bsp build") if progress \
+        else _build(*args)
+    if out[-1] != 0:
+        raise RenderError(f"bsp: the tree grew past max_polygons = {limit:,} polygons "
+                          f"({len(keep):,} faces cut again and again); raise the limit "
+                          f"(--option max_polygons=N) or use another algorithm")
+    return BSPTree(*out[:-1], n_faces=len(tris), build_ms=1e3 * (time.perf_counter() - t0),
                    heuristic=heuristic)
-
-
-@njit(cache=True, nogil=True)
-def _plane_of(tri):
-    e1 = tri[1] - tri[0]
-    e2 = tri[2] - tri[0]
-    n = np.array([e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                  e1[0] * e2[1] - e1[1] * e2[0]])
-    n /= np.sqrt((n * n).sum())
-    return n[0], n[1], n[2], -(n[0] * tri[0, 0] + n[1] * tri[0, 1] + n[2] * tri[0, 2])
 
 
 @njit(cache=True, nogil=True)
@@ -128,12 +161,14 @@ def _side(tri, nx, ny, nz, d, eps):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _append_pieces(pieces, k, src_face, tris, face, n_poly, idx, count):
-    """Store the ``k`` pieces of a split polygon as new polygons ``n_poly...`` of source
-    face ``src_face`` and list them in ``idx`` from ``count``. Returns (n_poly, count)."""
+def _append_pieces(pieces, k, src, tris, face, planes, n_poly, idx, count):
+    """Store the ``k`` pieces of split polygon ``src`` as new polygons ``n_poly...`` with
+    its source face and plane, and list them in ``idx`` from ``count``. Returns
+    (n_poly, count)."""
     for j in range(k):
         tris[n_poly] = pieces[j]
-        face[n_poly] = src_face
+        face[n_poly] = face[src]
+        planes[n_poly] = planes[src]
         idx[count] = n_poly
         count += 1
         n_poly += 1
@@ -141,12 +176,16 @@ def _append_pieces(pieces, k, src_face, tris, face, n_poly, idx, count):
 
 
 @njit(cache=True, nogil=True)
-def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
+def _build(tris_in, face_in, planes_in, n_cand, split_weight, balance_weight, eps,
+           max_polygons, report):
     n0 = tris_in.shape[0]
     tris = np.empty((max(4, 2 * n0), 3, 3))
     tris[:n0] = tris_in
     face = np.empty(max(4, 2 * n0), dtype=np.int64)
     face[:n0] = face_in
+    planes = np.empty((max(4, 2 * n0), 4))
+    planes[:n0] = planes_in
+    report[1] = n0
     n_poly = n0
     cap = max(4, n0)
     plane = np.empty((cap, 4))
@@ -166,7 +205,8 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
     top = 0
     if n0 == 0:
         return (plane[:0].copy(), front[:0].copy(), back[:0].copy(), poly_start[:0].copy(),
-                poly_count[:0].copy(), node_polys[:0].copy(), tris[:0].copy(), face[:0].copy())
+                poly_count[:0].copy(), node_polys[:0].copy(), tris[:0].copy(), face[:0].copy(),
+                0)
     n_nodes = 1
     stack_node[0], stack_lo[0], stack_n[0] = 0, 0, n0
     top = 1
@@ -181,9 +221,11 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
         if n_cand > 1 and cnt > 1:
             for c in range(0, cnt, step):
                 cand = pool[lo + c]
-                nx, ny, nz, d = _plane_of(tris[cand])
+                nx, ny, nz, d = planes[cand, 0], planes[cand, 1], planes[cand, 2], planes[cand, 3]
                 n_f = n_b = n_s = 0
                 for q in range(cnt):
+                    if pool[lo + q] == cand:
+                        continue
                     side = _side(tris[pool[lo + q]], nx, ny, nz, d, eps)
                     if side == _FRONT:
                         n_f += 1
@@ -194,7 +236,7 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
                 cost = split_weight * n_s + balance_weight * abs(n_f - n_b)
                 if cost < best_cost:
                     best_cost, best_i = cost, cand
-        nx, ny, nz, d = _plane_of(tris[best_i])
+        nx, ny, nz, d = planes[best_i, 0], planes[best_i, 1], planes[best_i, 2], planes[best_i, 3]
         plane[node, 0], plane[node, 1], plane[node, 2], plane[node, 3] = nx, ny, nz, d
         # Partition: on-plane polygons stay here; others go front / back (cut if needed).
         front_idx = np.empty(2 * cnt, dtype=np.int64)
@@ -203,7 +245,9 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
         poly_start[node] = n_node_polys
         for q in range(cnt):
             p = pool[lo + q]
-            side = _side(tris[p], nx, ny, nz, d, eps)
+            # The splitter lies on its own plane by definition: never test it (its rounded
+            # corners could seem to straddle it and be cut forever).
+            side = _ON if p == best_i else _side(tris[p], nx, ny, nz, d, eps)
             if side == _ON:
                 node_polys = grow(node_polys, n_node_polys + 1)
                 node_polys[n_node_polys] = p
@@ -216,13 +260,20 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
                 nb += 1
             else:
                 k_f, k_b = split_triangle(tris[p], nx, ny, nz, d, eps, piece_f, piece_b)
+                if n_poly + k_f + k_b > max_polygons:
+                    return (plane[:0].copy(), front[:0].copy(), back[:0].copy(),
+                            poly_start[:0].copy(), poly_count[:0].copy(), node_polys[:0].copy(),
+                            tris[:0].copy(), face[:0].copy(), 1)
                 tris = grow(tris, n_poly + k_f + k_b)
                 face = grow(face, n_poly + k_f + k_b)
-                n_poly, nf = _append_pieces(piece_f, k_f, face[p], tris, face, n_poly,
+                planes = grow(planes, n_poly + k_f + k_b)
+                n_poly, nf = _append_pieces(piece_f, k_f, p, tris, face, planes, n_poly,
                                             front_idx, nf)
-                n_poly, nb = _append_pieces(piece_b, k_b, face[p], tris, face, n_poly,
+                n_poly, nb = _append_pieces(piece_b, k_b, p, tris, face, planes, n_poly,
                                             back_idx, nb)
+                report[1] = n_poly
         poly_count[node] = n_node_polys - poly_start[node]
+        report[0] = n_node_polys
         for child_n, child_idx, is_front in ((nf, front_idx, True), (nb, back_idx, False)):
             if child_n == 0:
                 continue
@@ -251,9 +302,10 @@ def _build(tris_in, face_in, n_cand, split_weight, balance_weight, eps):
             stack_node[top], stack_lo[top], stack_n[top] = child, pool_len, child_n
             top += 1
             pool_len += child_n
+    report[2] = 1
     return (plane[:n_nodes].copy(), front[:n_nodes].copy(), back[:n_nodes].copy(),
             poly_start[:n_nodes].copy(), poly_count[:n_nodes].copy(),
-            node_polys[:n_node_polys].copy(), tris[:n_poly].copy(), face[:n_poly].copy())
+            node_polys[:n_node_polys].copy(), tris[:n_poly].copy(), face[:n_poly].copy(), 0)
 
 
 @njit(cache=True, nogil=True)

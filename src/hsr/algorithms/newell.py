@@ -35,13 +35,14 @@ from numba import njit
 from ..errors import RenderError
 from ..geometry.clip import grow, split_triangle
 from ..geometry.state import DepthFunc, RenderState
-from ..parallel import Workers
+from ..parallel import Workers, run_with_progress
 from ..raster.fill import rasterize
 from .fragments import Fragments
 from .support import Needs, refuse_unsupported
 
 NAME = "newell"
-OPTIONS = ("max_actions", "max_pair_tests", "progress")  # keys of render(..., options=...)
+# Accepted keys of render(..., options=...) and what each takes.
+OPTIONS = {"max_actions": int, "max_pair_tests": int, "progress": bool}
 DESCRIPTION = "Newell-Newell-Sancha: depth sort + 5 tests, reorder, split cycles"
 
 
@@ -101,7 +102,7 @@ def newell_order(xy_window, depth_window, face_id, width, height, max_actions=No
     args = (xy_window, depth_window, np.ascontiguousarray(face_id, dtype=np.int64),
             float(width), float(height), *grid, max_actions, max_pair_tests, report)
     if progress and n > 0:
-        out = _run_with_progress(args, report, n)
+        out = run_with_progress(_newell, args, report, n, "newell")
     else:
         out = _newell(*args)
     order, deferred, xy, z, face, n_moves, n_splits, n_tests = out
@@ -110,27 +111,6 @@ def newell_order(xy_window, depth_window, face_id, width, height, max_actions=No
              "max_actions": max_actions, "max_pair_tests": max_pair_tests}
     return (xy[order].copy(), z[order].copy(), face[order].copy(),
             (xy[deferred].copy(), z[deferred].copy(), face[deferred].copy()), stats)
-
-
-def _run_with_progress(args, report, n):
-    """The kernel on a thread (it releases the GIL) while a bar follows ``report``."""
-    import threading
-    import time
-
-    from tqdm import tqdm
-
-    result = []
-    worker = threading.Thread(target=lambda: result.append(_newell(*args)), daemon=True)
-    worker.start()
-    with tqdm(total=n, desc="newell", unit="poly", leave=False) as bar:
-        while worker.is_alive():
-            worker.join(0.1)
-            bar.total = max(n, int(report[1]))
-            bar.n = int(report[0])
-            bar.refresh()
-    if not result:
-        raise RenderError("newell failed (see the previous error)")
-    return result[0]
 
 
 def _grid_shape(xy_window, width, height):

@@ -20,9 +20,10 @@ from .fragments import Fragments
 from .support import Needs, refuse_unsupported
 
 NAME = "painter"
-OPTIONS = ("key", "check")  # accepted keys of render(..., options=...)
-DESCRIPTION = "depth sort (max / centroid / min key), paint far to near; fails on cycles"
 KEYS = ("max", "centroid", "min")
+# Accepted keys of render(..., options=...) and what each takes.
+OPTIONS = {"key": KEYS, "check": bool}
+DESCRIPTION = "depth sort (max / centroid / min key), paint far to near; fails on cycles"
 
 
 def sort_far_to_near(depth_window: np.ndarray, key: str) -> np.ndarray:

@@ -13,7 +13,8 @@ from .fragments import Fragments
 from .support import Needs, refuse_unsupported
 
 NAME = "raycast"
-OPTIONS = ("accel", "bvh", "force", "buffers")  # accepted keys of render(..., options=...)
+# Accepted keys of render(..., options=...) and what each takes.
+OPTIONS = {"accel": ("bvh", "none"), "bvh": BVH, "force": bool, "buffers": bool}
 DESCRIPTION = "one ray per pixel in world space; BVH (binned SAH) or naive; watertight test"
 NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" without force
 
@@ -49,6 +50,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     else:
         if bvh is None:
             bvh = build(view.scene)
+        elif not isinstance(bvh, BVH):
+            raise RenderError(f"raycast option bvh must be an hsr.raycast.BVH (from "
+                              f"hsr.raycast.build), got {type(bvh).__name__}")
         elif len(bvh.triangles) != view.scene.n_faces:
             raise RenderError("the BVH was built for another scene")
         triangles = bvh.triangles

@@ -30,7 +30,7 @@ from .fragments import Fragments
 from .support import Needs, refuse_unsupported
 
 NAME = "scanline"
-OPTIONS = ()  # accepted keys of render(..., options=...)
+OPTIONS: dict = {}  # accepted keys of render(..., options=...): none
 DESCRIPTION = "Watkins scan-line: active edge list, spans, incremental depth along the line"
 
 

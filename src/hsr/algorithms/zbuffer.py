@@ -25,7 +25,7 @@ from .hiz import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
 from .support import Needs, refuse_unsupported
 
 NAME = "zbuffer"
-OPTIONS = ()  # accepted keys of render(..., options=...)
+OPTIONS: dict = {}  # accepted keys of render(..., options=...): none
 DESCRIPTION = "depth buffer with OpenGL depth state (test, func, mask, clear, range)"
 _NO_COUNTS = np.zeros((1, 1), dtype=np.int32)
 _BY_FACE = np.zeros(0, dtype=np.int64)  # fill_band: records laid out by face

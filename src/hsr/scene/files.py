@@ -26,7 +26,7 @@ def check_regular(path, what: str, max_bytes: int) -> int:
     try:
         info = os.stat(path)
     except FileNotFoundError:
-        raise MeshError(f"{what} not found: {path}") from None
+        raise MeshError(f"file not found: {path}") from None
     except OSError as exc:
         raise MeshError(f"cannot read {what} {path}: {exc.strerror}") from None
     if stat.S_ISDIR(info.st_mode):
