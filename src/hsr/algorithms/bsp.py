@@ -16,7 +16,8 @@ from ..scene.mesh import Mesh, Scene
 from . import bsp_tree
 from .bsp_tree import BSPTree, build
 from .fragments import Fragments
-from .support import Needs, refuse_unsupported
+from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
+                      refuse_unsupported)
 
 NAME = "bsp"
 TRAVERSALS = ("back_to_front", "front_to_back")
@@ -45,6 +46,7 @@ def ordered_screen(tree, view, state, workers, traversal):
 
 def check(state: RenderState, needs: Needs) -> None:
     """Raise :class:`RenderError` for a request bsp cannot honour exactly."""
+    refuse_unless_nearest_wins(NAME, state)
     refuse_unsupported(NAME, state, needs, allowed=("counts", "offset"))
 
 
@@ -77,7 +79,8 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         pieces.xy_window, pieces.depth_window, source, screen.width, screen.height, state,
         workers, depth_test=True, depth_func=func, depth_write=True, counts=counts)
     stats.update(fragments_tested=int(tested), fragments_written=int(written),
-                 pieces_drawn=len(pieces))
+                 pieces_drawn=len(pieces),
+                 cleared_by_clear_depth=apply_clear_depth(face, depth, state))
     fragments = Fragments(face, depth, screen, stats, count_tested, count_written)
     # The ordered pieces are an exact vector picture (hsr.lines.svg) when painted in order.
     fragments.buffers["polygons"] = (pieces.xy_window, source, traversal)

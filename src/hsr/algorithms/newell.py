@@ -38,7 +38,8 @@ from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers, run_with_progress
 from ..raster.fill import rasterize
 from .fragments import Fragments
-from .support import Needs, refuse_unsupported
+from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
+                      refuse_unsupported)
 
 NAME = "newell"
 # Accepted keys of render(..., options=...) and what each takes.
@@ -48,6 +49,7 @@ DESCRIPTION = "Newell-Newell-Sancha: depth sort + 5 tests, reorder, split cycles
 
 def check(state: RenderState, needs: Needs) -> None:
     """Raise :class:`RenderError` for a request newell cannot honour exactly."""
+    refuse_unless_nearest_wins(NAME, state)
     refuse_unsupported(NAME, state, needs, allowed=("counts", "subset", "offset"))
 
 
@@ -80,6 +82,7 @@ def resolve(screen, state, workers: Workers | None = None, counts: bool = False,
         stats.update(fragments_tested=int(tested + t2), fragments_written=int(written + w2))
         if counts:
             c_tested, c_written = c_tested + ct2, c_written + cw2
+    stats["cleared_by_clear_depth"] = apply_clear_depth(fc, depth, state)
     fragments = Fragments(fc, depth, screen, stats, c_tested, c_written)
     if not len(deferred[2]):  # an exact vector picture only when everything was ordered
         fragments.buffers["polygons"] = (xy, face, "back_to_front")

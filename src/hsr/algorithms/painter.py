@@ -17,7 +17,8 @@ from ..parallel import Workers
 from ..raster.fill import rasterize
 from . import zbuffer
 from .fragments import Fragments
-from .support import Needs, refuse_unsupported
+from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
+                      refuse_unsupported)
 
 NAME = "painter"
 KEYS = ("max", "centroid", "min")
@@ -42,6 +43,7 @@ def sort_far_to_near(depth_window: np.ndarray, key: str) -> np.ndarray:
 
 def check(state: RenderState, needs: Needs) -> None:
     """Raise :class:`RenderError` for a request painter cannot honour exactly."""
+    refuse_unless_nearest_wins(NAME, state)
     refuse_unsupported(NAME, state, needs, allowed=("counts", "subset", "offset"))
 
 
@@ -57,7 +59,8 @@ def resolve(screen, state: RenderState, workers: Workers | None = None,
         screen.xy_window[order], screen.depth_window[order], screen.face_id[order],
         screen.width, screen.height, state, workers, depth_test=True,
         depth_func=DepthFunc.ALWAYS.code, depth_write=True, counts=counts)
-    stats = {"key": key, "fragments_tested": int(tested), "fragments_written": int(written)}
+    stats = {"key": key, "fragments_tested": int(tested), "fragments_written": int(written),
+             "cleared_by_clear_depth": apply_clear_depth(face, depth, state)}
     fragments = Fragments(face, depth, screen, stats, c_tested, c_written)
     if check:
         truth = zbuffer.resolve(screen, state, workers=workers)

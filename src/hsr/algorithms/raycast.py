@@ -10,7 +10,7 @@ from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
 from .bvh import BVH, build, cast
 from .fragments import Fragments
-from .support import Needs, refuse_unsupported
+from .support import Needs, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "raycast"
 # Accepted keys of render(..., options=...) and what each takes.
@@ -21,8 +21,7 @@ NAIVE_LIMIT = 2_000_000_000  # ray-triangle tests allowed for accel="none" witho
 
 def check(state: RenderState, needs: Needs) -> None:
     """Raise :class:`RenderError` for a request raycast cannot honour exactly."""
-    if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
-        raise RenderError("raycast implements the depth test with func less or lequal")
+    refuse_unless_nearest_wins(NAME, state)
     if needs.counts:
         raise RenderError("raycast does not record per-pixel fragment counts")
     refuse_unsupported(NAME, state, needs)

@@ -27,7 +27,7 @@ from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
 from ..raster.fill import band_split
 from .fragments import Fragments
-from .support import Needs, refuse_unsupported
+from .support import Needs, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "scanline"
 OPTIONS: dict = {}  # accepted keys of render(..., options=...): none
@@ -36,8 +36,7 @@ DESCRIPTION = "Watkins scan-line: active edge list, spans, incremental depth alo
 
 def check(state: RenderState, needs: Needs) -> None:
     """Raise :class:`RenderError` for a request scanline cannot honour exactly."""
-    if not state.depth_test or state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
-        raise RenderError("scanline implements the depth test with func less or lequal")
+    refuse_unless_nearest_wins(NAME, state)
     if needs.counts:
         raise RenderError("scanline does not record per-pixel fragment counts")
     refuse_unsupported(NAME, state, needs)

@@ -7,9 +7,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import RenderError
-from ..geometry.state import RenderState
+import numpy as np
 
-__all__ = ["Needs", "refuse_unsupported"]
+from ..geometry.state import DepthFunc, RenderState
+
+__all__ = ["Needs", "refuse_unsupported", "refuse_unless_nearest_wins", "apply_clear_depth"]
 
 
 @dataclass(frozen=True)
@@ -45,3 +47,41 @@ def refuse_unsupported(name: str, state: RenderState, needs: Needs, allowed=()) 
     for key, on in asked.items():
         if on and key not in allowed:
             raise RenderError(f"{name} does not support {_WHAT[key]}")
+
+
+def refuse_unless_nearest_wins(name: str, state: RenderState) -> None:
+    """Scan-line, ray casting and the depth-sorting algorithms (painter's, Newell, BSP)
+    find the *nearest* surface at each pixel. OpenGL's picture is that surface exactly
+    when the depth test is on with func less or lequal, depth writes are on, and the depth
+    range runs from near to far (n < f: with n > f the farthest surface wins, with n = f
+    all depths tie and submission order decides). Any other state is refused, naming it.
+    (The clear depth is honoured afterwards: :func:`apply_clear_depth`.)"""
+    why = f"{name} draws the nearest surface at each pixel; use zbuffer for"
+    if not state.depth_test:
+        raise RenderError(f"{why} depth_test=False (last submitted wins)")
+    if state.depth_func not in (DepthFunc.LESS, DepthFunc.LEQUAL):
+        raise RenderError(f"{why} depth_func {state.depth_func.value}")
+    if not state.depth_mask:
+        raise RenderError(f"{why} depth_mask=False (each fragment is tested against the "
+                          f"clear depth only)")
+    near, far = state.depth_range
+    if not near < far:
+        raise RenderError(f"{why} depth_range ({near:g}, {far:g}): "
+                          + ("reversed, the farthest surface wins" if near > far else
+                             "every depth ties, submission order decides"))
+
+
+def apply_clear_depth(face: np.ndarray, depth: np.ndarray, state: RenderState) -> int:
+    """The clear depth for an algorithm that drew the nearest surface of every pixel: in
+    OpenGL that surface is kept only if it passes the depth test against the clear value
+    (everything farther failed against it too). Clears, in place, the pixels where it
+    does not pass; returns how many."""
+    clear = np.float32(state.clear_depth)
+    drawn = face >= 0
+    passes = depth < clear if state.depth_func == DepthFunc.LESS else depth <= clear
+    dropped = drawn & ~passes
+    n = int(np.count_nonzero(dropped))
+    if n:
+        face[dropped] = -1
+        depth[dropped] = clear
+    return n

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..algorithms import ALGORITHMS
+from ..errors import RenderError
 from ..render import Frame, render
 
 __all__ = ["Comparison", "compare_algorithms", "montage", "difference_map"]
@@ -26,6 +27,7 @@ class Comparison:
     times_ms: dict
     reference: str = "zbuffer"
     rows: list = field(default_factory=list)
+    refused: dict = field(default_factory=dict)  # algorithm -> why it refused the state
 
     def records(self) -> list:
         """One dict per algorithm: name, ms, covered, agree (%), differ, counts (text)."""
@@ -48,6 +50,8 @@ class Comparison:
         for r in self.records():
             lines.append(f"{r['name']:10} {r['ms']:9.1f} {r['covered']:9d} {r['agree']:8.3f}% "
                          f"{r['differ']:8d}  {r['counts']}")
+        for name, why in self.refused.items():
+            lines.append(f"{name:10} refused: {why}")
         return "\n".join(lines)
 
 
@@ -60,9 +64,10 @@ def compare_algorithms(scene, camera, width, height, names, *, state=None, shadi
                        progress=False, look=None) -> Comparison:
     """Render with each algorithm in ``names`` (the z-buffer is always included as the
     reference). Times are warm: each algorithm first runs once on a tiny image so its
-    kernels are compiled."""
+    kernels are compiled. An algorithm that refuses the state (a :class:`RenderError`) is
+    listed in ``refused`` with its reason and left out of the frames."""
     names = list(dict.fromkeys(["zbuffer"] + list(names)))
-    frames, times = {}, {}
+    frames, times, refused = {}, {}, {}
     iterator = names
     if progress:
         from tqdm import tqdm
@@ -71,14 +76,21 @@ def compare_algorithms(scene, camera, width, height, names, *, state=None, shadi
     for name in iterator:
         # Each algorithm gets the options it understands.
         opts = {k: v for k, v in (options or {}).items() if k in ALGORITHMS[name].OPTIONS}
-        render(scene, camera, 16, 12, algorithm=name, state=state, threads=threads,
-               options=_tiny(name, opts))
+        try:
+            render(scene, camera, 16, 12, algorithm=name, state=state, threads=threads,
+                   options=_tiny(name, opts))
+        except RenderError as exc:
+            if name == "zbuffer":
+                raise
+            refused[name] = str(exc)  # a state it cannot honour: listed, not drawn
+            continue
         t0 = time.perf_counter()
         frames[name] = render(scene, camera, width, height, algorithm=name, state=state,
                               shading=shading, look=look, background=background,
                               threads=threads, options=opts)
         times[name] = 1e3 * (time.perf_counter() - t0)
-    return Comparison(names, frames, times)
+    drawn = [n for n in names if n in frames]
+    return Comparison(drawn, frames, times, refused=refused)
 
 
 def _tiny(name, opts):

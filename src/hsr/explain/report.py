@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from ..errors import OutputError
+from ..errors import OutputError, RenderError
 from .views import VIEWS, explain
 
 __all__ = ["build_report", "write_report"]
@@ -87,7 +87,12 @@ def build_report(scene, camera, title: str, width: int = 480, height: int = 360,
         from tqdm import tqdm
 
         iterator = tqdm(views, desc="views", leave=False)
-    explanations = [explain(v, scene, camera, width, height, state) for v in iterator]
+    explanations, refused = [], {}
+    for view in iterator:
+        try:
+            explanations.append(explain(view, scene, camera, width, height, state))
+        except RenderError as exc:  # a view whose algorithm cannot honour the state
+            refused[view] = str(exc)
     total_ms = 1e3 * (time.perf_counter() - t0)
 
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
@@ -120,6 +125,8 @@ def build_report(scene, camera, title: str, width: int = 480, height: int = 360,
         if extra:
             parts.append("<pre>" + html.escape("\n".join(extra)) + "</pre>")
         parts.append(_numbers_html(e.numbers))
+    for view, why in refused.items():
+        parts.append(f"<h2>{html.escape(view)}</h2><p>Not shown: {html.escape(why)}</p>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -132,6 +139,8 @@ def _comparison_html(comparison) -> str:
         f"<td>{r['agree']:.3f}%</td><td>{r['differ']}</td>"
         f"<td style=\"text-align:left\">{html.escape(r['counts'])}</td></tr>"
         for r in comparison.records())
+    rows += "".join(f'<tr><td>{name}</td><td colspan="5" style="text-align:left">refused: '
+                    f"{html.escape(why)}</td></tr>" for name, why in comparison.refused.items())
     return f'<div class="scroll"><table>{head}{rows}</table></div>'
 
 
