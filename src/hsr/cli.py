@@ -11,6 +11,8 @@ import numpy as np
 from .errors import HsrError
 
 EXIT_USAGE = 2
+# Coordinates beyond this cannot be squared in float64 (hsr.scene.camera.MAX_COORDINATE).
+_MAX_NUMBER = 1e100
 
 
 class CliError(HsrError):
@@ -33,6 +35,8 @@ def _floats(text: str, count: int, what: str) -> tuple:
         raise CliError(f"{what} must be {count} comma-separated numbers, got {text!r}") from None
     if len(values) != count or not all(math.isfinite(v) for v in values):
         raise CliError(f"{what} must be {count} finite comma-separated numbers, got {text!r}")
+    if any(abs(v) > _MAX_NUMBER for v in values):
+        raise CliError(f"{what} values must be within +-{_MAX_NUMBER:g}, got {text!r}")
     return values
 
 
@@ -176,6 +180,7 @@ def _auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
 
 
 def _camera_from_args(args, scene, default_camera):
+    from .errors import CameraError
     from .scene.camera import Camera
 
     up = _floats(args.up, 3, "--up")
@@ -190,19 +195,28 @@ def _camera_from_args(args, scene, default_camera):
         return Camera.look_at(cam.eye, cam.target, cam.up, fov, near, far)
     bounds = scene.bounds()
     target = np.array(_floats(args.target, 3, "--target")) if args.target else bounds.mean(axis=0)
-    if args.eye is None:
-        cam = Camera.frame(bounds, up=up, fov_y=args.fov, ortho_height=args.ortho)
-        eye = np.asarray(cam.eye) - np.asarray(cam.target) + target
-        near = args.near if args.near is not None else cam.near
-        far = args.far if args.far is not None else cam.far
-    else:
-        eye = np.array(_floats(args.eye, 3, "--eye"))
-        auto_near, auto_far = _auto_near_far(eye, bounds)
+    eye = np.array(_floats(args.eye, 3, "--eye")) if args.eye else None
+    try:
+        if eye is None:
+            cam = Camera.frame(bounds, up=up, fov_y=args.fov, ortho_height=args.ortho)
+            eye = np.asarray(cam.eye) - np.asarray(cam.target) + target
+            auto_near, auto_far = cam.near, cam.far
+        else:
+            with np.errstate(all="ignore"):  # an absurd eye fails in Camera below
+                auto_near, auto_far = _auto_near_far(eye, bounds)
         near = args.near if args.near is not None else auto_near
         far = args.far if args.far is not None else auto_far
-    if args.ortho is not None:
-        return Camera.orthographic(eye, target, up, args.ortho, near, far)
-    return Camera.look_at(eye, target, up, args.fov, near, far)
+        if args.ortho is not None:
+            return Camera.orthographic(eye, target, up, args.ortho, near, far)
+        return Camera.look_at(eye, target, up, args.fov, near, far)
+    except CameraError as exc:
+        given = [name for name, value in (("--eye", args.eye), ("--target", args.target),
+                                          ("--near", args.near), ("--far", args.far))
+                 if value is None]
+        if not given:
+            raise
+        raise CliError(f"the camera framed from the model's bounds is not valid ({exc}); "
+                       f"set {', '.join(given)}") from None
 
 
 def _options(pairs) -> dict:
@@ -297,7 +311,13 @@ def _hidden_line(args):
 
 def _cmd_render(args) -> int:
     from .render import render
+    from .scene.files import check_output
 
+    check_output(args.output)
+    for path, kinds in ((args.depth_out, (".npy", ".png")), (args.ids_out, (".npy",)),
+                        (args.svg, (".svg",)), (args.error_map, None)):
+        if path:
+            check_output(path, kinds)
     scene, camera, width, height, state, background, options = _setup(args)
     if args.lines and not args.svg:
         raise CliError("--lines writes an SVG: give --svg FILE")
@@ -393,8 +413,11 @@ def _algorithm_names(text: str) -> list:
 def _cmd_compare(args) -> int:
     from .algorithms import ALGORITHMS
     from .explain.compare import compare_algorithms, montage
+    from .scene.files import check_output, save_image
 
     names = _algorithm_names(args.algorithms)
+    if args.montage:
+        check_output(args.montage)
     scene, camera, width, height, state, background, options = _setup(args)
     known = {k for n in names for k in ALGORITHMS[n].OPTIONS}
     if set(options) - known:
@@ -406,7 +429,7 @@ def _cmd_compare(args) -> int:
     if not args.quiet:
         print(results.table())
     if args.montage:
-        montage(results).save(args.montage)
+        save_image(np.asarray(montage(results)), args.montage)
         if not args.quiet:
             print(f"wrote {args.montage}")
     return 0
@@ -414,10 +437,11 @@ def _cmd_compare(args) -> int:
 
 def _cmd_explain(args) -> int:
     from .explain.views import explain
+    from .scene.files import check_output
 
+    output = check_output(args.output or f"{args.view}.png")
     scene, camera, width, height, state, _, _ = _setup(args)
     result = explain(args.view, scene, camera, width, height, state)
-    output = args.output or f"{args.view}.png"
     result.save(output)
     if not args.quiet:
         print(f"wrote {output}")
@@ -434,8 +458,10 @@ def _cmd_report(args) -> int:
     import os
 
     from .explain.report import write_report
+    from .scene.files import check_output
 
     names = _algorithm_names(args.algorithms)
+    check_output(args.output, (".html", ".htm"))
     scene, camera, width, height, state, _, _ = _setup(args)
     title = ("hsr report: " + ", ".join(os.path.basename(m) for m in args.models)
              if args.models else f"hsr report: built-in scene {args.scene}")

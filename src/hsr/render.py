@@ -20,7 +20,7 @@ from .appearance.transparency import check_order, transparent_mask, transparent_
 from .errors import RenderError
 from .geometry.stage import prepare
 from .geometry.state import RenderState
-from .geometry.viewport import MAX_SIZE, check_size
+from .geometry.viewport import MAX_SIZE, check_memory, check_size
 from .lines.raster import HiddenLine, as_hidden_line
 from .lines.raster import check as check_lines
 from .lines.raster import draw_hidden_lines, fill_state, polygon_edges
@@ -142,6 +142,7 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     """
     t_start = time.perf_counter()
     check_size(width, height)
+    check_memory(width, height)
     if not isinstance(camera, Camera):
         raise RenderError(f"camera must be an hsr.Camera, got {type(camera).__name__}")
     camera.validate()

@@ -75,6 +75,13 @@ def build_report(scene, camera, title: str, width: int = 480, height: int = 360,
     from ..render import render
     from .compare import compare_algorithms
 
+    from ..geometry.viewport import check_size
+    from .views import MIN_SIZE
+
+    check_size(width, height)
+    if min(width, height) < MIN_SIZE:
+        raise RenderError(f"the report needs at least {MIN_SIZE}x{MIN_SIZE} pixels, "
+                          f"got {width}x{height}")
     t0 = time.perf_counter()
     names = list(algorithms or ALGORITHMS)
     comparison = compare_algorithms(scene, camera, width, height, names, state=state,

@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import RenderError
 from ..geometry.conventions import midpoint_depth_example
 from ..geometry.state import RenderState
+from ..geometry.viewport import check_size
 from ..render import render
 from ..scene.camera import Camera
 from ..scene.mesh import Mesh, Scene, as_scene
@@ -31,6 +32,8 @@ from ..scene.mesh import Mesh, Scene, as_scene
 __all__ = ["Explanation", "VIEWS", "explain", "depth_formats", "resolvable_depth",
            "quantize_depth", "ybuffer", "YBUFFER_SEGMENTS"]
 
+# Smallest image side an explanation is drawn at (its panels carry captions and legends).
+MIN_SIZE = 32
 _PANEL_BG = (24, 24, 28)
 _TEXT = (235, 235, 235)
 
@@ -51,9 +54,9 @@ class Explanation:
         from PIL import Image
 
         from ..errors import OutputError
-        from ..scene.files import _check_dir
+        from ..scene.files import check_output
 
-        _check_dir(path)
+        check_output(path)
         try:
             if str(path).lower().endswith(".gif"):
                 frames = self.frames or [self.image]
@@ -615,4 +618,8 @@ def explain(view: str, scene, camera, width: int = 320, height: int = 240,
     """Build one view (see :data:`VIEWS`)."""
     if view not in VIEWS:
         raise RenderError(f"unknown view {view!r}; choose from {', '.join(VIEWS)}")
+    check_size(width, height)
+    if min(width, height) < MIN_SIZE:
+        raise RenderError(f"explanation views need at least {MIN_SIZE}x{MIN_SIZE} pixels "
+                          f"(panels, captions and legends), got {width}x{height}")
     return VIEWS[view](as_scene(scene), camera, width, height, state or RenderState())

@@ -10,7 +10,20 @@ import numpy as np
 
 from ..errors import CameraError
 
-__all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matrix"]
+__all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matrix",
+           "MAX_DEPTH_RATIO", "MAX_COORDINATE"]
+
+# Window depth is stored as float32. For a perspective camera a surface at eye distance e
+# has window depth 1 - near/e (far >> near); beyond e = near * 2**24 that is within half a
+# float32 step of 1 and rounds to the far plane, where every surface ties and the depth
+# test (LESS against a clear of 1) drops it. So far / near may be at most 2**24.
+MAX_DEPTH_RATIO = float(1 << 24)
+# Coordinates (and products of two of them) must stay finite in float64.
+MAX_COORDINATE = 1e100
+# Smallest field of view and orthographic height (relative to the camera's coordinates):
+# below them one pixel is narrower than the float64 resolution of positions near the eye.
+MIN_FOV_DEGREES = 1e-6
+MIN_ORTHO_RELATIVE = 1e-9
 
 
 def _vec3(value, what) -> np.ndarray:
@@ -21,7 +34,10 @@ def _vec3(value, what) -> np.ndarray:
     if v.shape != (3,):
         raise CameraError(f"{what} must be three numbers, got {value!r}")
     if not np.isfinite(v).all():
-        raise CameraError(f"{what} must be finite, got {value!r}")
+        raise CameraError(f"{what} must be finite, got {v.tolist()}")
+    if np.abs(v).max() > MAX_COORDINATE:
+        raise CameraError(f"{what} coordinates must be within +-{MAX_COORDINATE:g}, "
+                          f"got {v.tolist()}")
     return v
 
 
@@ -32,6 +48,8 @@ def _finite(value, what) -> float:
         raise CameraError(f"{what} must be a number, got {value!r}") from None
     if not math.isfinite(v):
         raise CameraError(f"{what} must be finite, got {value!r}")
+    if abs(v) > MAX_COORDINATE:
+        raise CameraError(f"{what} must be within +-{MAX_COORDINATE:g}, got {value!r}")
     return v
 
 
@@ -121,6 +139,10 @@ class Camera:
         """A camera that sees the whole box ``bounds`` ((2, 3): min, max) from ``direction``
         (pointing from the target towards the eye), with near/far hugging the box."""
         bounds = np.asarray(bounds, dtype=np.float64)
+        if bounds.shape != (2, 3) or not np.isfinite(bounds).all() \
+                or np.abs(bounds).max() > MAX_COORDINATE:
+            raise CameraError(f"cannot frame bounds {bounds.tolist()!r}: they must be a finite "
+                              f"(2, 3) box within +-{MAX_COORDINATE:g}")
         center = bounds.mean(axis=0)
         radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-9)
         direction = _vec3(direction, "view direction")
@@ -146,18 +168,41 @@ class Camera:
         return self.ortho_height is not None
 
     def validate(self):
+        """Raise :class:`CameraError` unless the camera can be rendered exactly: finite
+        values within +-1e100, near < far, for perspective 0 < near, fov in
+        [1e-6, 180) degrees and far / near <= 2**24 (float32 window depth must tell the
+        far plane from the near one), for orthographic a height of at least 1e-9 times
+        the camera's coordinates; eye != target, up not parallel to the view."""
+        for value, what in ((self.near, "near"), (self.far, "far")):
+            _finite(value, what)
         if self.is_orthographic:
-            if not self.ortho_height > 0:
+            height = _finite(self.ortho_height, "ortho height")
+            if not height > 0:
                 raise CameraError(f"ortho height must be > 0, got {self.ortho_height}")
+            scale = max(1.0, float(np.abs(np.concatenate([self.eye, self.target])).max()),
+                        abs(self.near), abs(self.far))
+            if height < MIN_ORTHO_RELATIVE * scale:
+                raise CameraError(
+                    f"ortho height {height:g} is below {MIN_ORTHO_RELATIVE:g} x the camera's "
+                    f"coordinates ({scale:g}): a pixel would be finer than float64 can place "
+                    f"points there")
             if not self.far > self.near:
                 raise CameraError(f"far ({self.far}) must be greater than near ({self.near})")
         else:
-            if not 0 < self.fov_y < 180:
-                raise CameraError(f"fov must be in (0, 180) degrees, got {self.fov_y}")
+            fov = _finite(self.fov_y, "fov")
+            if not MIN_FOV_DEGREES <= fov < 180:
+                raise CameraError(f"fov must be in [{MIN_FOV_DEGREES:g}, 180) degrees, "
+                                  f"got {self.fov_y}")
             if not self.near > 0:
                 raise CameraError(f"near must be > 0 for a perspective camera, got {self.near}")
             if not self.far > self.near:
                 raise CameraError(f"far ({self.far}) must be greater than near ({self.near})")
+            if self.far / self.near > MAX_DEPTH_RATIO:
+                raise CameraError(
+                    f"far / near = {self.far / self.near:.3g} is more than 2**24: float32 "
+                    f"window depth rounds every surface farther than near x 2**24 = "
+                    f"{self.near * MAX_DEPTH_RATIO:.3g} to the far plane; raise near or "
+                    f"lower far")
         look_at_matrix(self.eye, self.target, self.up)  # raises on eye == target, bad up
 
     @property

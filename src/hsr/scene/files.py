@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import MeshError, OutputError
 
-__all__ = ["check_regular", "read_regular", "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES",
+__all__ = ["check_output", "check_regular", "read_regular", "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES",
            "MAX_MTL_BYTES"]
 
 # Default caps on what one input file may hold: a 10M-triangle OBJ is about 500 MB.
@@ -62,11 +62,30 @@ def _check_dir(path) -> str:
     return path
 
 
+def check_output(path, extensions=None) -> str:
+    """Raise :class:`OutputError` unless ``path`` can be written: its folder exists and
+    its extension is one of ``extensions`` (default: an image format Pillow writes).
+    Called before the work, so a bad path fails at once, not after a long render."""
+    path = _check_dir(path)
+    ext = os.path.splitext(path)[1].lower()
+    if extensions is None:
+        from PIL import Image
+
+        allowed = {e for e, fmt in Image.registered_extensions().items() if fmt in Image.SAVE}
+    else:
+        allowed = set(extensions)
+    if ext not in allowed:
+        shown = ", ".join(sorted(allowed)) if len(allowed) <= 6 else "png, jpg, tga, ..."
+        raise OutputError(f"cannot write {path}: unknown extension {ext or '(none)'!r} "
+                          f"(use {shown})")
+    return path
+
+
 def save_image(color: np.ndarray, path) -> None:
     """Write an (H, W, 3) uint8 image; the format follows the extension."""
     from PIL import Image
 
-    path = _check_dir(path)
+    path = check_output(path)
     try:
         Image.fromarray(np.ascontiguousarray(color)).save(path)
     except (ValueError, KeyError) as exc:  # Pillow: unknown extension

@@ -15,6 +15,9 @@ from numba import njit
 
 from ..errors import MeshError
 
+# Coordinates (and products of two of them) must stay finite in float64.
+MAX_COORDINATE = 1e100
+
 __all__ = ["Mesh", "Scene", "Instance", "as_mesh", "as_scene", "instance_of",
            "degenerate_faces", "is_degenerate"]
 
@@ -117,6 +120,12 @@ def _validate_arrays(positions, faces, name):
     if not finite[used].all():
         v = int(np.argwhere(~finite & used)[0][0])
         raise MeshError(f"{name}: vertex {v} has a NaN or infinite coordinate")
+    huge = used & (np.abs(positions) > MAX_COORDINATE).any(axis=1)
+    if huge.any():
+        v = int(np.argmax(huge))
+        raise MeshError(f"{name}: vertex {v} has a coordinate beyond +-{MAX_COORDINATE:g} "
+                        f"({np.abs(positions[v]).max():g}); products of coordinates must stay "
+                        f"finite in float64")
     return np.ascontiguousarray(positions), np.ascontiguousarray(faces)
 
 
@@ -141,9 +150,22 @@ class Instance:
     opacity: float = 1.0
 
     def __post_init__(self):
-        model = np.asarray(self.model, dtype=np.float64)
+        try:
+            model = np.asarray(self.model, dtype=np.float64)
+        except (TypeError, ValueError):
+            model = np.zeros(0)
         if model.shape != (4, 4) or not np.isfinite(model).all():
             raise MeshError(f"{self.mesh.name}: model matrix must be a finite 4x4 array")
+        if not np.array_equal(model[3], [0.0, 0.0, 0.0, 1.0]):
+            # A projective model matrix would put points at infinity (w = 0) and is not
+            # what a placement means; every stage applies the affine part.
+            raise MeshError(f"{self.mesh.name}: model matrix must be affine (last row "
+                            f"0, 0, 0, 1), got last row {model[3].tolist()}")
+        reach = np.abs(model[:3, :3]).sum(axis=1).max() * float(
+            np.abs(self.mesh.positions).max()) + np.abs(model[:3, 3]).max()
+        if not reach <= MAX_COORDINATE:
+            raise MeshError(f"{self.mesh.name}: the model matrix places vertices beyond "
+                            f"+-{MAX_COORDINATE:g}")
         self.model = model
         try:
             opacity = float(self.opacity)
