@@ -116,3 +116,23 @@ def test_readme_tree_names_only_files_that_exist():
     actual = {os.path.relpath(p, SRC) for p in _modules().values()}
     unlisted = sorted(a for a in actual - listed if not a.endswith("__init__.py"))
     assert not unlisted, f"modules missing from the README tree: {unlisted}"
+
+
+def test_public_entry_points_document_what_they_raise():
+    import inspect
+
+    import hsr
+    from hsr.cli import main
+    from hsr.explain import explain
+    from hsr.explain.compare import compare_algorithms
+    from hsr.explain.report import write_report
+
+    entry_points = [hsr.load, hsr.render, hsr.Mesh, hsr.Scene.add, hsr.Instance,
+                    hsr.Camera.look_at, hsr.Camera.orthographic, hsr.Camera.frame,
+                    hsr.Camera.validate, hsr.RenderState, hsr.bsp.build, hsr.raycast.build,
+                    hsr.hidden_lines, hsr.write_lines_svg, hsr.Frame.save, hsr.Frame.save_depth,
+                    hsr.Frame.save_ids, explain, compare_algorithms, write_report,
+                    hsr.scenes.get, hsr.Fog, hsr.HiddenLine, hsr.Look, main]
+    silent = [f.__qualname__ for f in entry_points
+              if not any(w in (inspect.getdoc(f) or "") for w in ("Raises", "Raise "))]
+    assert not silent, f"public entry points that do not say what they raise: {silent}"

@@ -159,3 +159,19 @@ def test_file_and_line_caps(tmp_path):
     long_line.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n" + b"\0" * (2 << 20))
     with pytest.raises(MeshError, match=":5: line of 2,097,152 bytes"):
         hsr.load(str(long_line))
+
+
+@pytest.mark.parametrize("name", CASES)
+@pytest.mark.parametrize("algorithm", list(hsr.ALGORITHMS))
+def test_every_case_renders_or_refuses_with_every_algorithm(cases_dir, name, algorithm):
+    """Each input behind a known failure, through load and render with every algorithm:
+    a picture, or an HsrError; nothing else, no warning."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            mesh = hsr.load(os.path.join(cases_dir, name))
+            hsr.render(mesh, hsr.Camera.frame(mesh.bounds()), 32, 24, algorithm=algorithm)
+        except hsr.HsrError:
+            pass

@@ -85,19 +85,28 @@ class Frame:
         return self.color.shape[0]
 
     def save(self, path) -> None:
-        """Write the colour image (PNG or any format Pillow knows)."""
+        """Write the colour image (PNG or any format Pillow knows).
+
+        Raises :class:`~hsr.errors.OutputError` for a missing folder or an unknown extension.
+        """
         from .scene.files import save_image
 
         save_image(self.color, path)
 
     def save_depth(self, path) -> None:
-        """Write the depth buffer: ``.npy`` float32, or 16-bit PNG (depth * 65535)."""
+        """Write the depth buffer: ``.npy`` float32, or 16-bit PNG (depth * 65535).
+
+        Raises :class:`~hsr.errors.OutputError` for a missing folder or another extension.
+        """
         from .scene.files import save_depth
 
         save_depth(self.depth, path)
 
     def save_ids(self, path) -> None:
-        """Write the face-id buffer as ``.npy`` int32."""
+        """Write the face-id buffer as ``.npy`` int32.
+
+        Raises :class:`~hsr.errors.OutputError` for a missing folder or another extension.
+        """
         from .scene.files import save_ids
 
         save_ids(self.face_id, path)

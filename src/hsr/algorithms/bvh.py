@@ -58,7 +58,10 @@ class BVH:
 
 
 def build(scene) -> BVH:
-    """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space."""
+    """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space.
+
+    Raises :class:`~hsr.errors.MeshError` for something that is not a scene or mesh.
+    """
     import time
 
     t0 = time.perf_counter()

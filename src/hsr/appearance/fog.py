@@ -28,6 +28,13 @@ DISTANCES = ("radial", "plane")
 
 @dataclass(frozen=True)
 class Fog:
+    """OpenGL 2.1 fixed-function fog: ``mode`` linear | exp | exp2 with ``start``/``end``
+    (linear) or ``density``, ``color`` (0..255), ``distance`` radial | plane.
+
+    Raises :class:`~hsr.errors.RenderError` for an unknown mode or distance, or parameters
+    that are not finite, negative, or an empty linear range.
+    """
+
     mode: str = "linear"
     start: float = 0.0
     end: float = 1.0

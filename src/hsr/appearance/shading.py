@@ -203,6 +203,9 @@ class Look:
     textures : use the meshes' textures where they have one and texture coordinates.
     texture_filter : ``nearest`` or ``bilinear``; texture_wrap : ``repeat`` or ``clamp``.
     fog : a :class:`hsr.Fog` or None.
+
+    Raises :class:`~hsr.errors.RenderError` for an unknown shading mode, filter or wrap, or
+    a fog that is not an :class:`hsr.Fog`.
     """
 
     shading: str = "flat"

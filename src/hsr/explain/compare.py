@@ -65,7 +65,10 @@ def compare_algorithms(scene, camera, width, height, names, *, state=None, shadi
     """Render with each algorithm in ``names`` (the z-buffer is always included as the
     reference). Times are warm: each algorithm first runs once on a tiny image so its
     kernels are compiled. An algorithm that refuses the state (a :class:`RenderError`) is
-    listed in ``refused`` with its reason and left out of the frames."""
+    listed in ``refused`` with its reason and left out of the frames.
+
+    Raises what :func:`hsr.render` raises for the z-buffer (bad scene, camera, size).
+    """
     names = list(dict.fromkeys(["zbuffer"] + list(names)))
     frames, times, refused = {}, {}, {}
     iterator = names

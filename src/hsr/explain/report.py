@@ -152,6 +152,11 @@ def _comparison_html(comparison) -> str:
 
 
 def write_report(path, scene, camera, title: str, **kwargs) -> None:
+    """Write the self-contained HTML report (see :func:`build_report` for the arguments).
+
+    Raises :class:`~hsr.errors.OutputError` when the file cannot be written and what
+    :func:`build_report` raises (:class:`~hsr.errors.RenderError` under 32x32, errors of
+    :func:`hsr.render`)."""
     page = build_report(scene, camera, title, **kwargs)
     try:
         with open(path, "w", encoding="utf-8") as fh:

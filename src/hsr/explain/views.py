@@ -615,7 +615,11 @@ VIEWS = {
 
 def explain(view: str, scene, camera, width: int = 320, height: int = 240,
             state: RenderState | None = None) -> Explanation:
-    """Build one view (see :data:`VIEWS`)."""
+    """Build one view (see :data:`VIEWS`).
+
+    Raises :class:`~hsr.errors.RenderError` for an unknown view, an image under 32x32 or
+    a state the view's algorithm cannot honour; errors of :func:`hsr.render` otherwise.
+    """
     if view not in VIEWS:
         raise RenderError(f"unknown view {view!r}; choose from {', '.join(VIEWS)}")
     check_size(width, height)

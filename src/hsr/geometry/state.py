@@ -69,7 +69,11 @@ def _enum(cls, value, what):
 @dataclass(frozen=True)
 class RenderState:
     """The depth and culling state a draw runs with (OpenGL defaults, except that the
-    depth test is enabled, since hidden-surface removal is the point)."""
+    depth test is enabled, since hidden-surface removal is the point).
+
+    Raises :class:`~hsr.errors.RenderError` for an unknown enum value or a depth value
+    outside [0, 1].
+    """
 
     depth_test: bool = True
     depth_func: DepthFunc = DepthFunc.LESS

@@ -45,6 +45,9 @@ class HiddenLine:
     color : line colour; None = white on a dark background, black on a light one.
     fill : ``background`` (a classic hidden-line drawing) or ``shaded`` (edges over the
         shaded image).
+
+    Raises :class:`~hsr.errors.RenderError` for an unknown edge kind or fill, or a crease
+    angle outside 0..180.
     """
 
     edges: str = "all"

@@ -264,7 +264,11 @@ def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | 
     """Exact visible (and hidden) parts of the scene's edges (all or feature edges, per
     ``settings``) as seen by ``camera`` in a ``width`` x ``height`` image. ``state``
     supplies culling and winding (culled faces neither occlude nor contribute edges).
-    ``progress`` (default: when stderr is a terminal) shows a bar on big meshes."""
+    ``progress`` (default: when stderr is a terminal) shows a bar on big meshes.
+
+    Raises :class:`~hsr.errors.RenderError`, :class:`~hsr.errors.CameraError` or
+    :class:`~hsr.errors.MeshError` for invalid arguments, as :func:`hsr.render` does.
+    """
     import sys
 
     from ..parallel import Workers
@@ -406,7 +410,10 @@ def write_lines_svg(path, drawing: LineDrawing, background=(255, 255, 255),
                     color=(0, 0, 0), hidden: bool = False, stroke_width: float = 1.0) -> None:
     """Write the drawing as SVG: one ``<path>`` per polyline in a ``visible`` group and,
     with ``hidden``, the hidden parts dashed in a ``hidden`` group. The viewBox is the
-    image, so the SVG overlays the PNG of the same render."""
+    image, so the SVG overlays the PNG of the same render.
+
+    Raises :class:`~hsr.errors.OutputError` when the file cannot be written.
+    """
 
     def rgb(c):
         return f"rgb({int(c[0])},{int(c[1])},{int(c[2])})"

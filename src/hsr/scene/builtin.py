@@ -286,7 +286,10 @@ SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres
 
 
 def get(name: str):
-    """``(Scene, Camera)`` of the built-in scene ``name``."""
+    """``(Scene, Camera)`` of the built-in scene ``name``.
+
+    Raises :class:`~hsr.errors.HsrError` for an unknown name.
+    """
     if name not in SCENES:
         raise HsrError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
     return SCENES[name]()

@@ -117,7 +117,10 @@ class Camera:
 
     @classmethod
     def look_at(cls, eye, target, up=(0.0, 1.0, 0.0), fov_y=45.0, near=0.1, far=100.0):
-        """A perspective camera (gluLookAt + gluPerspective)."""
+        """A perspective camera (gluLookAt + gluPerspective).
+
+        Raises :class:`~hsr.errors.CameraError` as :meth:`validate` says.
+        """
         cam = cls(tuple(_vec3(eye, "eye")), tuple(_vec3(target, "target")),
                   tuple(_vec3(up, "up")), _finite(fov_y, "fov"), _finite(near, "near"),
                   _finite(far, "far"))
@@ -126,7 +129,10 @@ class Camera:
 
     @classmethod
     def orthographic(cls, eye, target, up=(0.0, 1.0, 0.0), height=2.0, near=0.1, far=100.0):
-        """An orthographic camera (gluLookAt + glOrtho) seeing ``height`` world units."""
+        """An orthographic camera (gluLookAt + glOrtho) seeing ``height`` world units.
+
+        Raises :class:`~hsr.errors.CameraError` as :meth:`validate` says.
+        """
         cam = cls(tuple(_vec3(eye, "eye")), tuple(_vec3(target, "target")),
                   tuple(_vec3(up, "up")), 45.0, _finite(near, "near"), _finite(far, "far"),
                   _finite(height, "ortho height"))
@@ -137,7 +143,11 @@ class Camera:
     def frame(cls, bounds, direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0), fov_y=45.0,
               ortho_height=None, margin=1.1):
         """A camera that sees the whole box ``bounds`` ((2, 3): min, max) from ``direction``
-        (pointing from the target towards the eye), with near/far hugging the box."""
+        (pointing from the target towards the eye), with near/far hugging the box.
+
+        Raises :class:`~hsr.errors.CameraError` for bounds that are not a finite box within
+        +-1e100, a zero direction, or a camera :meth:`validate` refuses.
+        """
         bounds = np.asarray(bounds, dtype=np.float64)
         if bounds.shape != (2, 3) or not np.isfinite(bounds).all() \
                 or np.abs(bounds).max() > MAX_COORDINATE:

@@ -36,6 +36,9 @@ class Mesh:
     face_colors : (F, 3) uint8 or None, a base colour per face.
     texture : path or (H, W, 3|4) uint8 array or None, the diffuse texture.
     name : a label used in messages.
+
+    Raises :class:`~hsr.errors.MeshError` for arrays of the wrong shape or type, indices
+    outside the vertices, NaN, infinite or huge (> 1e100) coordinates used by a face, no faces.
     """
 
     positions: np.ndarray
@@ -143,7 +146,11 @@ def _validate_corner(values, shape, what, name):
 @dataclass(eq=False)
 class Instance:
     """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p).
-    ``opacity`` < 1 makes the instance transparent (alpha blended, see hsr.appearance.transparency)."""
+    ``opacity`` < 1 makes the instance transparent (alpha blended, see hsr.appearance.transparency).
+
+    Raises :class:`~hsr.errors.MeshError` for a model matrix that is not a finite affine
+    4x4 (last row 0, 0, 0, 1) or places vertices beyond 1e100, or an opacity outside [0, 1].
+    """
 
     mesh: Mesh
     model: np.ndarray = field(default_factory=lambda: np.eye(4))
@@ -192,6 +199,10 @@ class Scene:
                 self.add(*item)
 
     def add(self, mesh: Mesh, model=None, opacity: float = 1.0) -> "Scene":
+        """Append an instance of ``mesh`` (a Mesh, trimesh.Trimesh or (vertices, faces))
+        placed by ``model`` (4x4, default identity). Returns the scene.
+
+        Raises :class:`~hsr.errors.MeshError` as :class:`Mesh` and :class:`Instance` do."""
         if not isinstance(mesh, Mesh):
             mesh = as_mesh(mesh)
         self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity))
