@@ -473,8 +473,8 @@ def _cmd_report(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Run the ``hsr`` command with ``argv`` (default: the process arguments). Returns the
-    exit code and raises nothing for bad input: 0 on success, 2 with one line on stderr
+    """Run the ``hsr`` command with ``argv`` (default: the process arguments) and return
+    the exit code. Raises nothing for bad input: 0 on success, 2 with one line on stderr
     (``hsr: error: ...``) for any :class:`~hsr.errors.HsrError`, 130 when interrupted, 1
     when memory runs out after all."""
     argv = sys.argv[1:] if argv is None else list(argv)
