@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 from conftest import scaled
-from hypothesis import event, given, settings
+from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 from reference import ambiguous_pixels, reference_render
 
@@ -51,7 +51,21 @@ states = st.fixed_dictionaries(dict(
     front_face=st.sampled_from(["ccw", "cw"])))
 
 
+# Found by the long profile: orthographic depth near 0 tested EQUAL against a clear of 0
+# (a tie the reference saw as equal within its tolerance).
+_TIE = dict(
+    mesh=hsr.Mesh(np.array([[0.60029681, -1.18868783, -8.57336133],
+                            [1.19984677, -0.44731266, -9.10602647],
+                            [-0.08486399, -1.23249038, -8.73349587]]), [[0, 1, 2]]),
+    cam=dict(kind="ortho", eye=np.zeros(3), target=np.array([0.0, 0.0, -6.0]), height=4.0,
+             near=-0.1, far=1e8),
+    state=dict(depth_test=True, depth_func="equal", depth_mask=True, clear_depth=0.0,
+               depth_range=(0.0, 1.0), cull="none", front_face="ccw"),
+    algorithm="zbuffer")
+
+
 @settings(max_examples=scaled(500))
+@example(**_TIE)
 @given(mesh=soups(), cam=cameras(), state=states,
        algorithm=st.sampled_from(list(hsr.ALGORITHMS)))
 def test_render_equals_reference_or_refuses(mesh, cam, state, algorithm):
@@ -72,6 +86,10 @@ def test_render_equals_reference_or_refuses(mesh, cam, state, algorithm):
     event("rendered")
     ref, _ = reference_render(mesh, camera, W, H, **state)
     amb = ambiguous_pixels(mesh, camera, W, H, **state)
+    # Depth ties: the reference compares depths within two float32 steps at 1.0 as equal;
+    # where exact comparison changes its answer the pixel is a tie (e.g. depths near 0
+    # tested EQUAL against a clear of 0), and either answer is right.
+    amb |= reference_render(mesh, camera, W, H, tie_eps=0.0, **state)[0] != ref
     wrong = int(np.count_nonzero((frame.face_id != ref) & ~amb))
     allowed = frame.stats.get("pixels_wrong", 0) if algorithm == "painter" else \
         (2 if algorithm in ("newell", "bsp") else 0)  # T-junction slivers of cuts
