@@ -374,3 +374,13 @@ def test_all_degenerate_scene_draws_nothing(cases_dir, algorithm):
     cam = hsr.Camera.look_at((3, 3, 6), (1, 1, 1))
     frame = hsr.render(mesh, cam, 32, 24, algorithm=algorithm)
     assert (frame.face_id == -1).all() and frame.stats["degenerate"] == 2
+
+
+@pytest.mark.parametrize("algorithm", ["newell", "bsp"])
+def test_progress_bar_path_gives_the_same_picture(algorithm, capsys):
+    """With progress on, the kernel runs on a thread while a bar follows it: same result."""
+    mesh, cam = _soup(np.random.default_rng(2), 60, 1.0)
+    a = hsr.render(mesh, cam, W, H, algorithm=algorithm)
+    b = hsr.render(mesh, cam, W, H, algorithm=algorithm, options={"progress": True})
+    assert np.array_equal(a.face_id, b.face_id)
+    assert algorithm in capsys.readouterr().err  # the bar's label
