@@ -240,6 +240,35 @@ def _cell_range(lo, hi, size, cells):
     return min(a, cells - 1), min(b, cells - 1)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _extents(p, xy, z, zmin, zmax, box):
+    """Depth range and screen box (x0, x1, y0, y1) of polygon ``p``."""
+    zmin[p] = min(z[p, 0], z[p, 1], z[p, 2])
+    zmax[p] = max(z[p, 0], z[p, 1], z[p, 2])
+    box[p, 0] = min(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
+    box[p, 1] = max(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
+    box[p, 2] = min(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
+    box[p, 3] = max(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
+
+
+@njit(cache=True, nogil=True)
+def _index(p, box, width, height, gx, gy, cell_first, entry_poly, entry_next, n_entries):
+    """List polygon ``p`` in every grid cell its box meets (at the head of each cell's
+    linked list). Returns the (possibly grown) entry arrays and their length."""
+    cx0, cx1 = _cell_range(box[p, 0], box[p, 1], width, gx)
+    cy0, cy1 = _cell_range(box[p, 2], box[p, 3], height, gy)
+    for cy in range(cy0, cy1 + 1):
+        for cx in range(cx0, cx1 + 1):
+            entry_poly = grow(entry_poly, n_entries + 1)
+            entry_next = grow(entry_next, n_entries + 1)
+            c = cy * gx + cx
+            entry_poly[n_entries] = p
+            entry_next[n_entries] = cell_first[c]
+            cell_first[c] = n_entries
+            n_entries += 1
+    return entry_poly, entry_next, n_entries
+
+
 @njit(cache=True, nogil=True)
 def _newell(xy_in, z_in, face_in, width, height, gx, gy, max_actions, max_tests, report):
     n0 = xy_in.shape[0]
@@ -274,27 +303,11 @@ def _newell(xy_in, z_in, face_in, width, height, gx, gy, max_actions, max_tests,
             scale = max(scale, abs(xy[p, k, 0]), abs(xy[p, k, 1]))
     eps_xy = 1e-9 * scale
     eps_z = 1e-12
-    n_poly = 0
     for p in range(n0):
-        zmin[p] = min(z[p, 0], z[p, 1], z[p, 2])
-        zmax[p] = max(z[p, 0], z[p, 1], z[p, 2])
-        box[p, 0] = min(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
-        box[p, 1] = max(xy[p, 0, 0], xy[p, 1, 0], xy[p, 2, 0])
-        box[p, 2] = min(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
-        box[p, 3] = max(xy[p, 0, 1], xy[p, 1, 1], xy[p, 2, 1])
+        _extents(p, xy, z, zmin, zmax, box)
         heap, n_heap = _heap_push(heap, n_heap, zmax, p)
-    for p in range(n0):
-        cx0, cx1 = _cell_range(box[p, 0], box[p, 1], width, gx)
-        cy0, cy1 = _cell_range(box[p, 2], box[p, 3], height, gy)
-        for cy in range(cy0, cy1 + 1):
-            for cx in range(cx0, cx1 + 1):
-                entry_poly = grow(entry_poly, n_entries + 1)
-                entry_next = grow(entry_next, n_entries + 1)
-                c = cy * gx + cx
-                entry_poly[n_entries] = p
-                entry_next[n_entries] = cell_first[c]
-                cell_first[c] = n_entries
-                n_entries += 1
+        entry_poly, entry_next, n_entries = _index(p, box, width, height, gx, gy, cell_first,
+                                                   entry_poly, entry_next, n_entries)
     n_poly = n0
     report[1] = n0
     n_moves = n_splits = n_tests = 0
@@ -448,27 +461,14 @@ def _newell(xy_in, z_in, face_in, width, height, gx, gy, max_actions, max_tests,
                 xy[m, c, 1] = part[c, 1]
                 z[m, c] = part[c, 2]
             face[m] = face[victim]
-            zmin[m] = min(z[m, 0], z[m, 1], z[m, 2])
-            zmax[m] = max(z[m, 0], z[m, 1], z[m, 2])
-            box[m, 0] = min(xy[m, 0, 0], xy[m, 1, 0], xy[m, 2, 0])
-            box[m, 1] = max(xy[m, 0, 0], xy[m, 1, 0], xy[m, 2, 0])
-            box[m, 2] = min(xy[m, 0, 1], xy[m, 1, 1], xy[m, 2, 1])
-            box[m, 3] = max(xy[m, 0, 1], xy[m, 1, 1], xy[m, 2, 1])
+            _extents(m, xy, z, zmin, zmax, box)
             state[m] = 0
             mark[m] = 0
             stamp[m] = -1
             heap, n_heap = _heap_push(heap, n_heap, zmax, m)
-            cx0, cx1 = _cell_range(box[m, 0], box[m, 1], width, gx)
-            cy0, cy1 = _cell_range(box[m, 2], box[m, 3], height, gy)
-            for cy in range(cy0, cy1 + 1):
-                for cx in range(cx0, cx1 + 1):
-                    entry_poly = grow(entry_poly, n_entries + 1)
-                    entry_next = grow(entry_next, n_entries + 1)
-                    c = cy * gx + cx
-                    entry_poly[n_entries] = m
-                    entry_next[n_entries] = cell_first[c]
-                    cell_first[c] = n_entries
-                    n_entries += 1
+            entry_poly, entry_next, n_entries = _index(m, box, width, height, gx, gy,
+                                                       cell_first, entry_poly, entry_next,
+                                                       n_entries)
             n_poly += 1
         report[1] = n_poly
         # Marks belonged to the old list; start fresh for the new pieces.
