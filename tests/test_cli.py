@@ -183,3 +183,24 @@ def test_appearance_options(tmp_path, capsys, models_dir):
         code, _, err = run(["render", "-o", str(out), "--size", "80x60", "--quiet"] + extra,
                            capsys)
         assert code == 0, (extra, err)
+
+
+@pytest.mark.parametrize("argv", [
+    ["compare", "{case}", "--size", "48x36"],
+    ["report", "{case}", "--size", "48x36", "-o", "{tmp}/r.html"],
+    ["explain", "bsp", "{case}", "--size", "48x36", "-o", "{tmp}/e.png"],
+    ["render", "{case}", "--algorithm", "bsp", "--size", "48x36", "-o", "{tmp}/o.png"],
+])
+def test_all_degenerate_model_through_every_command(cases_dir, tmp_path, capsys, argv):
+    """An IndexError from the empty BSP tree reached render, compare, report and explain."""
+    case = os.path.join(cases_dir, "all_degenerate.obj")
+    argv = [a.replace("{case}", case).replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(argv) == 0, capsys.readouterr().err
+
+
+def test_summary_line_says_what_newell_left_unresolved(tmp_path, capsys):
+    code, out, _ = run(["render", "--scene", "cyclic", "--algorithm", "newell", "--size",
+                        "48x36", "--option", "max_actions=0", "-o", str(tmp_path / "c.png")],
+                       capsys)
+    assert code == 0
+    assert "3 unresolved polygons" in out and "pixels drawn by the depth-test fallback" in out
