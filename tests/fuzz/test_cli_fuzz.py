@@ -7,11 +7,12 @@ import io
 import os
 import warnings
 
-from conftest import scaled
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from hsr.cli import main
+
+from . import scaled
 
 CASES = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "cases")
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "models")

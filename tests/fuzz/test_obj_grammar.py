@@ -4,12 +4,13 @@ indentation, CRLF, continuation lines, w and colour columns, groups) and with mu
 same MeshError; nothing else may escape; a clean file reads as an independent reader says."""
 
 import numpy as np
-from conftest import scaled
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hsr.errors import MeshError
 from hsr.scene.obj import read_obj
+
+from . import scaled
 
 _num = st.one_of(st.integers(-50, 50).map(str),
                  st.floats(-1e3, 1e3, allow_nan=False).map(lambda f: f"{f:.6g}"),

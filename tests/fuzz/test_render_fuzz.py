@@ -5,12 +5,13 @@ so), or is an HsrError. No other exception, no warning."""
 import warnings
 
 import numpy as np
-from conftest import scaled
 from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 from reference import ambiguous_pixels, reference_render
 
 import hsr
+
+from . import scaled
 
 W, H = 40, 30
 FUNCS = ["never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always"]
