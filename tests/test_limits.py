@@ -134,3 +134,15 @@ def test_framing_a_model_the_camera_cannot_hold_names_the_options(tmp_path, caps
     assert main(["render", str(path), "-o", str(tmp_path / "x.png")]) == 2
     err = capsys.readouterr().err
     assert "framed from the model's bounds" in err and "set --eye" in err
+
+
+def test_render_arguments_of_the_wrong_name_or_type_are_refused(cubes):
+    """A mistyped state field escaped as TypeError, a state of the wrong type as
+    AttributeError."""
+    scene, cam = cubes
+    with pytest.raises(hsr.RenderError, match="render\\(\\) has no argument cul"):
+        hsr.render(scene, cam, 32, 24, cul="back")
+    with pytest.raises(hsr.RenderError, match="state must be an hsr.RenderState"):
+        hsr.render(scene, cam, 32, 24, state="back")
+    with pytest.raises(hsr.RenderError, match="camera must be an hsr.Camera"):
+        hsr.render(scene, "camera", 32, 24)

@@ -155,6 +155,13 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     if not isinstance(camera, Camera):
         raise RenderError(f"camera must be an hsr.Camera, got {type(camera).__name__}")
     camera.validate()
+    fields = RenderState.__dataclass_fields__
+    unknown = sorted(set(state_fields) - set(fields))
+    if unknown:
+        raise RenderError(f"render() has no argument {', '.join(unknown)} (render state "
+                          f"fields: {', '.join(fields)})")
+    if state is not None and not isinstance(state, RenderState):
+        raise RenderError(f"state must be an hsr.RenderState, got {type(state).__name__}")
     if state is None:
         state = RenderState(**state_fields)
     elif state_fields:
