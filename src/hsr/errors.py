@@ -20,3 +20,13 @@ class RenderError(HsrError):
 
 class OutputError(HsrError):
     """An output file cannot be written (bad extension, missing directory, ...)."""
+
+
+def check_choice(value, choices, what: str, error=None) -> str:
+    """``value`` if it is one of the strings ``choices``, else an error (``error``, default
+    :class:`RenderError`) that lists them. Safe for values of any type (an array is not
+    compared element by element)."""
+    if not isinstance(value, str) or value not in choices:
+        raise (error or RenderError)(f"{what} must be one of {', '.join(choices)}; "
+                                     f"got {value!r}")
+    return value

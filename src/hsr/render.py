@@ -170,9 +170,20 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     background = check_background(background)
     check_order(transparency)
     hidden_line = as_hidden_line(hidden_line)
+    for name, value in (("counts", counts), ("occlusion_cull", occlusion_cull),
+                        ("textures", textures)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise RenderError(f"{name} must be True or False, got {value!r}")
+    if threads is not None and (isinstance(threads, bool) or not isinstance(
+            threads, (int, np.integer)) or threads < 1):
+        raise RenderError(f"threads must be a positive integer or None, got {threads!r}")
+    if into is not None and not isinstance(into, Frame):
+        raise RenderError(f"into must be an hsr.Frame, got {type(into).__name__}")
     if into is not None and (into.width, into.height) != (width, height):
         raise RenderError("into= frame has a different size")
     scene = as_scene(scene)
+    if options is not None and not isinstance(options, dict):
+        raise RenderError(f"options must be a dict, got {type(options).__name__}")
     options = dict(options or {})
     transparent = transparent_mask(scene)
     # Each stage states what it cannot combine: the line stage (polygon modes), then the

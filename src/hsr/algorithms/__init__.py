@@ -23,9 +23,11 @@ __all__ = ["ALGORITHMS", "Needs", "check", "check_option"]
 def check(name: str, options: dict, state, needs: Needs) -> None:
     """Raise :class:`RenderError` unless algorithm ``name`` exists, accepts every key of
     ``options`` and honours ``state`` with ``needs`` exactly."""
-    if name not in ALGORITHMS:
+    if not isinstance(name, str) or name not in ALGORITHMS:
         raise RenderError(
             f"unknown algorithm {name!r}; choose from {', '.join(sorted(ALGORITHMS))}")
+    if not isinstance(options, dict):
+        raise RenderError(f"options must be a dict, got {type(options).__name__}")
     module = ALGORITHMS[name]
     unknown = sorted(set(options) - set(module.OPTIONS))
     if unknown:

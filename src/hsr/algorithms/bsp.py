@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..geometry.stage import ScreenTriangles, prepare
 from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
@@ -58,8 +58,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     ``heuristic`` and ``max_polygons``; ``progress`` shows the build on the terminal."""
     if view is None:
         raise RenderError("bsp needs the scene and camera (call it through hsr.render)")
-    if traversal not in TRAVERSALS:
-        raise RenderError(f"bsp traversal must be one of {', '.join(TRAVERSALS)}")
+    check_choice(traversal, TRAVERSALS, "bsp traversal")
     workers = workers or Workers()
     stats = {"traversal": traversal}
     if tree is None:

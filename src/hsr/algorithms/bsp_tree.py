@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..geometry.clip import grow, split_triangle
 from ..parallel import run_with_progress
 from ..scene.mesh import as_scene
@@ -99,9 +99,7 @@ def build(scene, heuristic: str = "balanced", candidates: int = 8,
     Raises :class:`RenderError` for an unknown heuristic or when the tree would hold more
     than ``max_polygons`` polygons (see :func:`default_max_polygons`). ``progress`` shows
     a bar on the terminal."""
-    if heuristic not in HEURISTICS:
-        raise RenderError(f"bsp heuristic must be one of {', '.join(HEURISTICS)}; "
-                          f"got {heuristic!r}")
+    check_choice(heuristic, HEURISTICS, "bsp heuristic")
     t0 = time.perf_counter()
     scene = as_scene(scene)
     tris = scene.world_triangles()

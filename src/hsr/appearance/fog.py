@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 
 __all__ = ["Fog", "MODES", "parse_fog"]
 
@@ -43,22 +43,23 @@ class Fog:
     distance: str = "radial"
 
     def __post_init__(self):
-        if self.mode not in MODES:
-            raise RenderError(f"fog mode must be one of {', '.join(MODES)}; got {self.mode!r}")
-        if self.distance not in DISTANCES:
-            raise RenderError(f"fog distance must be one of {', '.join(DISTANCES)}; "
-                              f"got {self.distance!r}")
+        check_choice(self.mode, MODES, "fog mode")
+        check_choice(self.distance, DISTANCES, "fog distance")
         for name in ("start", "end", "density"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value):
                 raise RenderError(f"fog {name} must be a finite number, got {value!r}")
         if self.mode == "linear" and self.end == self.start:
             raise RenderError("linear fog needs end != start")
         if self.mode != "linear" and self.density < 0:
             raise RenderError(f"fog density must be >= 0, got {self.density}")
-        color = tuple(self.color)
-        if len(color) != 3 or not all(isinstance(c, (int, float)) and 0 <= c <= 255
-                                      for c in color):
+        try:
+            color = tuple(self.color)
+        except TypeError:
+            color = ()
+        if len(color) != 3 or not all(isinstance(c, (int, float, np.integer, np.floating))
+                                      and 0 <= c <= 255 for c in color):
             raise RenderError(f"fog colour must be three numbers in 0..255, got {self.color!r}")
         object.__setattr__(self, "color", color)
 

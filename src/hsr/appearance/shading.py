@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..parallel import Workers
 from ..scene.images import load_texture
 from ..scene.mesh import instance_of
@@ -215,15 +215,11 @@ class Look:
     fog: Fog | None = None
 
     def __post_init__(self):
-        if self.shading not in SHADING_MODES:
-            raise RenderError(
-                f"shading must be one of {', '.join(SHADING_MODES)}; got {self.shading!r}")
-        if self.texture_filter not in FILTERS:
-            raise RenderError(f"texture filter must be one of {', '.join(FILTERS)}; "
-                              f"got {self.texture_filter!r}")
-        if self.texture_wrap not in WRAPS:
-            raise RenderError(f"texture wrap must be one of {', '.join(WRAPS)}; "
-                              f"got {self.texture_wrap!r}")
+        check_choice(self.shading, SHADING_MODES, "shading")
+        check_choice(self.texture_filter, FILTERS, "texture filter")
+        check_choice(self.texture_wrap, WRAPS, "texture wrap")
+        if not isinstance(self.textures, (bool, np.bool_)):
+            raise RenderError(f"textures must be True or False, got {self.textures!r}")
         if self.fog is not None and not isinstance(self.fog, Fog):
             raise RenderError(f"fog must be an hsr.Fog, got {type(self.fog).__name__}")
 

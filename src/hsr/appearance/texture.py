@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 
 __all__ = ["FILTERS", "WRAPS", "sample"]
 
@@ -31,10 +31,8 @@ def sample(texture: np.ndarray, uv: np.ndarray, filter: str = "bilinear",
            wrap: str = "repeat") -> np.ndarray:
     """(K, 3) float64 colours (0..255) of ``texture`` (from :func:`hsr.scene.images.load_texture`) at
     (K, 2) texture coordinates ``uv``."""
-    if filter not in FILTERS:
-        raise RenderError(f"texture filter must be one of {', '.join(FILTERS)}; got {filter!r}")
-    if wrap not in WRAPS:
-        raise RenderError(f"texture wrap must be one of {', '.join(WRAPS)}; got {wrap!r}")
+    check_choice(filter, FILTERS, "texture filter")
+    check_choice(wrap, WRAPS, "texture wrap")
     height, width = texture.shape[:2]
     s = uv[:, 0] * width
     t = uv[:, 1] * height

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..geometry.setup import HALF as _HALF
 from ..geometry.setup import ONE as _ONE
 from ..geometry.setup import setup_triangles
@@ -32,8 +32,7 @@ ORDERS = ("object", "exact")
 
 def check_order(order: str) -> None:
     """``render(transparency=...)``: per-object sorting or the exact per-fragment sort."""
-    if order not in ORDERS:
-        raise RenderError(f"transparency must be object or exact, got {order!r}")
+    check_choice(order, ORDERS, "transparency")
 
 
 def transparent_mask(scene) -> np.ndarray:

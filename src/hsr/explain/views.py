@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..geometry.conventions import midpoint_depth_example
 from ..geometry.state import RenderState
 from ..geometry.viewport import check_size
@@ -620,8 +620,7 @@ def explain(view: str, scene, camera, width: int = 320, height: int = 240,
     Raises :class:`~hsr.errors.RenderError` for an unknown view, an image under 32x32 or
     a state the view's algorithm cannot honour; errors of :func:`hsr.render` otherwise.
     """
-    if view not in VIEWS:
-        raise RenderError(f"unknown view {view!r}; choose from {', '.join(VIEWS)}")
+    check_choice(view, tuple(VIEWS), "view")
     check_size(width, height)
     if min(width, height) < MIN_SIZE:
         raise RenderError(f"explanation views need at least {MIN_SIZE}x{MIN_SIZE} pixels "

@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
+import numpy as np
+
 from ..errors import RenderError
 
 __all__ = ["DepthFunc", "CullMode", "FrontFace", "PolygonMode", "RenderState"]
@@ -87,6 +89,11 @@ class RenderState:
     polygon_offset: tuple = (0.0, 0.0)
 
     def __post_init__(self):
+        for name in ("depth_test", "depth_mask"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise RenderError(f"{name} must be True or False, got {value!r}")
+            object.__setattr__(self, name, bool(value))
         object.__setattr__(self, "polygon_mode",
                            _enum(PolygonMode, self.polygon_mode, "polygon mode"))
         try:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from ..geometry.conventions import GUARD_BAND_PIXELS
 from ..geometry.setup import ONE as _ONE
 from ..raster.fill import depth_passes
@@ -63,12 +63,26 @@ class HiddenLine:
         return (255, 255, 255) if float(np.mean(background)) < 128 else (0, 0, 0)
 
     def __post_init__(self):
-        if self.edges not in EDGE_KINDS:
-            raise RenderError(f"edges must be one of {', '.join(EDGE_KINDS)}; got {self.edges!r}")
-        if not (0.0 <= float(self.crease_angle) <= 180.0):
-            raise RenderError(f"crease angle must be in 0..180 degrees, got {self.crease_angle}")
-        if self.fill not in ("background", "shaded"):
-            raise RenderError(f"hidden-line fill must be background or shaded, got {self.fill!r}")
+        check_choice(self.edges, EDGE_KINDS, "edges")
+        check_choice(self.fill, ("background", "shaded"), "hidden-line fill")
+        angle = self.crease_angle
+        if isinstance(angle, bool) or not isinstance(angle, (int, float, np.integer,
+                                                             np.floating)) \
+                or not 0.0 <= angle <= 180.0:
+            raise RenderError(f"crease angle must be a number in 0..180 degrees, got {angle!r}")
+        if self.color is not None and not _is_rgb(self.color):
+            raise RenderError(f"line colour must be three numbers in 0..255, "
+                              f"got {self.color!r}")
+
+
+def _is_rgb(value) -> bool:
+    try:
+        parts = tuple(value)
+    except TypeError:
+        return False
+    return len(parts) == 3 and all(
+        isinstance(c, (int, float, np.integer, np.floating)) and not isinstance(c, bool)
+        and 0 <= c <= 255 for c in parts)
 
 
 @dataclass

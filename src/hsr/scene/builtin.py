@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from ..errors import HsrError
+from ..errors import HsrError, check_choice
 from .camera import Camera
 from .mesh import Mesh, Scene
 
@@ -290,6 +290,5 @@ def get(name: str):
 
     Raises :class:`~hsr.errors.HsrError` for an unknown name.
     """
-    if name not in SCENES:
-        raise HsrError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
+    check_choice(name, tuple(SCENES), "scene", HsrError)
     return SCENES[name]()

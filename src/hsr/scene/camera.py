@@ -148,7 +148,11 @@ class Camera:
         Raises :class:`~hsr.errors.CameraError` for bounds that are not a finite box within
         +-1e100, a zero direction, or a camera :meth:`validate` refuses.
         """
-        bounds = np.asarray(bounds, dtype=np.float64)
+        try:
+            bounds = np.asarray(bounds, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise CameraError(f"cannot frame bounds {bounds!r}: they must be a finite (2, 3) "
+                              f"box") from None
         if bounds.shape != (2, 3) or not np.isfinite(bounds).all() \
                 or np.abs(bounds).max() > MAX_COORDINATE:
             raise CameraError(f"cannot frame bounds {bounds.tolist()!r}: they must be a finite "
