@@ -53,6 +53,22 @@ def _finite(value, what) -> float:
     return v
 
 
+def _matrix(value, shape, what) -> np.ndarray:
+    try:
+        m = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CameraError(f"{what} must be a {shape[0]}x{shape[1]} array of numbers") from None
+    if m.shape != shape or not np.isfinite(m).all() or np.abs(m).max() > MAX_COORDINATE:
+        raise CameraError(f"{what} must be a finite {shape[0]}x{shape[1]} array, got shape "
+                          f"{m.shape}")
+    return m
+
+
+def _check_rotation(R: np.ndarray, what: str) -> None:
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
+        raise CameraError(f"{what} must be a rotation (orthonormal, det +1)")
+
+
 def look_at_matrix(eye, target, up) -> np.ndarray:
     """gluLookAt: world -> eye space; the camera looks down -Z with +Y up."""
     eye, target, up = _vec3(eye, "eye"), _vec3(target, "target"), _vec3(up, "up")
@@ -105,6 +121,12 @@ class Camera:
     space, the aspect (width / height) coming from the image at render time.
     Perspective: ``fov_y`` degrees in (0, 180), ``0 < near < far``. Orthographic:
     ``ortho_height`` world units visible vertically, ``near < far`` (either may be negative).
+
+    ``intrinsics`` (from :meth:`from_opencv` or :meth:`from_matrices`): a pinhole with its
+    own focal lengths and principal point, as fractions of the image, ``(fx / W, fy / H,
+    (cx + 0.5) / W, (cy + 0.5) / H)`` in OpenCV's pixels (centres on integers). It then
+    sets the projection (an off-axis frustum, ``fov_y`` only describes it) and the camera
+    sees the same field at any image size.
     """
 
     eye: tuple
@@ -114,6 +136,98 @@ class Camera:
     near: float = 0.1
     far: float = 100.0
     ortho_height: float | None = None
+    intrinsics: tuple | None = None
+
+    @classmethod
+    def from_opencv(cls, K, R, t, width: int, height: int, near: float = 0.1,
+                    far: float = 100.0) -> "Camera":
+        """A camera from OpenCV's pinhole model: ``x_cam = R @ x_world + t`` with camera axes
+        x right, y down, z forward, and ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` for an
+        image of ``width`` x ``height`` pixels. OpenCV puts pixel *centres* on integer
+        coordinates: a point projecting to (u, v) = (10.0, 20.0) is at the centre of hsr's
+        pixel column 10, row 20 (hsr samples pixel (x, y) at (x + 0.5, y + 0.5)).
+
+        Raises :class:`~hsr.errors.CameraError` for a K that is not upper triangular with
+        positive focal lengths and zero skew, an R that is not a rotation (orthonormal,
+        det +1), a t that is not three numbers, or what :meth:`validate` refuses.
+        """
+        K = _matrix(K, (3, 3), "K")
+        R = _matrix(R, (3, 3), "R")
+        t = _vec3(t, "t")
+        for value, what in ((width, "width"), (height, "height")):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise CameraError(f"{what} must be a positive number of pixels, got {value!r}")
+        fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+        if not (fx > 0 and fy > 0) or K[0, 1] != 0 or K[1, 0] != 0 \
+                or not np.array_equal(K[2], [0.0, 0.0, 1.0]):
+            raise CameraError(f"K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0 "
+                              f"(no skew), got {K.tolist()}")
+        _check_rotation(R, "R")
+        eye = -R.T @ t
+        forward = R.T @ np.array([0.0, 0.0, 1.0])
+        up = -(R.T @ np.array([0.0, 1.0, 0.0]))
+        fov_y = math.degrees(2.0 * math.atan(height / (2.0 * fy)))
+        cam = cls(tuple(eye), tuple(eye + forward), tuple(up), fov_y, _finite(near, "near"),
+                  _finite(far, "far"),
+                  intrinsics=(fx / width, fy / height, (cx + 0.5) / width, (cy + 0.5) / height))
+        cam.validate()
+        return cam
+
+    def to_opencv(self, width: int, height: int):
+        """``(K, R, t)`` of this camera for an image of ``width`` x ``height`` pixels, in
+        OpenCV's conventions (see :meth:`from_opencv`). Raises
+        :class:`~hsr.errors.CameraError` for an orthographic camera (OpenCV's model is a
+        pinhole)."""
+        if self.is_orthographic:
+            raise CameraError("an orthographic camera has no OpenCV pinhole model")
+        a, b, c, d = self._normalised_intrinsics(width / height)
+        K = np.array([[a * width, 0.0, c * width - 0.5], [0.0, b * height, d * height - 0.5],
+                      [0.0, 0.0, 1.0]])
+        flip = np.diag([1.0, -1.0, -1.0])  # OpenGL eye axes -> OpenCV camera axes
+        view = self.view_matrix
+        return K, flip @ view[:3, :3], flip @ view[:3, 3]
+
+    @classmethod
+    def from_matrices(cls, view, projection) -> "Camera":
+        """A camera from OpenGL-convention 4x4 matrices: ``view`` (world -> eye, a rotation
+        and a translation) and a perspective ``projection`` (glFrustum / gluPerspective
+        form, possibly off-axis). The projection is kept exactly: the camera sees the same
+        field at any image size.
+
+        Raises :class:`~hsr.errors.CameraError` for a view with scaling or shear, or a
+        projection that is not a perspective frustum (orthographic matrices are not taken
+        yet: use :meth:`orthographic`).
+        """
+        view = _matrix(view, (4, 4), "view matrix")
+        proj = _matrix(projection, (4, 4), "projection matrix")
+        if not np.array_equal(view[3], [0.0, 0.0, 0.0, 1.0]):
+            raise CameraError(f"view matrix must be affine, got last row {view[3].tolist()}")
+        _check_rotation(view[:3, :3], "the view matrix's 3x3 part")
+        if not (np.array_equal(proj[3], [0.0, 0.0, -1.0, 0.0]) and proj[0, 1] == 0
+                and proj[0, 3] == 0 and proj[1, 0] == 0 and proj[1, 3] == 0
+                and np.array_equal(proj[2, :2], [0.0, 0.0]) and proj[0, 0] > 0
+                and proj[1, 1] > 0 and proj[2, 2] != 1 and proj[2, 2] != -1):
+            raise CameraError("projection must be a perspective frustum (glFrustum form: last "
+                              "row 0, 0, -1, 0); orthographic matrices are not taken yet, use "
+                              "Camera.orthographic")
+        near = proj[2, 3] / (proj[2, 2] - 1.0)
+        far = proj[2, 3] / (proj[2, 2] + 1.0)
+        rot = view[:3, :3]
+        eye = -rot.T @ view[:3, 3]
+        a, b = proj[0, 0] / 2.0, proj[1, 1] / 2.0
+        fov_y = math.degrees(2.0 * math.atan(1.0 / (2.0 * b)))
+        cam = cls(tuple(eye), tuple(eye - rot[2]), tuple(rot[1]), fov_y, float(near),
+                  float(far), intrinsics=(a, b, (1.0 - proj[0, 2]) / 2.0,
+                                          (1.0 + proj[1, 2]) / 2.0))
+        cam.validate()
+        return cam
+
+    def _normalised_intrinsics(self, aspect: float) -> tuple:
+        """(fx / W, fy / H, (cx + 0.5) / W, (cy + 0.5) / H) of the perspective projection."""
+        if self.intrinsics is not None:
+            return self.intrinsics
+        f = 1.0 / math.tan(math.radians(self.fov_y) / 2.0)
+        return f / (2.0 * aspect), f / 2.0, 0.5, 0.5
 
     @classmethod
     def look_at(cls, eye, target, up=(0.0, 1.0, 0.0), fov_y=45.0, near=0.1, far=100.0):
@@ -189,6 +303,12 @@ class Camera:
         the camera's coordinates; eye != target, up not parallel to the view."""
         for value, what in ((self.near, "near"), (self.far, "far")):
             _finite(value, what)
+        if self.intrinsics is not None:
+            values = np.asarray(self.intrinsics, dtype=np.float64)
+            if values.shape != (4,) or not np.isfinite(values).all() or values[0] <= 0 \
+                    or values[1] <= 0 or np.abs(values).max() > 1e12:
+                raise CameraError(f"intrinsics must be four finite numbers with positive "
+                                  f"focal lengths, got {self.intrinsics!r}")
         if self.is_orthographic:
             height = _finite(self.ortho_height, "ortho height")
             if not height > 0:
@@ -230,7 +350,15 @@ class Camera:
             half_h = self.ortho_height / 2.0
             half_w = half_h * aspect
             return orthographic_matrix(-half_w, half_w, -half_h, half_h, self.near, self.far)
-        return perspective_matrix(self.fov_y, aspect, self.near, self.far)
+        if self.intrinsics is None:
+            return perspective_matrix(self.fov_y, aspect, self.near, self.far)
+        # An off-axis frustum from the normalised intrinsics: x_ndc = 2 (u + 0.5) / W - 1
+        # with u = fx x / z + cx the OpenCV pixel of a point at depth z = -z_eye.
+        a, b, c, d = self.intrinsics
+        proj = perspective_matrix(90.0, 1.0, self.near, self.far)
+        proj[0, 0], proj[0, 2] = 2.0 * a, 1.0 - 2.0 * c
+        proj[1, 1], proj[1, 2] = 2.0 * b, 2.0 * d - 1.0
+        return proj
 
     @property
     def forward(self) -> np.ndarray:

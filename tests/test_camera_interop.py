@@ -1,0 +1,152 @@
+"""Cameras from other tools (issue #14, the OpenCV and OpenGL-matrix part), checked with an
+independent projection in plain NumPy: OpenCV's pinhole ``x_cam = R x_world + t``,
+``(u, v) = (fx x / z + cx, fy y / z + cy)`` with pixel centres on integer (u, v). No hsr
+matrix is used by the checks."""
+
+import numpy as np
+import pytest
+
+import hsr
+
+W, H = 96, 72
+
+
+def random_opencv(rng):
+    """K with fx != fy and an off-centre principal point, a random rotation, a t."""
+    fx = rng.uniform(60, 160)
+    K = np.array([[fx, 0.0, rng.uniform(0.25, 0.75) * W],
+                  [0.0, fx * rng.uniform(0.7, 1.4), rng.uniform(0.25, 0.75) * H],
+                  [0.0, 0.0, 1.0]])
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    R = q * np.sign(np.linalg.det(q))
+    return K, R, rng.normal(size=3)
+
+
+def soup_in_view(rng, K, R, t, n=8):
+    """Triangles in camera coordinates in front of the camera, moved to world space."""
+    centers = np.stack([rng.uniform(-0.6, 0.6, n), rng.uniform(-0.5, 0.5, n),
+                        rng.uniform(3, 8, n)], axis=1)
+    centers[:, :2] *= centers[:, 2:] * np.array([W / K[0, 0], H / K[1, 1]]) / 2
+    cam = centers[:, None, :] + rng.normal(scale=0.8, size=(n, 3, 3))
+    world = (cam - t) @ R  # x_world = R^T (x_cam - t)
+    return hsr.Mesh(world.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+
+
+def pixel_rays(K, R, t, cols, rows):
+    """World-space rays through OpenCV pixel centres (u, v) = (col, row)."""
+    pix = np.stack([cols, rows, np.ones(len(cols))], axis=1).astype(float)
+    d_cam = pix @ np.linalg.inv(K).T
+    return -R.T @ t, d_cam @ R  # origin, directions (R^T d)
+
+
+def hits(origin, dirs, tri):
+    """Moller-Trumbore: (t, u, v) of each ray against one triangle."""
+    e1, e2 = tri[1] - tri[0], tri[2] - tri[0]
+    p = np.cross(dirs, e2)
+    det = p @ e1
+    inv = 1.0 / np.where(det == 0, np.nan, det)
+    s = origin - tri[0]
+    u = (p @ s) * inv
+    q = np.cross(s, e1)
+    v = (dirs @ q) * inv
+    return (q @ e2) * inv, u, v
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_opencv_pixel_centres_see_the_reported_face(seed):
+    rng = np.random.default_rng(seed)
+    K, R, t = random_opencv(rng)
+    mesh = soup_in_view(rng, K, R, t)
+    cam = hsr.Camera.from_opencv(K, R, t, W, H, near=0.5, far=50)
+    frame = hsr.render(mesh, cam, W, H)
+    rows, cols = np.mgrid[0:H, 0:W]
+    rows, cols = rows.ravel(), cols.ravel()
+    tris = mesh.positions[mesh.faces]
+    # Samples at the pixel centre and 0.01 pixel around it: window coordinates are snapped
+    # to 1/256 pixel, so a centre that close to an edge may go either way.
+    samples = [(0.0, 0.0), (0.01, 0.01), (-0.01, 0.01), (0.01, -0.01), (-0.01, -0.01)]
+    dist = np.full((len(samples), len(tris), len(rows)), np.inf)
+    for s, (du, dv) in enumerate(samples):
+        origin, dirs = pixel_rays(K, R, t, cols + du, rows + dv)
+        for f, tri in enumerate(tris):
+            d, u, v = hits(origin, dirs, tri)
+            ok = (np.minimum(np.minimum(u, v), 1 - u - v) >= 0) & (d > 0)
+            dist[s, f, ok] = d[ok]
+    hit = np.isfinite(dist)
+    face = frame.face_id.ravel()
+    covered = np.flatnonzero(face >= 0)
+    assert len(covered) > 200
+    # Every covered pixel: its face is met by the centre ray (or a sample next to it) ...
+    assert hit[:, face[covered], covered].any(axis=0).all()
+    # ... and nothing is nearer where the centre ray meets it (float32 depth: 1e-5).
+    centre = covered[hit[0, face[covered], covered]]
+    assert len(centre) > 0.9 * len(covered)
+    nearest = dist[0][:, centre].min(axis=0)
+    assert (dist[0, face[centre], centre] <= nearest * (1 + 1e-5)).all()
+    # Every pixel whose samples all meet one face is covered.
+    assert (face[hit.all(axis=0).any(axis=0)] >= 0).all()
+
+
+@pytest.mark.parametrize("uv", [(10, 20), (0, 0), (W - 1, H - 1), (47, 35)])
+def test_a_point_on_integer_uv_lands_in_that_pixel(uv):
+    """OpenCV's pixel centre (u, v) = (10, 20) is hsr's pixel column 10, row 20: a tiny
+    triangle around the point that projects there covers that pixel and no other."""
+    rng = np.random.default_rng(1)
+    K, R, t = random_opencv(rng)
+    z = 4.0
+    center = z * np.linalg.inv(K) @ np.array([uv[0], uv[1], 1.0])
+    # A triangle 0.2 pixel across around it, in the image plane at depth z.
+    px = np.array([[-0.1, -0.1], [0.1, -0.1], [0.0, 0.1]])
+    cam_pts = center + np.c_[px[:, 0] * z / K[0, 0], px[:, 1] * z / K[1, 1], np.zeros(3)]
+    mesh = hsr.Mesh((cam_pts - t) @ R, [[0, 1, 2]])
+    frame = hsr.render(mesh, hsr.Camera.from_opencv(K, R, t, W, H, near=0.5, far=50), W, H)
+    assert np.argwhere(frame.face_id == 0).tolist() == [[uv[1], uv[0]]]
+
+
+def test_opencv_round_trips():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        K, R, t = random_opencv(rng)
+        K2, R2, t2 = hsr.Camera.from_opencv(K, R, t, W, H, near=0.1, far=10).to_opencv(W, H)
+        assert np.allclose(K2, K, atol=1e-9) and np.allclose(R2, R, atol=1e-9)
+        assert np.allclose(t2, t, atol=1e-9)
+    look = hsr.Camera.look_at((1, 2, 3), (0, 0.5, 0), fov_y=50, near=0.1, far=20)
+    back = hsr.Camera.from_opencv(*look.to_opencv(W, H), W, H, near=0.1, far=20)
+    assert np.allclose(back.view_matrix, look.view_matrix, atol=1e-9)
+    assert np.allclose(back.projection_matrix(W / H), look.projection_matrix(W / H), atol=1e-9)
+
+
+def test_from_matrices_keeps_the_projection():
+    rng = np.random.default_rng(4)
+    K, R, t = random_opencv(rng)
+    off_axis = hsr.Camera.from_opencv(K, R, t, W, H, near=0.2, far=30)
+    for cam in (off_axis, hsr.Camera.look_at((1, 2, 3), (0, 0, 0), fov_y=40, near=0.5,
+                                             far=9)):
+        view, proj = cam.view_matrix, cam.projection_matrix(W / H)
+        again = hsr.Camera.from_matrices(view, proj)
+        assert np.allclose(again.view_matrix, view, atol=1e-9)
+        assert np.allclose(again.projection_matrix(W / H), proj, atol=1e-9)
+        mesh = soup_in_view(rng, K, R, t)
+        assert np.array_equal(hsr.render(mesh, again, W, H).face_id,
+                              hsr.render(mesh, cam, W, H).face_id)
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda K, R, t: hsr.Camera.from_opencv(np.array([[100, 3, 40], [0, 100, 30], [0, 0, 1.0]]),
+                                            R, t, W, H), "no skew"),
+    (lambda K, R, t: hsr.Camera.from_opencv(K * np.array([[-1], [1], [1]]), R, t, W, H),
+     "fx, fy > 0"),
+    (lambda K, R, t: hsr.Camera.from_opencv(K, 2 * R, t, W, H), "rotation"),
+    (lambda K, R, t: hsr.Camera.from_opencv(K, -R, t, W, H), "rotation"),
+    (lambda K, R, t: hsr.Camera.from_opencv(K, R, t[:2], W, H), "three numbers"),
+    (lambda K, R, t: hsr.Camera.from_opencv(K, R, t, 0, H), "width"),
+    (lambda K, R, t: hsr.Camera.from_matrices(np.eye(4), np.eye(4)), "perspective frustum"),
+    (lambda K, R, t: hsr.Camera.from_matrices(np.diag([2.0, 2, 2, 1]), hsr.Camera.look_at(
+        (0, 0, 1), (0, 0, 0)).projection_matrix(1.0)), "rotation"),
+    (lambda K, R, t: hsr.Camera.orthographic((0, 0, 1), (0, 0, 0)).to_opencv(W, H),
+     "orthographic"),
+])
+def test_bad_camera_inputs_are_refused(make, message):
+    K, R, t = random_opencv(np.random.default_rng(5))
+    with pytest.raises(hsr.CameraError, match=message):
+        make(K, R, t)
