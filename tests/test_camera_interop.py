@@ -150,3 +150,109 @@ def test_bad_camera_inputs_are_refused(make, message):
     K, R, t = random_opencv(np.random.default_rng(5))
     with pytest.raises(hsr.CameraError, match=message):
         make(K, R, t)
+
+
+# ---------------------------------------------------------------- transforms.json, COLMAP
+# Odd sizes: the image centre (W / 2, H / 2) in COLMAP/NeRF coordinates is the centre of
+# pixel (48, 36); in OpenCV coordinates it would lie on the corner of four pixels.
+OW, OH = 97, 73
+
+
+def optical_axis_triangle(c2w_gl, depth=5.0, size=0.01):
+    """A tiny triangle on the optical axis, ``depth`` in front of a camera whose
+    camera-to-world matrix (OpenGL axes) is ``c2w_gl``."""
+    local = np.array([[-size, -size, -depth], [size, -size, -depth], [0.0, size, -depth]])
+    return hsr.Mesh(local @ c2w_gl[:3, :3].T + c2w_gl[:3, 3], [[0, 1, 2]])
+
+
+def test_transforms_json_principal_point_is_colmaps_half_pixel(tmp_path):
+    c2w = np.eye(4)
+    c2w[:3, 3] = [0.3, -0.2, 1.0]
+    doc = {"fl_x": 80.0, "fl_y": 95.0, "cx": OW / 2, "cy": OH / 2, "w": OW, "h": OH,
+           "frames": [{"file_path": "a.png", "transform_matrix": c2w.tolist()}]}
+    (tmp_path / "transforms.json").write_text(__import__("json").dumps(doc))
+    cams, names, size = hsr.read_transforms(tmp_path / "transforms.json", near=0.5, far=20)
+    assert names == ["a.png"] and size == (OW, OH)
+    frame = hsr.render(optical_axis_triangle(c2w), cams[0], OW, OH)
+    assert np.argwhere(frame.face_id == 0).tolist() == [[36, 48]]
+
+
+def test_transforms_json_round_trip(tmp_path):
+    rng = np.random.default_rng(7)
+    cams = [hsr.Camera.from_opencv(*random_opencv(rng), W, H, near=0.1, far=10)
+            for _ in range(3)]
+    cams.append(hsr.Camera.look_at((1, 2, 3), (0, 0, 0), fov_y=50, near=0.1, far=10))
+    hsr.write_transforms(tmp_path / "t.json", cams, W, H)
+    back, names, _ = hsr.read_transforms(tmp_path / "t.json", near=0.1, far=10)
+    assert names == ["0000", "0001", "0002", "0003"]
+    for a, b in zip(cams, back):
+        assert np.allclose(a.view_matrix, b.view_matrix, atol=1e-9)
+        assert np.allclose(a.projection_matrix(W / H), b.projection_matrix(W / H), atol=1e-9)
+    same = [cams[3]] * 2  # shared intrinsics are written once, at the top
+    hsr.write_transforms(tmp_path / "s.json", same, W, H)
+    doc = __import__("json").loads((tmp_path / "s.json").read_text())
+    assert "fl_x" in doc and "fl_x" not in doc["frames"][0]
+
+
+def test_camera_angle_x_form(tmp_path):
+    doc = {"camera_angle_x": 2 * np.arctan(0.5), "w": OW, "h": OH,
+           "frames": [{"transform_matrix": np.eye(4).tolist()}]}
+    (tmp_path / "t.json").write_text(__import__("json").dumps(doc))
+    cam = hsr.read_transforms(tmp_path / "t.json")[0][0]
+    K, _, _ = cam.to_opencv(OW, OH)
+    assert np.isclose(K[0, 0], OW) and np.isclose(K[0, 2], OW / 2 - 0.5)
+
+
+def test_colmap_text_model(tmp_path):
+    """90 degrees about y: q = (cos 45, 0, sin 45, 0), world-to-camera R maps world +x to
+    camera -z. The camera centre is -R^T t; the optical-axis point lands on pixel (48, 36)
+    (COLMAP's principal point at W / 2 is the centre of the middle pixel)."""
+    (tmp_path / "cameras.txt").write_text(
+        "# Camera list\n1 PINHOLE 97 73 80 95 48.5 36.5\n2 SIMPLE_PINHOLE 97 73 90 48.5 36.5\n")
+    (tmp_path / "images.txt").write_text(
+        "# Image list\n"
+        f"1 {np.cos(np.pi / 4)} 0 {np.sin(np.pi / 4)} 0 0.1 0.2 3.0 1 left.png\n"
+        "10.0 20.0 -1\n"
+        "2 1 0 0 0 0 0 0 2 front image.png\n\n")
+    cams, names, sizes = hsr.read_colmap(tmp_path, near=0.5, far=20)
+    assert names == ["left.png", "front image.png"] and sizes == [(97, 73)] * 2
+    K, R, t = cams[0].to_opencv(97, 73)
+    assert np.allclose(R, [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=1e-12)
+    assert np.allclose(t, [0.1, 0.2, 3.0]) and np.allclose(K[:2, 2], [48.0, 36.0])
+    for cam in cams:
+        c2w = np.linalg.inv(cam.view_matrix)
+        frame = hsr.render(optical_axis_triangle(c2w), cam, 97, 73)
+        assert np.argwhere(frame.face_id == 0).tolist() == [[36, 48]]
+
+
+@pytest.mark.parametrize("cameras_txt,images_txt,message", [
+    ("1 OPENCV 97 73 80 95 48.5 36.5 0.1 0 0 0\n", "", "camera model OPENCV has lens distortion"),
+    ("1 PINHOLE 97 73 80 95 48.5\n", "", "PINHOLE takes 4 parameters"),
+    ("1 PINHOLE 97 73 80 95 48.5 x\n", "", "bad number"),
+    ("1 PINHOLE 97 73 80 95 48.5 36.5\n", "1 1 0 0 0 0 0 0 7 a.png\n\n", "camera 7 is not"),
+    ("1 PINHOLE 97 73 80 95 48.5 36.5\n", "1 0 0 0 0 0 0 0 1 a.png\n\n", "zero quaternion"),
+    ("1 PINHOLE 97 73 80 95 48.5 36.5\n", "# nothing\n", "no images"),
+])
+def test_colmap_errors_name_the_line(tmp_path, cameras_txt, images_txt, message):
+    (tmp_path / "cameras.txt").write_text(cameras_txt)
+    (tmp_path / "images.txt").write_text(images_txt)
+    with pytest.raises(hsr.CameraError, match=message):
+        hsr.read_colmap(tmp_path)
+
+
+@pytest.mark.parametrize("doc,message", [
+    ({"frames": []}, "non-empty 'frames'"),
+    ({"w": 10, "h": 10, "frames": [{"transform_matrix": np.eye(4).tolist()}]},
+     "needs 'fl_x' or 'camera_angle_x'"),
+    ({"fl_x": 10, "w": 10, "h": 10, "frames": [{"transform_matrix": (2 * np.eye(4)).tolist()}]},
+     "no scale"),
+    ({"fl_x": "x", "w": 10, "h": 10, "frames": [{"transform_matrix": np.eye(4).tolist()}]},
+     "fl_x must be a finite number"),
+])
+def test_transforms_errors(tmp_path, doc, message):
+    (tmp_path / "t.json").write_text(__import__("json").dumps(doc))
+    with pytest.raises(hsr.CameraError, match=message):
+        hsr.read_transforms(tmp_path / "t.json")
+    (tmp_path / "bad.json").write_text("{nope")
+    with pytest.raises(hsr.CameraError, match="not JSON"):
+        hsr.read_transforms(tmp_path / "bad.json")

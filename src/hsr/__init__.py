@@ -24,6 +24,7 @@ from .lines.vector import hidden_lines, write_lines_svg
 from .render import Frame, render
 from .scene import builtin as scenes
 from .scene.camera import Camera
+from .scene.camera_files import read_colmap, read_transforms, write_transforms
 from .scene.load import load
 from .scene.mesh import Instance, Mesh, Scene
 
@@ -33,5 +34,6 @@ __all__ = [
     "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "bsp",
-    "hidden_lines", "load", "raycast", "render", "scenes", "write_lines_svg",
+    "hidden_lines", "load", "raycast", "read_colmap", "read_transforms", "render", "scenes",
+    "write_lines_svg", "write_transforms",
 ]

@@ -18,39 +18,40 @@ MAX_MESH_BYTES = 1 << 30
 MAX_MTL_BYTES = 64 << 20
 
 
-def check_regular(path, what: str, max_bytes: int) -> int:
+def check_regular(path, what: str, max_bytes: int, error=MeshError) -> int:
     """The size of ``path`` if it is a *regular* file of at most ``max_bytes``; raises
     :class:`MeshError` for a missing file, a directory, a device, pipe or socket (reading
-    ``/dev/zero`` never ends and a FIFO blocks forever), or a file over the cap."""
+    ``/dev/zero`` never ends and a FIFO blocks forever), or a file over the cap (``error``
+    instead of :class:`MeshError` for files that are not mesh data)."""
     path = os.fspath(path)
     try:
         info = os.stat(path)
     except FileNotFoundError:
-        raise MeshError(f"file not found: {path}") from None
+        raise error(f"file not found: {path}") from None
     except OSError as exc:
-        raise MeshError(f"cannot read {what} {path}: {exc.strerror}") from None
+        raise error(f"cannot read {what} {path}: {exc.strerror}") from None
     if stat.S_ISDIR(info.st_mode):
-        raise MeshError(f"{path} is a directory, not a {what}")
+        raise error(f"{path} is a directory, not a {what}")
     if not stat.S_ISREG(info.st_mode):
-        raise MeshError(f"{path} is not a regular file (a device, pipe or socket); "
+        raise error(f"{path} is not a regular file (a device, pipe or socket); "
                         f"hsr reads only regular files")
     if info.st_size > max_bytes:
-        raise MeshError(f"{path} is {info.st_size:,} bytes, more than the {max_bytes:,} "
+        raise error(f"{path} is {info.st_size:,} bytes, more than the {max_bytes:,} "
                         f"bytes hsr reads for a {what}")
     return info.st_size
 
 
-def read_regular(path, what: str, max_bytes: int) -> bytes:
+def read_regular(path, what: str, max_bytes: int, error=MeshError) -> bytes:
     """The bytes of ``path`` after :func:`check_regular`."""
     path = os.fspath(path)
-    check_regular(path, what, max_bytes)
+    check_regular(path, what, max_bytes, error)
     try:
         with open(path, "rb") as fh:
             data = fh.read(max_bytes + 1)
     except OSError as exc:
-        raise MeshError(f"cannot read {what} {path}: {exc.strerror}") from None
+        raise error(f"cannot read {what} {path}: {exc.strerror}") from None
     if len(data) > max_bytes:  # grew since the stat
-        raise MeshError(f"{path} holds more than the {max_bytes:,} bytes hsr reads for a {what}")
+        raise error(f"{path} holds more than the {max_bytes:,} bytes hsr reads for a {what}")
     return data
 
 

@@ -1,0 +1,219 @@
+"""Cameras from the files other tools write: NeRF / instant-ngp / Blender ``transforms.json``
+(read and write) and COLMAP text models (``cameras.txt`` + ``images.txt``).
+
+Half pixels: OpenCV puts the centre of the top-left pixel at (0, 0); COLMAP, and the NeRF
+files made from it, at (0.5, 0.5), which is hsr's own continuous image coordinate (hsr
+samples pixel (x, y) at (x + 0.5, y + 0.5)). So a COLMAP or NeRF principal point ``cx``
+is OpenCV's ``cx - 0.5``; each reader and writer converts (tests pin each convention with
+a point that projects exactly onto a pixel centre).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+from ..errors import CameraError
+from .camera import Camera
+from .files import MAX_MTL_BYTES, read_regular
+
+__all__ = ["read_transforms", "write_transforms", "read_colmap", "COLMAP_MODELS"]
+
+# COLMAP camera models hsr renders exactly (pinholes without distortion).
+COLMAP_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")
+_OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0])
+
+
+def _read_text(path, what) -> str:
+    try:
+        return read_regular(path, what, MAX_MTL_BYTES, CameraError).decode("utf-8")
+    except UnicodeDecodeError:
+        raise CameraError(f"{path}: not UTF-8 text") from None
+
+
+def _number(value, what, where) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value):
+        raise CameraError(f"{where}: {what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def read_transforms(path, near: float = 0.1, far: float = 100.0):
+    """Cameras of a NeRF-style ``transforms.json``: ``(cameras, file_paths, (w, h))``.
+
+    Intrinsics from ``fl_x``/``fl_y``/``cx``/``cy`` (COLMAP's half-pixel convention) or
+    ``camera_angle_x`` (and ``camera_angle_y``; principal point at the centre), with
+    ``w``/``h``; a frame may override any of them. Each frame's ``transform_matrix`` is
+    camera-to-world in OpenGL axes (the camera looks down -Z, +Y up). Raises
+    :class:`~hsr.errors.CameraError` naming the frame and key on anything missing or
+    malformed."""
+    path = os.fspath(path)
+    try:
+        doc = json.loads(_read_text(path, "camera file"))
+    except json.JSONDecodeError as exc:
+        raise CameraError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("frames"), list) \
+            or not doc["frames"]:
+        raise CameraError(f"{path}: a transforms.json needs a non-empty 'frames' list")
+    cameras, names, size = [], [], None
+    for k, frame in enumerate(doc["frames"]):
+        where = f"{path}: frame {k}"
+        if not isinstance(frame, dict):
+            raise CameraError(f"{where}: not an object")
+        keys = {**doc, **frame}
+        try:
+            w, h = int(keys["w"]), int(keys["h"])
+        except (KeyError, TypeError, ValueError):
+            raise CameraError(f"{where}: needs integer 'w' and 'h'") from None
+        if w < 1 or h < 1:
+            raise CameraError(f"{where}: w and h must be positive, got {w}x{h}")
+        if "fl_x" in keys:
+            fx = _number(keys["fl_x"], "fl_x", where)
+            fy = _number(keys.get("fl_y", fx), "fl_y", where)
+        elif "camera_angle_x" in keys:
+            fx = 0.5 * w / math.tan(_number(keys["camera_angle_x"], "camera_angle_x", where) / 2)
+            fy = (0.5 * h / math.tan(_number(keys["camera_angle_y"], "camera_angle_y", where) / 2)
+                  if "camera_angle_y" in keys else fx)
+        else:
+            raise CameraError(f"{where}: needs 'fl_x' or 'camera_angle_x'")
+        cx = _number(keys.get("cx", w / 2.0), "cx", where)
+        cy = _number(keys.get("cy", h / 2.0), "cy", where)
+        try:
+            c2w = np.asarray(frame["transform_matrix"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            raise CameraError(f"{where}: needs a 4x4 'transform_matrix'") from None
+        if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
+            raise CameraError(f"{where}: transform_matrix must be a finite 4x4 matrix")
+        rot = c2w[:3, :3]
+        if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-6) or np.linalg.det(rot) <= 0:
+            raise CameraError(f"{where}: transform_matrix must be a rotation and a "
+                              f"translation (no scale)")
+        R = _OPENGL_TO_OPENCV @ rot.T
+        t = -R @ c2w[:3, 3]
+        K = np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]])
+        try:
+            cameras.append(Camera.from_opencv(K, R, t, w, h, near=near, far=far))
+        except CameraError as exc:
+            raise CameraError(f"{where}: {exc}") from None
+        names.append(str(frame.get("file_path", f"{k:04d}")))
+        size = size or (w, h)
+    return cameras, names, size
+
+
+def write_transforms(path, cameras, width: int, height: int, file_paths=None) -> None:
+    """Write ``cameras`` (perspective) as a NeRF-style ``transforms.json`` for images of
+    ``width`` x ``height``: intrinsics (``fl_x``, ``fl_y``, ``cx``, ``cy`` in COLMAP's
+    half-pixel convention, ``w``, ``h``) at the top when all cameras share them, else per
+    frame; ``transform_matrix`` camera-to-world in OpenGL axes. Raises
+    :class:`~hsr.errors.CameraError` for an orthographic camera and
+    :class:`~hsr.errors.OutputError` when the file cannot be written."""
+    from ..errors import OutputError
+    from .files import check_output
+
+    path = check_output(path, (".json",))
+    cameras = list(cameras)
+    if not cameras:
+        raise CameraError("write_transforms needs at least one camera")
+    names = list(file_paths) if file_paths is not None else [f"{k:04d}" for k in
+                                                            range(len(cameras))]
+    if len(names) != len(cameras):
+        raise CameraError(f"{len(names)} file paths for {len(cameras)} cameras")
+    frames, intrinsics = [], []
+    for cam, name in zip(cameras, names):
+        K, _, _ = cam.to_opencv(width, height)
+        intrinsics.append({"fl_x": float(K[0, 0]), "fl_y": float(K[1, 1]),
+                           "cx": float(K[0, 2]) + 0.5, "cy": float(K[1, 2]) + 0.5,
+                           "w": int(width), "h": int(height)})
+        frames.append({"file_path": name,
+                       "transform_matrix": np.linalg.inv(cam.view_matrix).tolist()})
+    if all(i == intrinsics[0] for i in intrinsics):
+        doc = {**intrinsics[0], "frames": frames}
+    else:
+        doc = {"frames": [{**i, **f} for i, f in zip(intrinsics, frames)]}
+    try:
+        with open(path, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=1)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
+    """Rotation of the unit quaternion (w, x, y, z) (Hamilton convention, as COLMAP)."""
+    n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    if not n > 0:
+        raise CameraError("a zero quaternion is not a rotation")
+    w, x, y, z = qw / n, qx / n, qy / n, qz / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def read_colmap(folder, near: float = 0.1, far: float = 100.0):
+    """Cameras of a COLMAP text model (``cameras.txt`` and ``images.txt`` in ``folder``):
+    ``(cameras, image_names, sizes)`` in ``images.txt`` order. Camera models
+    SIMPLE_PINHOLE (f, cx, cy) and PINHOLE (fx, fy, cx, cy); a model with lens distortion
+    is refused (hsr renders pinholes), naming it. Raises :class:`~hsr.errors.CameraError`
+    with the file and line on anything malformed."""
+    folder = os.fspath(folder)
+    intrinsics = {}
+    path = os.path.join(folder, "cameras.txt")
+    for lineno, line in enumerate(_read_text(path, "COLMAP cameras file").splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        where = f"{path}:{lineno}"
+        if len(parts) < 4:
+            raise CameraError(f"{where}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
+        model = parts[1]
+        if model not in COLMAP_MODELS:
+            raise CameraError(f"{where}: camera model {model} has lens distortion or is not a "
+                              f"pinhole; hsr renders {' and '.join(COLMAP_MODELS)} only "
+                              f"(undistort the images with COLMAP first)")
+        try:
+            w, h = int(parts[2]), int(parts[3])
+            params = [float(p) for p in parts[4:]]
+        except ValueError:
+            raise CameraError(f"{where}: bad number in {line.strip()[:60]!r}") from None
+        want = 3 if model == "SIMPLE_PINHOLE" else 4
+        if len(params) != want:
+            raise CameraError(f"{where}: {model} takes {want} parameters, got {len(params)}")
+        fx, fy, cx, cy = (params[0], params[0], *params[1:]) if want == 3 else params
+        intrinsics[parts[0]] = (fx, fy, cx, cy, w, h)
+    path = os.path.join(folder, "images.txt")
+    lines = [(n, line) for n, line in enumerate(
+        _read_text(path, "COLMAP images file").splitlines(), 1)
+        if not line.startswith("#")]
+    cameras, names, sizes = [], [], []
+    k = 0
+    while k < len(lines):
+        lineno, line = lines[k]
+        parts = line.split()
+        k += 2  # each image is two lines: the pose, then its 2-D points (may be empty)
+        if not parts:
+            k -= 1
+            continue
+        where = f"{path}:{lineno}"
+        if len(parts) < 10:
+            raise CameraError(f"{where}: expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME")
+        try:
+            q = [float(v) for v in parts[1:5]]
+            t = np.array([float(v) for v in parts[5:8]])
+        except ValueError:
+            raise CameraError(f"{where}: bad number in {line.strip()[:60]!r}") from None
+        if parts[8] not in intrinsics:
+            raise CameraError(f"{where}: camera {parts[8]} is not in cameras.txt")
+        fx, fy, cx, cy, w, h = intrinsics[parts[8]]
+        K = np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]])
+        try:
+            cameras.append(Camera.from_opencv(K, _quaternion_matrix(*q), t, w, h,
+                                              near=near, far=far))
+        except CameraError as exc:
+            raise CameraError(f"{where}: {exc}") from None
+        names.append(" ".join(parts[9:]))
+        sizes.append((w, h))
+    if not cameras:
+        raise CameraError(f"{path}: no images")
+    return cameras, names, sizes
