@@ -256,3 +256,55 @@ def test_transforms_errors(tmp_path, doc, message):
     (tmp_path / "bad.json").write_text("{nope")
     with pytest.raises(hsr.CameraError, match="not JSON"):
         hsr.read_transforms(tmp_path / "bad.json")
+
+
+# ------------------------------------------------------------------------------ view sets
+@pytest.mark.parametrize("size", [(96, 72), (160, 40), (40, 160)])
+@pytest.mark.parametrize("kind", ["orbit", "sphere", "hemisphere"])
+def test_view_sets_frame_the_whole_model(models_dir, kind, size):
+    """Every camera of a set shows the whole model at every aspect ratio: no covered pixel
+    touches the image border, and every box corner projects inside the image (independent
+    pinhole through to_opencv's K, R, t)."""
+    import os
+
+    w, h = size
+    mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
+    bounds = mesh.bounds()
+    cams = getattr(hsr.views, kind)(bounds, 6, aspect=w / h)
+    assert len(cams) == 6
+    corners = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
+                        for z in bounds[:, 2]])
+    for cam in cams:
+        frame = hsr.render(mesh, cam, w, h)
+        covered = frame.face_id >= 0
+        assert covered.sum() > 0.1 * min(w, h) ** 2  # the model fills the narrower side
+        assert not (covered[0].any() or covered[-1].any() or covered[:, 0].any()
+                    or covered[:, -1].any())
+        K, R, t = cam.to_opencv(w, h)
+        cam_pts = corners @ R.T + t
+        uv = cam_pts[:, :2] / cam_pts[:, 2:] * [K[0, 0], K[1, 1]] + K[:2, 2]
+        assert (cam_pts[:, 2] > 0).all()
+        assert ((uv >= -0.5) & (uv <= [w - 0.5, h - 0.5])).all()
+
+
+def test_view_directions():
+    bounds = np.array([[-1.0, -1, -1], [1, 1, 1]])
+    eyes = np.array([c.eye for c in hsr.views.orbit(bounds, 4, elevation=0)])
+    # Azimuth from +Z towards +X: the first eye on +Z, the second on +X.
+    assert np.allclose(eyes[0] / np.linalg.norm(eyes[0]), [0, 0, 1])
+    assert np.allclose(eyes[1] / np.linalg.norm(eyes[1]), [1, 0, 0])
+    top = hsr.views.orbit(bounds, 1, elevation=90)[0]  # straight down: still a camera
+    assert np.allclose(np.asarray(top.forward), [0, -1, 0])
+    dirs = np.array([np.asarray(c.eye) / np.linalg.norm(c.eye)
+                     for c in hsr.views.sphere(bounds, 200)])
+    # Evenly spread: no two directions closer than half the mean spacing.
+    cos = np.clip(dirs @ dirs.T, -1, 1) - 2 * np.eye(len(dirs))
+    nearest = np.arccos(cos.max(axis=1))
+    assert nearest.min() > 0.5 * np.sqrt(4 * np.pi / 200)
+    assert abs(dirs.mean(axis=0)).max() < 0.02  # no side favoured
+    up = np.array([c.eye for c in hsr.views.hemisphere(bounds, 50)])
+    assert (up[:, 1] > 0).all()
+    with pytest.raises(hsr.CameraError, match="number of views"):
+        hsr.views.sphere(bounds, 0)
+    with pytest.raises(hsr.CameraError, match="bounds"):
+        hsr.views.orbit([[0, 0, 0], [np.nan, 1, 1]], 3)

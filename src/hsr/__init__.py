@@ -23,6 +23,7 @@ from .lines.raster import HiddenLine
 from .lines.vector import hidden_lines, write_lines_svg
 from .render import Frame, render
 from .scene import builtin as scenes
+from .scene import views
 from .scene.camera import Camera
 from .scene.camera_files import read_colmap, read_transforms, write_transforms
 from .scene.load import load
@@ -35,5 +36,5 @@ __all__ = [
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "bsp",
     "hidden_lines", "load", "raycast", "read_colmap", "read_transforms", "render", "scenes",
-    "write_lines_svg", "write_transforms",
+    "views", "write_lines_svg", "write_transforms",
 ]
