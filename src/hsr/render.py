@@ -14,6 +14,7 @@ from .algorithms import ALGORITHMS, Needs
 from .algorithms import check as check_algorithm
 from .algorithms.fragments import Fragments
 from .algorithms.hiz import object_bounds
+from .appearance import buffers
 from .appearance.fog import Fog
 from .appearance.shading import Look, ShadeContext, as_look, check_background, shade_visible
 from .appearance.transparency import check_order, transparent_mask, transparent_pass
@@ -56,6 +57,7 @@ class Frame:
         and sets up faces as it fills, so its "geometry" time is the vertex transform and
         the rest counts as "visibility").
     fragments : the algorithm's raw output (screen triangles, per-pixel triangle index).
+    eye_depth, distance, normals : derived on first use (see the properties).
     """
 
     color: np.ndarray
@@ -64,6 +66,61 @@ class Frame:
     stats: dict = field(default_factory=dict)
     fragments: Fragments | None = None
     face_offsets: np.ndarray | None = field(default=None, repr=False)
+    scene: object = field(default=None, repr=False)
+    camera: Camera | None = field(default=None, repr=False)
+    look: Look | None = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return (f"Frame({self.width}x{self.height}, {s.get('algorithm', '?')}, "
+                f"{s.get('pixels_covered', int(np.count_nonzero(self.face_id >= 0)))} pixels "
+                f"covered, {s.get('timings_ms', {}).get('total', float('nan')):.1f} ms)")
+
+    def _repr_png_(self) -> bytes:
+        """The colour image as PNG, for notebooks."""
+        import io
+
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.color).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def _derived(self, name, compute):
+        cache = self.__dict__.setdefault("_buffers", {})
+        if name not in cache:
+            if self.scene is None or self.camera is None or self.fragments is None:
+                raise RenderError(f"frame.{name} needs the frame of an hsr.render call")
+            # Pixels drawn by an earlier frame (into=) are not this scene's faces: only
+            # this draw's pixels are derived.
+            cache[name] = compute(self.scene, self.camera, self.fragments.screen,
+                                  self.fragments.face_id)
+        return cache[name]
+
+    @property
+    def eye_depth(self) -> np.ndarray:
+        """(H, W) float32 distance along the viewing axis in world units (the z of OpenCV's
+        camera frame), +inf where nothing is drawn; exact in float64 from the visible face,
+        not from the float32 depth buffer."""
+        return self._derived("eye_depth", buffers.eye_depth)
+
+    @property
+    def distance(self) -> np.ndarray:
+        """(H, W) float32 Euclidean distance from the eye (orthographic: the eye depth),
+        +inf where nothing is drawn."""
+        return self._derived("distance", buffers.distance)
+
+    @property
+    def normals(self) -> np.ndarray:
+        """(H, W, 3) float32 world-space unit normals, 0 where nothing is drawn: the face
+        normal as wound, or interpolated corner normals when the frame was Gouraud shaded."""
+        smooth = self.look is not None and self.look.shading == "gouraud"
+
+        def compute(scene, camera, screen, face_id):
+            ctx = ShadeContext(scene, camera, screen, self.look or Look(), None)
+            return buffers.normals(scene, screen, face_id, smooth, ctx.corner_normals)
+
+        return self._derived("normals", compute)
 
     @property
     def object_id(self) -> np.ndarray:
@@ -247,7 +304,8 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
         "shading": 1e3 * (t_end - t_visibility),
         "total": 1e3 * (t_end - t_start),
     }
-    return Frame(color, fragments.depth, face_id, stats, fragments, scene.face_offsets())
+    return Frame(color, fragments.depth, face_id, stats, fragments, scene.face_offsets(),
+                 scene, camera, look)
 
 
 def _visibility(scene, camera, screen, width, height, algorithm, state, counts, into,

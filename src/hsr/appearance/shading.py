@@ -24,7 +24,7 @@ from numba import njit
 from ..errors import RenderError, check_choice
 from ..parallel import Workers
 from ..scene.images import load_texture
-from ..scene.mesh import instance_of
+from ..scene.mesh import instance_of, normal_matrix
 from .fog import Fog
 from .texture import FILTERS, WRAPS, sample
 
@@ -286,9 +286,9 @@ class ShadeContext:
             inst = self.scene.instances[k]
             normals = (inst.mesh.corner_normals if inst.mesh.corner_normals is not None
                        else vertex_normals(inst.mesh))
-            # Normals transform by the inverse transpose of the model matrix.
-            linear = np.linalg.inv(inst.model[:3, :3]).T
-            world = normals @ linear.T
+            # Normals transform by the cofactor matrix (the inverse transpose up to scale,
+            # and defined for singular model matrices too).
+            world = normals @ normal_matrix(inst.model).T
             length = np.linalg.norm(world, axis=2, keepdims=True)
             self._normals[k] = np.divide(world, length, out=np.zeros_like(world),
                                          where=length > 0)

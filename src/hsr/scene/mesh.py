@@ -19,7 +19,7 @@ from ..errors import MeshError
 MAX_COORDINATE = 1e100
 
 __all__ = ["Mesh", "Scene", "Instance", "as_mesh", "as_scene", "instance_of",
-           "degenerate_faces", "is_degenerate"]
+           "degenerate_faces", "is_degenerate", "normal_matrix"]
 
 
 @dataclass(eq=False)
@@ -182,6 +182,16 @@ class Instance:
         if not 0.0 <= opacity <= 1.0:
             raise MeshError(f"{self.mesh.name}: opacity must be in [0, 1], got {self.opacity!r}")
         self.opacity = opacity
+
+
+def normal_matrix(model: np.ndarray) -> np.ndarray:
+    """(3, 3) matrix that carries normals of a mesh placed by ``model``: the cofactor
+    matrix of its 3x3 part, ``cof(M) (a x b) = (M a) x (M b)``. It is ``det(M) inv(M)^T``
+    where M is invertible (the inverse transpose, scaled) and still defined where M is
+    singular (a mesh flattened onto a plane gets the plane's normal)."""
+    c = model[:3, :3]
+    return np.stack([np.cross(c[:, 1], c[:, 2]), np.cross(c[:, 2], c[:, 0]),
+                     np.cross(c[:, 0], c[:, 1])], axis=1)
 
 
 class Scene:

@@ -1,0 +1,77 @@
+"""Buffers people use besides the window depth: eye depth, distance and normals at each
+pixel, derived from what is visible (the face id) the same way for every algorithm.
+
+Each covered pixel's surface point is found exactly, in float64, from the visible face and
+the pixel centre: the perspective-correct barycentrics of the centre on the *source* face
+(:func:`hsr.algorithms.fragments.barycentrics_at`) weight the face's world-space corners.
+So eye depth and distance do not inherit the float32 rounding of the depth buffer, which
+at a distance ``e`` is about ``e**2 / near * 2**-24``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..algorithms.fragments import barycentrics_at
+from ..scene.mesh import normal_matrix
+
+__all__ = ["surface_points", "eye_depth", "distance", "normals"]
+
+
+def surface_points(scene, screen, face_id: np.ndarray):
+    """``(rows, cols, faces, points (K, 3) world, barycentrics (K, 3))`` of the covered
+    pixels of ``face_id``."""
+    rows, cols = np.nonzero(face_id >= 0)
+    faces = face_id[rows, cols].astype(np.int64)
+    bary = barycentrics_at(screen, rows, cols, faces)
+    corners = scene.world_triangles()[faces] if len(faces) else np.zeros((0, 3, 3))
+    return rows, cols, faces, np.einsum("kc,kcj->kj", bary, corners), bary
+
+
+def eye_depth(scene, camera, screen, face_id) -> np.ndarray:
+    """(H, W) float32 distance along the viewing axis (OpenCV's camera z), +inf where
+    nothing is drawn."""
+    rows, cols, _, points, _ = surface_points(scene, screen, face_id)
+    out = np.full(face_id.shape, np.inf, dtype=np.float32)
+    eye = np.asarray(camera.eye, dtype=np.float64)
+    out[rows, cols] = (points - eye) @ np.asarray(camera.forward, dtype=np.float64)
+    return out
+
+
+def distance(scene, camera, screen, face_id) -> np.ndarray:
+    """(H, W) float32 Euclidean distance from the eye (perspective); for an orthographic
+    camera the distance from the image plane along the ray, i.e. the eye depth. +inf
+    where nothing is drawn."""
+    if camera.is_orthographic:
+        return eye_depth(scene, camera, screen, face_id)
+    rows, cols, _, points, _ = surface_points(scene, screen, face_id)
+    out = np.full(face_id.shape, np.inf, dtype=np.float32)
+    out[rows, cols] = np.linalg.norm(points - np.asarray(camera.eye, dtype=np.float64), axis=1)
+    return out
+
+
+def normals(scene, screen, face_id, smooth: bool = False, corner_normals=None) -> np.ndarray:
+    """(H, W, 3) float32 world-space unit normals, 0 where nothing is drawn: the normal of
+    the visible face as wound (counter-clockwise = front, not turned towards the eye), or
+    with ``smooth`` the corner normals (``corner_normals(k)`` of instance k, as Gouraud
+    shading uses them) interpolated perspective-correctly."""
+    rows, cols, faces, _, bary = surface_points(scene, screen, face_id)
+    out = np.zeros(face_id.shape + (3,), dtype=np.float32)
+    if not len(faces):
+        return out
+    offsets = scene.face_offsets()
+    inst = np.searchsorted(offsets, faces, side="right") - 1
+    result = np.zeros((len(faces), 3))
+    for k in np.unique(inst):
+        sel = np.flatnonzero(inst == k)
+        local = faces[sel] - offsets[k]
+        if smooth:
+            result[sel] = np.einsum("kc,kcj->kj", bary[sel], corner_normals(k)[local])
+        else:
+            instance = scene.instances[k]
+            tri = instance.mesh.positions[instance.mesh.faces[local]]
+            result[sel] = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) \
+                @ normal_matrix(instance.model).T
+    length = np.linalg.norm(result, axis=1, keepdims=True)
+    out[rows, cols] = np.divide(result, length, out=np.zeros_like(result), where=length > 0)
+    return out

@@ -1,0 +1,77 @@
+"""Eye depth, distance and normals per pixel (issue #14, buffers): checked against the
+surface point found independently, by intersecting the pixel-centre ray (un-projected
+through the inverse view-projection, as tests/reference.py does) with the plane of the
+visible face in world space."""
+
+import numpy as np
+import pytest
+from reference import unproject, world_triangles
+
+import hsr
+from hsr import scenes
+
+W, H = 64, 48
+
+
+def ray_points(scene, camera, face_id):
+    """World points where each covered pixel's centre ray meets its face's plane."""
+    rows, cols = np.nonzero(face_id >= 0)
+    x, y = cols + 0.5, (H - 1 - rows) + 0.5  # window coordinates, y up
+    near = unproject(camera, W, H, np.c_[x, y, np.zeros(len(x))])
+    far = unproject(camera, W, H, np.c_[x, y, np.ones(len(x))])
+    tri = world_triangles(scene)[face_id[rows, cols]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    d = far - near
+    s = np.einsum("kj,kj->k", tri[:, 0] - near, n) / np.einsum("kj,kj->k", d, n)
+    return rows, cols, near + s[:, None] * d, n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("algorithm", list(hsr.ALGORITHMS))
+@pytest.mark.parametrize("ortho", [False, True])
+def test_eye_depth_distance_and_normals(algorithm, ortho):
+    scene, cam = scenes.get("cubes")
+    if ortho:
+        cam = hsr.Camera.orthographic(cam.eye, cam.target, height=8.0, near=0.5, far=30)
+    frame = hsr.render(scene, cam, W, H, algorithm=algorithm)
+    rows, cols, points, normal = ray_points(scene, cam, frame.face_id)
+    eye, forward = np.asarray(cam.eye), np.asarray(cam.forward)
+    expected_depth = (points - eye) @ forward
+    assert np.allclose(frame.eye_depth[rows, cols], expected_depth, rtol=1e-6)
+    expected_dist = expected_depth if ortho else np.linalg.norm(points - eye, axis=1)
+    assert np.allclose(frame.distance[rows, cols], expected_dist, rtol=1e-6)
+    assert np.allclose(frame.normals[rows, cols], normal, atol=1e-6)
+    background = frame.face_id < 0
+    assert np.isinf(frame.eye_depth[background]).all()
+    assert np.isinf(frame.distance[background]).all()
+    assert (frame.normals[background] == 0).all()
+
+
+def test_eye_depth_is_exact_where_the_depth_buffer_is_coarse():
+    """Far from the camera float32 window depth loses digits (step ~ e^2 / near * 2^-24);
+    the eye depth comes from the face, not from the buffer."""
+    tri = hsr.Mesh(np.array([[-50.0, -50, -900], [50, -50, -900], [0, 50, -900]]), [[0, 1, 2]])
+    cam = hsr.Camera.look_at((0, 0, 0), (0, 0, -1), fov_y=20, near=0.01, far=1000)
+    frame = hsr.render(tri, cam, W, H)
+    covered = frame.face_id >= 0
+    assert np.allclose(frame.eye_depth[covered], 900.0, rtol=1e-7)
+    from hsr.appearance.shading import linear_eye_depth
+
+    from_buffer = linear_eye_depth(frame.depth, cam)[covered]
+    assert np.abs(from_buffer - 900).max() > 1e-3  # the buffer alone is far coarser
+
+
+def test_gouraud_frame_interpolates_corner_normals():
+    scene, cam = scenes.spheres(detail=12)
+    flat = hsr.render(scene, cam, W, H)
+    smooth = hsr.render(scene, cam, W, H, shading="gouraud")
+    covered = flat.face_id >= 0
+    # A sphere's smooth normals point away from its centre better than face normals do.
+    assert np.allclose(np.linalg.norm(smooth.normals[covered], axis=1), 1, atol=1e-5)
+    assert not np.allclose(flat.normals[covered], smooth.normals[covered], atol=1e-3)
+
+
+def test_frame_repr_is_short_and_notebooks_get_a_png():
+    scene, cam = scenes.get("cubes")
+    frame = hsr.render(scene, cam, W, H)
+    assert repr(frame).startswith("Frame(64x48, zbuffer, ") and len(repr(frame)) < 100
+    assert frame._repr_png_()[:8] == b"\x89PNG\r\n\x1a\n"
