@@ -146,3 +146,13 @@ def test_render_arguments_of_the_wrong_name_or_type_are_refused(cubes):
         hsr.render(scene, cam, 32, 24, state="back")
     with pytest.raises(hsr.RenderError, match="camera must be an hsr.Camera"):
         hsr.render(scene, "camera", 32, 24)
+
+
+def test_gouraud_with_a_flattening_model_matrix():
+    """A singular (affine) model matrix flattens a mesh onto a plane: Gouraud shading took
+    the inverse transpose and raised LinAlgError."""
+    flat = hsr.Scene().add(scenes.cube(), np.diag([1.0, 1.0, 0.0, 1.0]))
+    cam = hsr.Camera.look_at((3, 2, 5), (0, 0, 0))
+    frame = hsr.render(flat, cam, 48, 36, shading="gouraud")
+    covered = frame.face_id >= 0
+    assert covered.any() and np.allclose(np.abs(frame.normals[covered][:, 2]), 1.0)
