@@ -204,3 +204,77 @@ def test_summary_line_says_what_newell_left_unresolved(tmp_path, capsys):
                        capsys)
     assert code == 0
     assert "3 unresolved polygons" in out and "pixels drawn by the depth-test fallback" in out
+
+
+def test_version(capsys):
+    import hsr
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"hsr {hsr.__version__}"
+
+
+def test_view_frames_the_model_from_azimuth_and_elevation(models_dir, tmp_path, capsys):
+    import hsr
+
+    model = os.path.join(models_dir, "spot.obj")
+    ids = tmp_path / "ids.npy"
+    assert main(["render", model, "--view", "30,20", "--size", "64x48", "-o",
+                 str(tmp_path / "s.png"), "--ids-out", str(ids), "--quiet"]) == 0
+    mesh = hsr.load(model)
+    cam = hsr.views.framed(mesh.bounds(), hsr.views.direction(30, 20), 64 / 48)
+    assert np.array_equal(np.load(ids), hsr.render(mesh, cam, 64, 48).face_id)
+
+
+def test_metric_depth_and_normals_out(tmp_path, capsys):
+    from PIL import Image
+
+    import hsr
+
+    scene, cam = hsr.scenes.get("cubes")
+    frame = hsr.render(scene, cam, 64, 48)
+    for kind, buffer in (("eye", frame.eye_depth), ("distance", frame.distance),
+                         ("window", frame.depth)):
+        assert main(["render", "--size", "64x48", "-o", str(tmp_path / "c.png"), "--quiet",
+                     "--depth-out", str(tmp_path / f"{kind}.npy"), "--depth-kind", kind]) == 0
+        assert np.array_equal(np.load(tmp_path / f"{kind}.npy"), buffer)
+        assert main(["render", "--size", "64x48", "-o", str(tmp_path / "c.png"), "--quiet",
+                     "--depth-out", str(tmp_path / f"{kind}.png"), "--depth-kind", kind]) == 0
+        png = Image.open(tmp_path / f"{kind}.png")
+        scale = 65535.0 if kind == "window" else 1000.0
+        assert f"/ {scale:g}" in png.text["hsr"]
+        drawn = frame.face_id >= 0
+        assert np.allclose(np.asarray(png)[drawn] / scale, buffer[drawn], atol=0.6 / scale)
+    assert main(["render", "--size", "64x48", "-o", str(tmp_path / "c.png"), "--quiet",
+                 "--normals-out", str(tmp_path / "n.npy")]) == 0
+    assert np.array_equal(np.load(tmp_path / "n.npy"), frame.normals)
+
+
+def test_camera_from_transforms_json_and_colmap(tmp_path, capsys):
+    import json
+
+    import hsr
+
+    scene, cam = hsr.scenes.get("cubes")
+    cams = [cam, hsr.Camera.look_at((4, 3, 2), (0, 0, -6), near=0.5, far=30)]
+    hsr.write_transforms(tmp_path / "t.json", cams, 64, 48)
+    ids = tmp_path / "ids.npy"
+    assert main(["render", "--camera", f"{tmp_path / 't.json'}:1", "--near", "0.5",
+                 "--far", "30", "-o", str(tmp_path / "c.png"), "--ids-out", str(ids),
+                 "--quiet"]) == 0
+    expected = hsr.render(scene, hsr.read_transforms(tmp_path / "t.json", 0.5, 30)[0][1],
+                          64, 48).face_id
+    got = np.load(ids)
+    assert got.shape == (48, 64)  # the file's size when --size is not given
+    assert np.array_equal(got, expected)
+    colmap = tmp_path / "sparse"
+    colmap.mkdir()
+    (colmap / "cameras.txt").write_text("1 PINHOLE 40 30 30 30 20 15\n")
+    (colmap / "images.txt").write_text("1 1 0 0 0 0 0 10 1 a.png\n\n")
+    assert main(["render", "--camera", str(colmap), "-o", str(tmp_path / "c.png"),
+                 "--ids-out", str(ids), "--quiet"]) == 0
+    assert np.load(ids).shape == (30, 40)
+    assert main(["render", "--camera", f"{tmp_path / 't.json'}:5", "-o",
+                 str(tmp_path / "c.png")]) == 2
+    assert "has 2 cameras, no index 5" in capsys.readouterr().err
+    assert main(["render", "--camera", str(tmp_path / "t.json"), "--eye", "1,2,3"]) == 2
+    assert json.loads((tmp_path / "t.json").read_text())["frames"]

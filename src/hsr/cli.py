@@ -62,8 +62,12 @@ def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
     p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files, drawn in order")
     p.add_argument("--scene", default="cubes", choices=list(SCENES),
                    help="built-in scene when no MODEL is given (default %(default)s)")
-    p.add_argument("--size", default="800x600", help="WxH in pixels (default %(default)s)")
+    p.add_argument("--size", help="WxH in pixels (default: the --camera file's, else 800x600)")
     p.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
+    p.add_argument("--view", dest="view_from", metavar="AZ,EL", help="frame the model from azimuth AZ (degrees "
+                   "from +Z towards +X) and elevation EL (degrees up)")
+    p.add_argument("--camera", metavar="FILE[:INDEX]", help="camera INDEX (default 0) of a "
+                   "NeRF transforms.json or a COLMAP text model folder")
     p.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
     p.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
     p.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
@@ -111,6 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     shared = (SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES)
     parser = _Parser(prog="hsr", description="Hidden-surface removal: render meshes headless.")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--version", action="store_true", help="print hsr's version")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     r = sub.add_parser("render", help="render meshes (or a built-in scene) to an image",
                        description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
@@ -118,7 +123,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_args(r, *shared)
     r.add_argument("-o", "--output", default="render.png", help="colour image (default %(default)s)")
     r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
-    r.add_argument("--depth-out", help="write the depth buffer (.npy float32 or 16-bit .png)")
+    r.add_argument("--depth-out", help="write a depth buffer (.npy float32 or 16-bit .png)")
+    r.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
+                   help="window depth (0..1), eye depth or distance from the eye in world "
+                        "units (16-bit PNG: 1/1000 units) (default %(default)s)")
+    r.add_argument("--normals-out", help="write world-space normals (.npy float32 or 8-bit "
+                   ".png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
     r.add_argument("--svg", help="with --lines: the exact visible edges as SVG; with "
                    "--algorithm bsp or newell: the ordered polygons (exact, no rasterization)")
@@ -179,11 +189,47 @@ def _auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
     return near, far
 
 
-def _camera_from_args(args, scene, default_camera):
+def _file_camera(args):
+    """(camera, (w, h)) from --camera FILE[:INDEX], else (None, None)."""
+    if not args.camera:
+        return None, None
+    from .scene.camera_files import read_colmap, read_transforms
+
+    for flag, dest in (("eye", "eye"), ("target", "target"), ("view", "view_from"),
+                       ("ortho", "ortho")):
+        if getattr(args, dest) is not None:
+            raise CliError(f"--camera sets the camera: it does not combine with --{flag}")
+    path, index = args.camera, 0
+    if ":" in path and path.rsplit(":", 1)[1].isdigit():
+        path, index = path.rsplit(":", 1)[0], int(path.rsplit(":", 1)[1])
+    near = args.near if args.near is not None else 0.1
+    far = args.far if args.far is not None else 100.0
+    import os
+
+    if os.path.isdir(path):
+        cameras, _, sizes = read_colmap(path, near=near, far=far)
+    else:
+        cameras, _, size = read_transforms(path, near=near, far=far)
+        sizes = [size] * len(cameras)
+    if index >= len(cameras):
+        raise CliError(f"--camera: {path} has {len(cameras)} cameras, no index {index}")
+    return cameras[index], sizes[index]
+
+
+def _camera_from_args(args, scene, default_camera, aspect):
     from .errors import CameraError
+    from .scene import views
     from .scene.camera import Camera
 
     up = _floats(args.up, 3, "--up")
+    if args.view_from is not None:
+        if args.eye is not None or args.ortho is not None:
+            raise CliError("--view frames the model: it does not combine with --eye or --ortho")
+        az, el = _floats(args.view_from, 2, "--view")
+        try:
+            return views.framed(scene.bounds(), views.direction(az, el), aspect, args.fov)
+        except CameraError as exc:
+            raise CliError(f"--view: {exc}") from None
     if args.eye is None and args.target is None and default_camera is not None:
         # A built-in scene: its own camera, with the user's lens settings applied.
         cam = default_camera
@@ -247,7 +293,8 @@ def _setup(args):
     from .scene.load import load
     from .scene.mesh import Scene
 
-    width, height = _size(args.size)
+    file_camera, file_size = _file_camera(args)
+    width, height = _size(args.size) if args.size else (file_size or (800, 600))
     default_camera = None
     if args.models:
         meshes = [load(path) for path in args.models]
@@ -276,7 +323,7 @@ def _setup(args):
             if not 0.0 <= a <= 1.0:
                 raise CliError(f"--opacity values must be in 0..1, got {a}")
             inst.opacity = a
-    camera = _camera_from_args(args, scene, default_camera)
+    camera = file_camera or _camera_from_args(args, scene, default_camera, width / height)
     state = RenderState(depth_test=not args.no_depth_test, depth_func=args.depth_func,
                         depth_mask=not args.no_depth_write, clear_depth=args.clear_depth,
                         depth_range=_floats(args.depth_range, 2, "--depth-range"),
@@ -315,7 +362,8 @@ def _cmd_render(args) -> int:
 
     check_output(args.output)
     for path, kinds in ((args.depth_out, (".npy", ".png")), (args.ids_out, (".npy",)),
-                        (args.svg, (".svg",)), (args.error_map, None)):
+                        (args.svg, (".svg",)), (args.error_map, None),
+                        (args.normals_out, (".npy", ".png"))):
         if path:
             check_output(path, kinds)
     scene, camera, width, height, state, background, options = _setup(args)
@@ -333,7 +381,15 @@ def _cmd_render(args) -> int:
                    transparency=args.transparency)
     frame.save(args.output)
     if args.depth_out:
-        frame.save_depth(args.depth_out)
+        from .scene.files import save_depth
+
+        buffer = {"window": frame.depth, "eye": frame.eye_depth,
+                  "distance": frame.distance}[args.depth_kind]
+        save_depth(buffer, args.depth_out, args.depth_kind)
+    if args.normals_out:
+        from .scene.files import save_normals
+
+        save_normals(frame.normals, args.normals_out)
     if args.ids_out:
         frame.save_ids(args.ids_out)
     if args.svg and args.lines:
@@ -482,6 +538,11 @@ def main(argv=None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
+        if args.version:
+            from . import __version__
+
+            print(f"hsr {__version__}")
+            return 0
         if args.command is None:
             parser.print_help()
             return EXIT_USAGE

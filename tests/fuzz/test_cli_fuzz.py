@@ -40,6 +40,9 @@ _options = {
                                  "max_actions=0", "max_polygons=1", "heuristic=first", "x",
                                  "traversal=front_to_back", "progress=true"]),
     "--scene": st.sampled_from(["cubes", "cyclic", "penetration", "glass", "checker", "nope"]),
+    "--view": _numbers,
+    "--depth-kind": st.sampled_from(["window", "eye", "distance", "metric"]),
+    "--camera": st.sampled_from(["missing.json", "/dev/zero", os.path.dirname(__file__)]),
 }
 _flags = ["--no-depth-test", "--no-depth-write", "--hidden-line", "--occlusion-cull",
           "--no-texture"]

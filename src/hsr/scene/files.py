@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import MeshError, OutputError
 
-__all__ = ["check_output", "check_regular", "read_regular", "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES",
+__all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG_SCALES", "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES",
            "MAX_MTL_BYTES"]
 
 # Default caps on what one input file may hold: a 10M-triangle OBJ is about 500 MB.
@@ -95,20 +95,55 @@ def save_image(color: np.ndarray, path) -> None:
         raise OutputError(f"cannot write {path}: {exc}") from None
 
 
-def save_depth(depth: np.ndarray, path) -> None:
-    """``.npy``: the float32 buffer as is. ``.png``: 16-bit grey, round(depth * 65535)."""
+# 16-bit PNG scales: window depth in [0, 1] x 65535; eye depth and distance in 1/1000 world
+# units (so 65.535 world units at most; background 0). Written into the PNG too.
+PNG_SCALES = {"window": 65535.0, "eye": 1000.0, "distance": 1000.0}
+
+
+def save_depth(depth: np.ndarray, path, kind: str = "window") -> None:
+    """``.npy``: the float32 buffer as is (eye depth and distance: +inf on background).
+    ``.png``: 16-bit grey, ``round(value * scale)`` clipped to 65535 with the scale of
+    :data:`PNG_SCALES` (window: 65535; eye, distance: 1000 per world unit, background 0),
+    recorded in the PNG's ``hsr`` text chunk."""
     path = _check_dir(path)
     lower = path.lower()
     try:
         if lower.endswith(".npy"):
             np.save(path, depth.astype(np.float32))
         elif lower.endswith(".png"):
-            from PIL import Image
+            from PIL import Image, PngImagePlugin
 
-            quantised = np.round(np.clip(depth, 0.0, 1.0) * 65535.0).astype(np.uint16)
-            Image.fromarray(quantised).save(path)
+            scale = PNG_SCALES[kind]
+            finite = np.where(np.isfinite(depth), depth, 0.0)
+            top = 1.0 if kind == "window" else 65535.0 / scale
+            quantised = np.round(np.clip(finite, 0.0, top) * scale).astype(np.uint16)
+            info = PngImagePlugin.PngInfo()
+            info.add_text("hsr", f"{kind} depth: value = 16-bit pixel / {scale:g}"
+                          + ("" if kind == "window" else " world units; 0 = background"))
+            Image.fromarray(quantised).save(path, pnginfo=info)
         else:
             raise OutputError(f"cannot write depth to {path}: use .npy or .png")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc}") from None
+
+
+def save_normals(normals: np.ndarray, path) -> None:
+    """``.npy``: (H, W, 3) float32 unit normals (0 on background). ``.png``: 8-bit RGB
+    ``round(127.5 (n + 1))``, background black."""
+    path = _check_dir(path)
+    lower = path.lower()
+    try:
+        if lower.endswith(".npy"):
+            np.save(path, normals.astype(np.float32))
+        elif lower.endswith(".png"):
+            from PIL import Image
+
+            drawn = np.any(normals != 0, axis=2)
+            rgb = np.round(127.5 * (np.clip(normals, -1, 1) + 1.0)).astype(np.uint8)
+            rgb[~drawn] = 0
+            Image.fromarray(rgb).save(path)
+        else:
+            raise OutputError(f"cannot write normals to {path}: use .npy or .png")
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None
 
