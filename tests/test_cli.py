@@ -278,3 +278,24 @@ def test_camera_from_transforms_json_and_colmap(tmp_path, capsys):
     assert "has 2 cameras, no index 5" in capsys.readouterr().err
     assert main(["render", "--camera", str(tmp_path / "t.json"), "--eye", "1,2,3"]) == 2
     assert json.loads((tmp_path / "t.json").read_text())["frames"]
+
+
+def test_svg_alone_writes_no_png_and_compare_takes_o(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", "--scene", "cyclic", "--algorithm", "bsp", "--svg", "c.svg",
+                 "--size", "48x36", "--quiet"]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["c.svg"]
+    assert main(["compare", "--size", "48x36", "-o", "m.png", "--quiet"]) == 0
+    assert (tmp_path / "m.png").exists()
+
+
+def test_help_states_defaults(capsys):
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
+        main(["render", "--help"])
+    text = out.getvalue()
+    assert "(default: 45.0)" in text and "(default: none)" in text  # --fov, --cull
+    assert "default: None" not in text

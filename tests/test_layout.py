@@ -136,3 +136,13 @@ def test_public_entry_points_document_what_they_raise():
     silent = [f.__qualname__ for f in entry_points
               if not any(w in (inspect.getdoc(f) or "") for w in ("Raises", "Raise "))]
     assert not silent, f"public entry points that do not say what they raise: {silent}"
+
+
+def test_readme_appearance_example_runs(tmp_path, monkeypatch):
+    """The README's appearance example, as written (it once failed with a NameError)."""
+    readme = open(os.path.join(SRC, "..", "..", "README.md")).read()
+    start = readme.index("import hsr\nfrom hsr import Fog, HiddenLine")
+    block = readme[start:readme.index("```", start)]
+    monkeypatch.chdir(os.path.join(SRC, "..", ".."))  # its paths are from the repo root
+    exec(block.replace('"lines.svg"', repr(str(tmp_path / "lines.svg"))), {})
+    assert (tmp_path / "lines.svg").stat().st_size > 0

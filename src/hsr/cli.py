@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import sys
 
@@ -25,6 +26,17 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         raise CliError(message)
+
+
+class _Help(argparse.HelpFormatter):
+    """Help that states each option's default (where it has one worth stating)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or not action.option_strings
+                or action.default in (None, False, [], argparse.SUPPRESS)):
+            return text
+        return text + " (default: %(default)s)"
 
 
 def _floats(text: str, count: int, what: str) -> tuple:
@@ -75,19 +87,25 @@ def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
     p.add_argument("--far", type=float, help="far plane distance")
     p.add_argument("--ortho", type=float, metavar="HEIGHT",
                    help="orthographic projection showing HEIGHT world units vertically")
-    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode])
-    p.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
-    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc])
+    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
+                   help="glCullFace")
+    p.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
+                   help="glFrontFace")
+    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help="glDepthFunc")
     p.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
     p.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
     p.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
     p.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
-    p.add_argument("--shading", default="flat", choices=list(SHADING_MODES))
+    p.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
+                   help="how visible faces are coloured")
     p.add_argument("--texture", metavar="IMAGE",
                    help="diffuse texture for the MODELs (they need OBJ vt coordinates)")
     p.add_argument("--no-texture", action="store_true", help="ignore textures")
-    p.add_argument("--texture-filter", default="bilinear", choices=["nearest", "bilinear"])
-    p.add_argument("--texture-wrap", default="repeat", choices=["repeat", "clamp"])
+    p.add_argument("--texture-filter", default="bilinear", choices=["nearest", "bilinear"],
+                   help="GL_NEAREST or GL_LINEAR")
+    p.add_argument("--texture-wrap", default="repeat", choices=["repeat", "clamp"],
+                   help="GL_REPEAT or GL_CLAMP_TO_EDGE")
     p.add_argument("--fog", metavar="MODE:PARAMS",
                    help="depth cueing: linear:START,END, exp:DENSITY or exp2:DENSITY")
     p.add_argument("--fog-color", default="128,128,128", help="fog colour r,g,b (0-255)")
@@ -117,12 +135,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--version", action="store_true", help="print hsr's version")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+    # Every option's help ends with its default.
+    sub.add_parser = functools.partial(sub.add_parser, formatter_class=_Help)
     r = sub.add_parser("render", help="render meshes (or a built-in scene) to an image",
                        description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
                        "or a built-in scene when no MODEL is given.")
     _add_scene_args(r, *shared)
-    r.add_argument("-o", "--output", default="render.png", help="colour image (default %(default)s)")
-    r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS))
+    r.add_argument("-o", "--output", help="colour image (default render.png; with --svg and "
+                   "no -o, only the SVG is written)")
+    r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
+                   help="visibility algorithm")
     r.add_argument("--depth-out", help="write a depth buffer (.npy float32 or 16-bit .png)")
     r.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
                    help="window depth (0..1), eye depth or distance from the eye in world "
@@ -158,7 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scene_args(c, *shared)
     c.add_argument("--algorithms", default=",".join(ALGORITHMS),
                    help="comma-separated algorithms (default: all: %(default)s)")
-    c.add_argument("--montage", help="write the images side by side with difference maps")
+    c.add_argument("--montage", "-o", "--output", dest="montage",
+                   help="write the images side by side with difference maps (PNG)")
     from .explain.views import VIEWS
 
     e = sub.add_parser("explain", help="a picture that explains one part of hidden-surface "
@@ -360,7 +383,10 @@ def _cmd_render(args) -> int:
     from .render import render
     from .scene.files import check_output
 
-    check_output(args.output)
+    if args.output is None:
+        args.output = None if args.svg else "render.png"
+    if args.output:
+        check_output(args.output)
     for path, kinds in ((args.depth_out, (".npy", ".png")), (args.ids_out, (".npy",)),
                         (args.svg, (".svg",)), (args.error_map, None),
                         (args.normals_out, (".npy", ".png"))):
@@ -379,7 +405,8 @@ def _cmd_render(args) -> int:
                    occlusion_cull=args.occlusion_cull, threads=args.threads, options=options,
                    hidden_line=hidden_line if args.hidden_line else None,
                    transparency=args.transparency)
-    frame.save(args.output)
+    if args.output:
+        frame.save(args.output)
     if args.depth_out:
         from .scene.files import save_depth
 
@@ -411,7 +438,7 @@ def _cmd_render(args) -> int:
         save_image(difference_map(frame, truth), args.error_map)
     if not args.quiet:
         s = frame.stats
-        print(f"wrote {args.output} ({width}x{height}, {args.algorithm}): "
+        print(f"wrote {args.output or args.svg} ({width}x{height}, {args.algorithm}): "
               f"{s['triangles_in']} triangles, {s['degenerate']} degenerate, "
               f"{s['culled']} culled, {s['clipped']} clipped, "
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
