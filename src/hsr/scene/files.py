@@ -100,52 +100,55 @@ def save_image(color: np.ndarray, path) -> None:
 PNG_SCALES = {"window": 65535.0, "eye": 1000.0, "distance": 1000.0}
 
 
+def _save_buffer(path, array: np.ndarray, what: str, write_png) -> None:
+    """Write ``array`` to a ``.npy`` (float32) or, through ``write_png(path)``, a ``.png``;
+    any other extension, or a failed write, is an :class:`OutputError`."""
+    path = _check_dir(path)
+    lower = path.lower()
+    try:
+        if lower.endswith(".npy"):
+            np.save(path, array.astype(np.float32))
+        elif lower.endswith(".png"):
+            write_png(path)
+        else:
+            raise OutputError(f"cannot write {what} to {path}: use .npy or .png")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc}") from None
+
+
 def save_depth(depth: np.ndarray, path, kind: str = "window") -> None:
     """``.npy``: the float32 buffer as is (eye depth and distance: +inf on background).
     ``.png``: 16-bit grey, ``round(value * scale)`` clipped to 65535 with the scale of
     :data:`PNG_SCALES` (window: 65535; eye, distance: 1000 per world unit, background 0),
     recorded in the PNG's ``hsr`` text chunk."""
-    path = _check_dir(path)
-    lower = path.lower()
-    try:
-        if lower.endswith(".npy"):
-            np.save(path, depth.astype(np.float32))
-        elif lower.endswith(".png"):
-            from PIL import Image, PngImagePlugin
 
-            scale = PNG_SCALES[kind]
-            finite = np.where(np.isfinite(depth), depth, 0.0)
-            top = 1.0 if kind == "window" else 65535.0 / scale
-            quantised = np.round(np.clip(finite, 0.0, top) * scale).astype(np.uint16)
-            info = PngImagePlugin.PngInfo()
-            info.add_text("hsr", f"{kind} depth: value = 16-bit pixel / {scale:g}"
-                          + ("" if kind == "window" else " world units; 0 = background"))
-            Image.fromarray(quantised).save(path, pnginfo=info)
-        else:
-            raise OutputError(f"cannot write depth to {path}: use .npy or .png")
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from None
+    def write_png(target):
+        from PIL import Image, PngImagePlugin
+
+        scale = PNG_SCALES[kind]
+        finite = np.where(np.isfinite(depth), depth, 0.0)
+        top = 1.0 if kind == "window" else 65535.0 / scale
+        quantised = np.round(np.clip(finite, 0.0, top) * scale).astype(np.uint16)
+        info = PngImagePlugin.PngInfo()
+        info.add_text("hsr", f"{kind} depth: value = 16-bit pixel / {scale:g}"
+                      + ("" if kind == "window" else " world units; 0 = background"))
+        Image.fromarray(quantised).save(target, pnginfo=info)
+
+    _save_buffer(path, depth, "depth", write_png)
 
 
 def save_normals(normals: np.ndarray, path) -> None:
     """``.npy``: (H, W, 3) float32 unit normals (0 on background). ``.png``: 8-bit RGB
     ``round(127.5 (n + 1))``, background black."""
-    path = _check_dir(path)
-    lower = path.lower()
-    try:
-        if lower.endswith(".npy"):
-            np.save(path, normals.astype(np.float32))
-        elif lower.endswith(".png"):
-            from PIL import Image
 
-            drawn = np.any(normals != 0, axis=2)
-            rgb = np.round(127.5 * (np.clip(normals, -1, 1) + 1.0)).astype(np.uint8)
-            rgb[~drawn] = 0
-            Image.fromarray(rgb).save(path)
-        else:
-            raise OutputError(f"cannot write normals to {path}: use .npy or .png")
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from None
+    def write_png(target):
+        from PIL import Image
+
+        rgb = np.round(127.5 * (np.clip(normals, -1, 1) + 1.0)).astype(np.uint8)
+        rgb[~np.any(normals != 0, axis=2)] = 0
+        Image.fromarray(rgb).save(target)
+
+    _save_buffer(path, normals, "normals", write_png)
 
 
 def save_ids(face_id: np.ndarray, path) -> None:
