@@ -15,6 +15,8 @@ MAX_SIZE = 32768
 # object id (4), the fill's and the shading's per-pixel temporaries (row and column
 # indices, barycentrics, colours in float64).
 BYTES_PER_PIXEL = 64
+# Frames needing less than this are not checked against the memory available.
+_ALWAYS_FITS = 256 << 20
 
 
 def check_size(width, height) -> None:
@@ -50,6 +52,8 @@ def check_memory(width: int, height: int, bytes_per_pixel: int = BYTES_PER_PIXEL
     """Refuse, before anything is allocated, an image whose buffers cannot fit in the
     memory available now (:class:`RenderError` with both sizes)."""
     need = width * height * bytes_per_pixel
+    if need <= _ALWAYS_FITS:
+        return  # no need to ask the system on every small render
     have = available_memory()
     if have is not None and need > have:
         raise RenderError(f"a {width}x{height} {what} needs about {need / 2**30:.1f} GiB "
