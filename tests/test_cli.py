@@ -299,3 +299,23 @@ def test_help_states_defaults(capsys):
     text = out.getvalue()
     assert "(default: 45.0)" in text and "(default: none)" in text  # --fov, --cull
     assert "default: None" not in text
+
+
+def test_orbit_writes_numbered_views(models_dir, tmp_path, capsys):
+    import hsr
+
+    model = os.path.join(models_dir, "spot.obj")
+    assert main(["render", model, "--orbit", "3", "--view", "30,10", "--size", "48x36",
+                 "-o", str(tmp_path / "s.png"), "--ids-out", str(tmp_path / "i.npy"),
+                 "--quiet"]) == 0
+    mesh = hsr.load(model)
+    cams = hsr.views.orbit(mesh.bounds(), 3, 10, 48 / 36, azimuth=30)
+    for k, cam in enumerate(cams):
+        assert (tmp_path / f"s_{k:03d}.png").exists()
+        assert np.array_equal(np.load(tmp_path / f"i_{k:03d}.npy"),
+                              hsr.render(mesh, cam, 48, 36).face_id)
+    assert np.allclose(np.asarray(cams[0].eye) - np.asarray(cams[0].target),
+                       np.linalg.norm(np.asarray(cams[0].eye) - np.asarray(cams[0].target))
+                       * hsr.views.direction(30, 10))
+    assert main(["render", model, "--orbit", "3", "--eye", "1,2,3"]) == 2
+    assert "does not combine with --eye" in capsys.readouterr().err

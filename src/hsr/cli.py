@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import functools
 import math
+import os
 import sys
 
 import numpy as np
@@ -149,6 +150,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
                    help="window depth (0..1), eye depth or distance from the eye in world "
                         "units (16-bit PNG: 1/1000 units) (default %(default)s)")
+    r.add_argument("--orbit", type=int, metavar="N", help="N views around the model at equal "
+                   "azimuth steps (elevation 20 degrees, or --view AZ,EL for the first): "
+                   "OUTPUT_000.png ... (and likewise the buffer outputs)")
     r.add_argument("--normals-out", help="write world-space normals (.npy float32 or 8-bit "
                    ".png)")
     r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
@@ -400,25 +404,18 @@ def _cmd_render(args) -> int:
     hidden_line = _hidden_line(args)
     if args.algorithm in ("newell", "bsp") and not args.quiet and sys.stderr.isatty():
         options.setdefault("progress", True)
-    frame = render(scene, camera, width, height, algorithm=args.algorithm, state=state,
-                   look=_look(args), background=background,
-                   occlusion_cull=args.occlusion_cull, threads=args.threads, options=options,
-                   hidden_line=hidden_line if args.hidden_line else None,
-                   transparency=args.transparency)
-    if args.output:
-        frame.save(args.output)
-    if args.depth_out:
-        from .scene.files import save_depth
 
-        buffer = {"window": frame.depth, "eye": frame.eye_depth,
-                  "distance": frame.distance}[args.depth_kind]
-        save_depth(buffer, args.depth_out, args.depth_kind)
-    if args.normals_out:
-        from .scene.files import save_normals
+    def draw(cam):
+        return render(scene, cam, width, height, algorithm=args.algorithm, state=state,
+                      look=_look(args), background=background,
+                      occlusion_cull=args.occlusion_cull, threads=args.threads,
+                      options=options, hidden_line=hidden_line if args.hidden_line else None,
+                      transparency=args.transparency)
 
-        save_normals(frame.normals, args.normals_out)
-    if args.ids_out:
-        frame.save_ids(args.ids_out)
+    if args.orbit is not None:
+        return _render_orbit(args, scene, width, height, draw)
+    frame = draw(camera)
+    _save_outputs(args, frame, "")
     if args.svg and args.lines:
         from .lines.vector import hidden_lines, write_lines_svg
 
@@ -443,6 +440,54 @@ def _cmd_render(args) -> int:
               f"{s['culled']} culled, {s['clipped']} clipped, "
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
               + _algorithm_summary(s))
+    return 0
+
+
+def _numbered(path, suffix):
+    if not path or not suffix:
+        return path
+    stem, ext = os.path.splitext(path)
+    return f"{stem}{suffix}{ext}"
+
+
+def _save_outputs(args, frame, suffix) -> None:
+    """The colour image and the buffers asked for, each name with ``suffix`` before its
+    extension."""
+    if args.output:
+        frame.save(_numbered(args.output, suffix))
+    if args.depth_out:
+        from .scene.files import save_depth
+
+        buffer = {"window": frame.depth, "eye": frame.eye_depth,
+                  "distance": frame.distance}[args.depth_kind]
+        save_depth(buffer, _numbered(args.depth_out, suffix), args.depth_kind)
+    if args.normals_out:
+        from .scene.files import save_normals
+
+        save_normals(frame.normals, _numbered(args.normals_out, suffix))
+    if args.ids_out:
+        frame.save_ids(_numbered(args.ids_out, suffix))
+
+
+def _render_orbit(args, scene, width, height, draw) -> int:
+    """``--orbit N``: N framed views at equal azimuth steps, outputs numbered _000, ..."""
+    from .scene import views
+
+    if not 1 <= args.orbit <= 100_000:
+        raise CliError(f"--orbit must be 1..100000 views, got {args.orbit}")
+    for flag, value in (("--eye", args.eye), ("--target", args.target), ("--camera",
+                        args.camera), ("--svg", args.svg), ("--error-map", args.error_map),
+                        ("--ortho", args.ortho)):
+        if value is not None:
+            raise CliError(f"--orbit places the cameras itself: it does not combine with {flag}")
+    az0, elevation = _floats(args.view_from, 2, "--view") if args.view_from else (0.0, 20.0)
+    cams = views.orbit(scene.bounds(), args.orbit, elevation, width / height, args.fov, az0)
+    for k, cam in enumerate(cams):
+        _save_outputs(args, draw(cam), f"_{k:03d}")
+    if not args.quiet:
+        print(f"wrote {args.orbit} views: {_numbered(args.output, '_000')} ... "
+              f"{_numbered(args.output, f'_{args.orbit - 1:03d}')} ({width}x{height}, "
+              f"{args.algorithm})")
     return 0
 
 

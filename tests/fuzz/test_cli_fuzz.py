@@ -41,6 +41,7 @@ _options = {
                                  "traversal=front_to_back", "progress=true"]),
     "--scene": st.sampled_from(["cubes", "cyclic", "penetration", "glass", "checker", "nope"]),
     "--view": _numbers,
+    "--orbit": st.sampled_from(["2", "0", "-1", "x", "100001"]),
     "--depth-kind": st.sampled_from(["window", "eye", "distance", "metric"]),
     "--camera": st.sampled_from(["missing.json", "/dev/zero", os.path.dirname(__file__)]),
 }

@@ -63,10 +63,11 @@ def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
 
 
 def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
-          fov_y: float = 45.0) -> list:
-    """``n`` cameras at equal azimuth steps (from +Z towards +X) at ``elevation``."""
-    return [framed(bounds, direction(360.0 * k / _count(n), elevation), aspect, fov_y)
-            for k in range(_count(n))]
+          fov_y: float = 45.0, azimuth: float = 0.0) -> list:
+    """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
+    at ``elevation``."""
+    return [framed(bounds, direction(azimuth + 360.0 * k / _count(n), elevation), aspect,
+                   fov_y) for k in range(_count(n))]
 
 
 def sphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
