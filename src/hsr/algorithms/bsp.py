@@ -14,10 +14,12 @@ from ..parallel import Workers
 from ..raster.fill import FIRST_WINS, rasterize
 from ..scene.mesh import Mesh, Scene
 from . import bsp_tree
-from .bsp_tree import BSPTree, build
+from .bsp_tree import BSPTree, build  # build: hsr.bsp.build
 from .fragments import Fragments
 from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
                       refuse_unsupported)
+
+__all__ = ["NAME", "OPTIONS", "check", "resolve", "build", "BSPTree"]
 
 NAME = "bsp"
 TRAVERSALS = ("back_to_front", "front_to_back")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ..errors import RenderError
 from ..geometry.stage import ScreenTriangles
-from ..geometry.state import DepthFunc, RenderState
+from ..geometry.state import RenderState
 from ..parallel import Workers
 from .bvh import BVH, build, cast
 from .fragments import Fragments

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import RenderError
 import numpy as np
 
+from ..errors import RenderError
 from ..geometry.state import DepthFunc, RenderState
 
 __all__ = ["Needs", "refuse_unsupported", "refuse_unless_nearest_wins", "apply_clear_depth"]

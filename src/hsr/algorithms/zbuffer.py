@@ -22,7 +22,7 @@ from ..parallel import Workers
 from ..raster.fill import band_split, fill_bands, fill_targets, rasterize
 from .fragments import Fragments
 from .hiz import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
-from .support import Needs, refuse_unsupported
+from .support import Needs
 
 NAME = "zbuffer"
 OPTIONS: dict = {}  # accepted keys of render(..., options=...): none

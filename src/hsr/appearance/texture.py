@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import RenderError, check_choice
+from ..errors import check_choice
 
 __all__ = ["FILTERS", "WRAPS", "sample"]
 

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError, check_choice
+from ..errors import check_choice
 from ..geometry.setup import HALF as _HALF
 from ..geometry.setup import ONE as _ONE
 from ..geometry.setup import setup_triangles
