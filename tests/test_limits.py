@@ -156,3 +156,12 @@ def test_gouraud_with_a_flattening_model_matrix():
     frame = hsr.render(flat, cam, 48, 36, shading="gouraud")
     covered = frame.face_id >= 0
     assert covered.any() and np.allclose(np.abs(frame.normals[covered][:, 2]), 1.0)
+
+
+def test_choice_options_of_any_type_are_refused(cubes):
+    """A choice option compared with ``in`` raised ValueError for an array value."""
+    scene, cam = cubes
+    with pytest.raises(hsr.RenderError, match="bsp option traversal must be one of"):
+        hsr.render(scene, cam, 32, 24, algorithm="bsp", options={"traversal": np.zeros(3)})
+    with pytest.raises(hsr.RenderError, match="painter option key must be one of"):
+        hsr.render(scene, cam, 32, 24, algorithm="painter", options={"key": ["max"]})

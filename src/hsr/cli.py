@@ -11,10 +11,9 @@ import sys
 import numpy as np
 
 from .errors import HsrError
+from .scene.mesh import MAX_COORDINATE
 
 EXIT_USAGE = 2
-# Coordinates beyond this cannot be squared in float64 (hsr.scene.camera.MAX_COORDINATE).
-_MAX_NUMBER = 1e100
 
 
 class CliError(HsrError):
@@ -48,8 +47,8 @@ def _floats(text: str, count: int, what: str) -> tuple:
         raise CliError(f"{what} must be {count} comma-separated numbers, got {text!r}") from None
     if len(values) != count or not all(math.isfinite(v) for v in values):
         raise CliError(f"{what} must be {count} finite comma-separated numbers, got {text!r}")
-    if any(abs(v) > _MAX_NUMBER for v in values):
-        raise CliError(f"{what} values must be within +-{_MAX_NUMBER:g}, got {text!r}")
+    if any(abs(v) > MAX_COORDINATE for v in values):
+        raise CliError(f"{what} values must be within +-{MAX_COORDINATE:g}, got {text!r}")
     return values
 
 

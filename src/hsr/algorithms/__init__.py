@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import RenderError
+from ..errors import RenderError, check_choice
 from . import bsp, newell, painter, raycast, scanline, zbuffer
 from .support import Needs
 
@@ -47,7 +47,8 @@ def check_option(name: str, key: str, value, kind) -> None:
         ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
         wanted = "an integer >= 0"
     elif isinstance(kind, tuple):
-        ok, wanted = value in kind, "one of " + ", ".join(kind)
+        check_choice(value, kind, f"{name} option {key}")
+        return
     else:
         ok, wanted = isinstance(value, kind), f"an {kind.__module__.split('.')[0]}." \
             f"{kind.__name__}"

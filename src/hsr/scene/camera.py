@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CameraError
+from .mesh import MAX_COORDINATE
 
 __all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matrix",
            "MAX_DEPTH_RATIO", "MAX_COORDINATE"]
@@ -18,10 +19,10 @@ __all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matri
 # float32 step of 1 and rounds to the far plane, where every surface ties and the depth
 # test (LESS against a clear of 1) drops it. So far / near may be at most 2**24.
 MAX_DEPTH_RATIO = float(1 << 24)
-# Coordinates (and products of two of them) must stay finite in float64.
-MAX_COORDINATE = 1e100
 # Smallest field of view and orthographic height (relative to the camera's coordinates):
 # below them one pixel is narrower than the float64 resolution of positions near the eye.
+# OpenGL eye axes (x right, y up, looking down -z) -> OpenCV camera axes (y down, z ahead).
+OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0])
 MIN_FOV_DEGREES = 1e-6
 MIN_ORTHO_RELATIVE = 1e-9
 
@@ -183,9 +184,8 @@ class Camera:
         a, b, c, d = self._normalised_intrinsics(width / height)
         K = np.array([[a * width, 0.0, c * width - 0.5], [0.0, b * height, d * height - 0.5],
                       [0.0, 0.0, 1.0]])
-        flip = np.diag([1.0, -1.0, -1.0])  # OpenGL eye axes -> OpenCV camera axes
         view = self.view_matrix
-        return K, flip @ view[:3, :3], flip @ view[:3, 3]
+        return K, OPENGL_TO_OPENCV @ view[:3, :3], OPENGL_TO_OPENCV @ view[:3, 3]
 
     @classmethod
     def from_matrices(cls, view, projection) -> "Camera":

@@ -17,14 +17,13 @@ import os
 import numpy as np
 
 from ..errors import CameraError
-from .camera import Camera
+from .camera import OPENGL_TO_OPENCV, Camera
 from .files import MAX_MTL_BYTES, read_regular
 
 __all__ = ["read_transforms", "write_transforms", "read_colmap", "COLMAP_MODELS"]
 
 # COLMAP camera models hsr renders exactly (pinholes without distortion).
 COLMAP_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")
-_OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0])
 
 
 def _read_text(path, what) -> str:
@@ -91,7 +90,7 @@ def read_transforms(path, near: float = 0.1, far: float = 100.0):
         if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-6) or np.linalg.det(rot) <= 0:
             raise CameraError(f"{where}: transform_matrix must be a rotation and a "
                               f"translation (no scale)")
-        R = _OPENGL_TO_OPENCV @ rot.T
+        R = OPENGL_TO_OPENCV @ rot.T
         t = -R @ c2w[:3, 3]
         K = np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]])
         try:
