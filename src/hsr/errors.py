@@ -30,3 +30,18 @@ def check_choice(value, choices, what: str, error=None) -> str:
         raise (error or RenderError)(f"{what} must be one of {', '.join(choices)}; "
                                      f"got {value!r}")
     return value
+
+
+def check_rgb(value, what: str) -> tuple:
+    """``value`` as a tuple if it is three numbers in 0..255 (not booleans), else a
+    :class:`RenderError` naming ``what``."""
+    import numbers
+
+    try:
+        parts = tuple(value)
+    except TypeError:
+        parts = ()
+    if len(parts) != 3 or not all(isinstance(c, numbers.Real) and not isinstance(c, bool)
+                                  and 0 <= c <= 255 for c in parts):
+        raise RenderError(f"{what} must be three numbers in 0..255, got {value!r}")
+    return parts

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import RenderError, check_choice
+from ..errors import RenderError, check_choice, check_rgb
 
 __all__ = ["Fog", "MODES", "parse_fog"]
 
@@ -54,14 +54,7 @@ class Fog:
             raise RenderError("linear fog needs end != start")
         if self.mode != "linear" and self.density < 0:
             raise RenderError(f"fog density must be >= 0, got {self.density}")
-        try:
-            color = tuple(self.color)
-        except TypeError:
-            color = ()
-        if len(color) != 3 or not all(isinstance(c, (int, float, np.integer, np.floating))
-                                      and 0 <= c <= 255 for c in color):
-            raise RenderError(f"fog colour must be three numbers in 0..255, got {self.color!r}")
-        object.__setattr__(self, "color", color)
+        object.__setattr__(self, "color", check_rgb(self.color, "fog colour"))
 
     def factor(self, distance: np.ndarray) -> np.ndarray:
         """Blend factor ``f`` in [0, 1] (1 = no fog) for eye-space distances."""

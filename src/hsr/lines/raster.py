@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..errors import RenderError, check_choice
+from ..errors import RenderError, check_choice, check_rgb
 from ..geometry.conventions import GUARD_BAND_PIXELS
 from ..geometry.setup import ONE as _ONE
 from ..raster.fill import depth_passes
@@ -70,19 +70,8 @@ class HiddenLine:
                                                              np.floating)) \
                 or not 0.0 <= angle <= 180.0:
             raise RenderError(f"crease angle must be a number in 0..180 degrees, got {angle!r}")
-        if self.color is not None and not _is_rgb(self.color):
-            raise RenderError(f"line colour must be three numbers in 0..255, "
-                              f"got {self.color!r}")
-
-
-def _is_rgb(value) -> bool:
-    try:
-        parts = tuple(value)
-    except TypeError:
-        return False
-    return len(parts) == 3 and all(
-        isinstance(c, (int, float, np.integer, np.floating)) and not isinstance(c, bool)
-        and 0 <= c <= 255 for c in parts)
+        if self.color is not None:
+            check_rgb(self.color, "line colour")
 
 
 @dataclass
