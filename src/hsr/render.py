@@ -87,14 +87,18 @@ class Frame:
         return buf.getvalue()
 
     def _derived(self, name, compute):
+        """Buffer ``name`` from ``compute(surface)``, on first use; the surface points of
+        the covered pixels are found once for all the derived buffers."""
         cache = self.__dict__.setdefault("_buffers", {})
         if name not in cache:
             if self.scene is None or self.camera is None or self.fragments is None:
                 raise RenderError(f"frame.{name} needs the frame of an hsr.render call")
-            # Pixels drawn by an earlier frame (into=) are not this scene's faces: only
-            # this draw's pixels are derived.
-            cache[name] = compute(self.scene, self.camera, self.fragments.screen,
-                                  self.fragments.face_id)
+            if "surface" not in cache:
+                # Pixels drawn by an earlier frame (into=) are not this scene's faces: only
+                # this draw's pixels are derived.
+                cache["surface"] = buffers.surface_points(self.scene, self.fragments.screen,
+                                                          self.fragments.face_id)
+            cache[name] = compute(cache["surface"])
         return cache[name]
 
     @property
@@ -102,13 +106,15 @@ class Frame:
         """(H, W) float32 distance along the viewing axis in world units (the z of OpenCV's
         camera frame), +inf where nothing is drawn; exact in float64 from the visible face,
         not from the float32 depth buffer."""
-        return self._derived("eye_depth", buffers.eye_depth)
+        return self._derived("eye_depth", lambda surface: buffers.eye_depth(
+            self.camera, surface, self.face_id.shape))
 
     @property
     def distance(self) -> np.ndarray:
         """(H, W) float32 Euclidean distance from the eye (orthographic: the eye depth),
         +inf where nothing is drawn."""
-        return self._derived("distance", buffers.distance)
+        return self._derived("distance", lambda surface: buffers.distance(
+            self.camera, surface, self.face_id.shape))
 
     @property
     def normals(self) -> np.ndarray:
@@ -116,9 +122,11 @@ class Frame:
         normal as wound, or interpolated corner normals when the frame was Gouraud shaded."""
         smooth = self.look is not None and self.look.shading == "gouraud"
 
-        def compute(scene, camera, screen, face_id):
-            ctx = ShadeContext(scene, camera, screen, self.look or Look(), None)
-            return buffers.normals(scene, screen, face_id, smooth, ctx.corner_normals)
+        def compute(surface):
+            ctx = ShadeContext(self.scene, self.camera, self.fragments.screen,
+                               self.look or Look(), None)
+            return buffers.normals(self.scene, surface, self.face_id.shape, smooth,
+                                   ctx.corner_normals)
 
         return self._derived("normals", compute)
 

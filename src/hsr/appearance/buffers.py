@@ -28,35 +28,35 @@ def surface_points(scene, screen, face_id: np.ndarray):
     return rows, cols, faces, np.einsum("kc,kcj->kj", bary, corners), bary
 
 
-def eye_depth(scene, camera, screen, face_id) -> np.ndarray:
+def eye_depth(camera, surface, shape) -> np.ndarray:
     """(H, W) float32 distance along the viewing axis (OpenCV's camera z), +inf where
-    nothing is drawn."""
-    rows, cols, _, points, _ = surface_points(scene, screen, face_id)
-    out = np.full(face_id.shape, np.inf, dtype=np.float32)
+    nothing is drawn; ``surface`` from :func:`surface_points`, ``shape`` (H, W)."""
+    rows, cols, _, points, _ = surface
+    out = np.full(shape, np.inf, dtype=np.float32)
     eye = np.asarray(camera.eye, dtype=np.float64)
     out[rows, cols] = (points - eye) @ np.asarray(camera.forward, dtype=np.float64)
     return out
 
 
-def distance(scene, camera, screen, face_id) -> np.ndarray:
+def distance(camera, surface, shape) -> np.ndarray:
     """(H, W) float32 Euclidean distance from the eye (perspective); for an orthographic
     camera the distance from the image plane along the ray, i.e. the eye depth. +inf
     where nothing is drawn."""
     if camera.is_orthographic:
-        return eye_depth(scene, camera, screen, face_id)
-    rows, cols, _, points, _ = surface_points(scene, screen, face_id)
-    out = np.full(face_id.shape, np.inf, dtype=np.float32)
+        return eye_depth(camera, surface, shape)
+    rows, cols, _, points, _ = surface
+    out = np.full(shape, np.inf, dtype=np.float32)
     out[rows, cols] = np.linalg.norm(points - np.asarray(camera.eye, dtype=np.float64), axis=1)
     return out
 
 
-def normals(scene, screen, face_id, smooth: bool = False, corner_normals=None) -> np.ndarray:
+def normals(scene, surface, shape, smooth: bool = False, corner_normals=None) -> np.ndarray:
     """(H, W, 3) float32 world-space unit normals, 0 where nothing is drawn: the normal of
     the visible face as wound (counter-clockwise = front, not turned towards the eye), or
     with ``smooth`` the corner normals (``corner_normals(k)`` of instance k, as Gouraud
     shading uses them) interpolated perspective-correctly."""
-    rows, cols, faces, _, bary = surface_points(scene, screen, face_id)
-    out = np.zeros(face_id.shape + (3,), dtype=np.float32)
+    rows, cols, faces, _, bary = surface
+    out = np.zeros(tuple(shape) + (3,), dtype=np.float32)
     if not len(faces):
         return out
     offsets = scene.face_offsets()

@@ -66,8 +66,9 @@ def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
           fov_y: float = 45.0, azimuth: float = 0.0) -> list:
     """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
     at ``elevation``."""
-    return [framed(bounds, direction(azimuth + 360.0 * k / _count(n), elevation), aspect,
-                   fov_y) for k in range(_count(n))]
+    n = _count(n)
+    return [framed(bounds, direction(azimuth + 360.0 * k / n, elevation), aspect, fov_y)
+            for k in range(n)]
 
 
 def sphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
