@@ -90,29 +90,33 @@ def panel(image: np.ndarray, caption: str, lines: int = 1) -> np.ndarray:
     return np.asarray(sheet)
 
 
+def _stack(parts: list, axis: int, gap: int) -> np.ndarray:
+    """Images one after another along ``axis`` (1: side by side, tops aligned; 0: one
+    under another, left edges aligned), ``gap`` pixels apart on the panel background."""
+    across = 1 - axis
+    shape = [0, 0, 3]
+    shape[axis] = sum(p.shape[axis] for p in parts) + gap * (len(parts) - 1)
+    shape[across] = max(p.shape[across] for p in parts)
+    out = np.empty(shape, dtype=np.uint8)
+    out[:] = _PANEL_BG
+    at = 0
+    for p in parts:
+        index = [slice(None), slice(None)]
+        index[axis] = slice(at, at + p.shape[axis])
+        index[across] = slice(0, p.shape[across])
+        out[tuple(index)] = p
+        at += p.shape[axis] + gap
+    return out
+
+
 def row(panels: list, gap: int = 4) -> np.ndarray:
     """Panels side by side (tops aligned), on the panel background."""
-    h = max(p.shape[0] for p in panels)
-    w = sum(p.shape[1] for p in panels) + gap * (len(panels) - 1)
-    out = np.empty((h, w, 3), dtype=np.uint8)
-    out[:] = _PANEL_BG
-    x = 0
-    for p in panels:
-        out[:p.shape[0], x:x + p.shape[1]] = p
-        x += p.shape[1] + gap
-    return out
+    return _stack(panels, 1, gap)
 
 
 def column(rows: list, gap: int = 4) -> np.ndarray:
-    w = max(r.shape[1] for r in rows)
-    h = sum(r.shape[0] for r in rows) + gap * (len(rows) - 1)
-    out = np.empty((h, w, 3), dtype=np.uint8)
-    out[:] = _PANEL_BG
-    y = 0
-    for r in rows:
-        out[y:y + r.shape[0], :r.shape[1]] = r
-        y += r.shape[0] + gap
-    return out
+    """Rows one under another (left edges aligned), on the panel background."""
+    return _stack(rows, 0, gap)
 
 
 # A perceptually ordered heat ramp (black - purple - orange - yellow - white).
