@@ -287,3 +287,57 @@ def test_every_algorithm_gets_textures_and_fog_for_free(algorithm):
     same_face = frame.face_id == ref.face_id
     assert same_face.mean() > 0.999
     assert (frame.color[same_face] == ref.color[same_face]).all()
+
+
+# --------------------------------------------------------------------------- lights
+def cube():
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return hsr.Mesh(v, [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+
+
+@pytest.mark.parametrize("shading,path", [("flat", "per face"), ("flat", "per fragment"),
+                                          ("gouraud", "per fragment")])
+def test_studio_light_is_two_sided_lambert(shading, path):
+    """Every covered pixel of a cube (seen three-quarter, so three faces show) has
+    ``230 * (ambient + sum power * max(0, n . l))`` with n the face normal turned to the
+    eye, for the rig's lights (their directions are inputs here; the sum is computed
+    here). Gouraud on flat faces with face normals is the same. The per-fragment path is
+    forced with a fog that changes nothing (density 0)."""
+    from hsr.appearance.shading import light_rig
+
+    mesh = cube()
+    normals = mesh.face_normals()
+    if shading == "gouraud":
+        mesh = hsr.Mesh(mesh.positions, mesh.faces, corner_normals=np.repeat(
+            normals[:, None, :], 3, axis=1))
+    cam = hsr.views.default(mesh.bounds(), W / H)
+    fog = hsr.Fog("exp", density=0.0) if path == "per fragment" else None
+    frame = hsr.render(mesh, cam, W, H, shading=shading, light="studio", fog=fog)
+    rig = light_rig("studio", cam)
+    eye_space = rig.directions @ cam.view_matrix[:3, :3].T
+    assert eye_space[0, 0] < 0 and eye_space[0, 1] > 0 and eye_space[0, 2] > 0  # key: up-left-front
+    assert rig.power[0] > rig.power[1] > 0  # key brighter than fill
+    covered = frame.face_id >= 0
+    n = normals[frame.face_id[covered]]
+    n *= np.where(n @ np.asarray(cam.forward) > 0, -1.0, 1.0)[:, None]
+    expected = 230 * (rig.ambient + np.maximum(0, n @ rig.directions.T) @ rig.power)
+    got = frame.color[covered][:, 0].astype(float)
+    assert np.abs(got - np.minimum(expected, 255)).max() <= 1.01
+    shades = {int(np.median(got[frame.face_id[covered] // 2 == q])) for q in range(6)
+              if (frame.face_id[covered] // 2 == q).sum() > 50}
+    assert len(shades) == 3  # three faces show, each with its own shade
+
+
+def test_headlight_is_the_default_and_lights_are_checked():
+    mesh = cube()
+    cam = hsr.views.default(mesh.bounds(), W / H)
+    frame = hsr.render(mesh, cam, W, H)
+    covered = frame.face_id >= 0
+    n = mesh.face_normals()[frame.face_id[covered]]
+    expected = 230 * np.abs(n @ np.asarray(cam.forward))
+    assert np.abs(frame.color[covered][:, 0] - expected).max() <= 1.01
+    with pytest.raises(hsr.RenderError, match="light"):
+        hsr.render(mesh, cam, W, H, light="sun")
+    with pytest.raises(hsr.RenderError, match="light"):
+        hsr.Look(light=None)

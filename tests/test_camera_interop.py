@@ -131,6 +131,46 @@ def test_from_matrices_keeps_the_projection():
                               hsr.render(mesh, cam, W, H).face_id)
 
 
+@pytest.mark.parametrize("pixel", [(10, 20), (0, 0), (W - 1, H - 1), (61, 5)])
+def test_from_matrices_orthographic_off_centre_box(pixel):
+    """A glOrtho box with left != -right and bottom != -top, built here from its textbook
+    formula: a point at the eye-space position of pixel centre (x + 0.5, y + 0.5), row 0
+    at the top, lands in that pixel and no other; the matrices round-trip."""
+    rng = np.random.default_rng(7)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    rot = q * np.sign(np.linalg.det(q))
+    view = np.eye(4)
+    view[:3, :3], view[:3, 3] = rot, rng.normal(size=3)
+    left, right, bottom, top, near, far = -0.7, 2.1, -0.4, 1.3, 0.5, 9.0
+    proj = np.array([[2 / (right - left), 0, 0, -(right + left) / (right - left)],
+                     [0, 2 / (top - bottom), 0, -(top + bottom) / (top - bottom)],
+                     [0, 0, -2 / (far - near), -(far + near) / (far - near)],
+                     [0, 0, 0, 1.0]])
+    cam = hsr.Camera.from_matrices(view, proj)
+    assert cam.is_orthographic
+    assert np.allclose(cam.view_matrix, view, atol=1e-9)
+    assert np.allclose(cam.projection_matrix(W / H), proj, atol=1e-12)
+    col, row = pixel
+    x_eye = left + (col + 0.5) / W * (right - left)
+    y_eye = top - (row + 0.5) / H * (top - bottom)
+    size = 0.1 * (right - left) / W  # a tenth of a pixel
+    pts_eye = np.array([[x_eye - size, y_eye - size, -4.0], [x_eye + size, y_eye - size, -4.0],
+                        [x_eye, y_eye + size, -4.0]])
+    world = (pts_eye - view[:3, 3]) @ rot  # x_world = R^T (x_eye - t)
+    frame = hsr.render(hsr.Mesh(world, [[0, 1, 2]]), cam, W, H)
+    assert np.argwhere(frame.face_id == 0).tolist() == [[row, col]]
+    assert abs(frame.eye_depth[row, col] - 4.0) < 1e-5
+
+
+@pytest.mark.parametrize("proj,message", [
+    (np.diag([1.0, 1.0, 1.0, 1.0]), "near < far"),  # glOrtho form but near > far
+    (np.array([[1.0, 0, 0.2, 0], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]]), "glOrtho"),
+])
+def test_from_matrices_refuses_a_bad_box(proj, message):
+    with pytest.raises(hsr.CameraError, match=message):
+        hsr.Camera.from_matrices(np.eye(4), proj)
+
+
 @pytest.mark.parametrize("make,message", [
     (lambda K, R, t: hsr.Camera.from_opencv(np.array([[100, 3, 40], [0, 100, 30], [0, 0, 1.0]]),
                                             R, t, W, H), "no skew"),
@@ -260,7 +300,7 @@ def test_transforms_errors(tmp_path, doc, message):
 
 # ------------------------------------------------------------------------------ view sets
 @pytest.mark.parametrize("size", [(96, 72), (160, 40), (40, 160)])
-@pytest.mark.parametrize("kind", ["orbit", "sphere", "hemisphere"])
+@pytest.mark.parametrize("kind", ["orbit", "sphere", "hemisphere", "frame", "default"])
 def test_view_sets_frame_the_whole_model(models_dir, kind, size):
     """Every camera of a set shows the whole model at every aspect ratio: no covered pixel
     touches the image border, and every box corner projects inside the image (independent
@@ -270,8 +310,13 @@ def test_view_sets_frame_the_whole_model(models_dir, kind, size):
     w, h = size
     mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
     bounds = mesh.bounds()
-    cams = getattr(hsr.views, kind)(bounds, 6, aspect=w / h)
-    assert len(cams) == 6
+    if kind == "frame":  # Camera.frame: straight on, and from above (up parallel to view)
+        cams = [hsr.Camera.frame(bounds, d, aspect=w / h) for d in ((0, 0, 1), (0, 1, 0))]
+    elif kind == "default":
+        cams = [hsr.views.default(bounds, aspect=w / h)]
+    else:
+        cams = getattr(hsr.views, kind)(bounds, 6, aspect=w / h)
+        assert len(cams) == 6
     corners = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
                         for z in bounds[:, 2]])
     for cam in cams:

@@ -319,3 +319,29 @@ def test_orbit_writes_numbered_views(models_dir, tmp_path, capsys):
                        * hsr.views.direction(30, 10))
     assert main(["render", model, "--orbit", "3", "--eye", "1,2,3"]) == 2
     assert "does not combine with --eye" in capsys.readouterr().err
+
+
+def test_first_look_of_a_model(tmp_path, capsys, models_dir):
+    """``hsr render MODEL``: the three-quarter view (views.DEFAULT_VIEW) framed for the
+    image's aspect, lit by the studio rig; a built-in scene keeps its camera and the
+    headlight. Negative numbers after an option are values (--view -55,25)."""
+    import hsr
+
+    path = os.path.join(models_dir, "fandisk.obj")
+    out = tmp_path / "f.png"
+    assert main(["render", path, "-o", str(out), "--size", "200x120", "--quiet"]) == 0
+    mesh = hsr.load(path)
+    cam = hsr.views.default(mesh.bounds(), 200 / 120)
+    assert np.allclose(cam.forward, -hsr.views.direction(35, 25))
+    want = hsr.render(mesh, cam, 200, 120, light="studio")
+    assert np.array_equal(np.asarray(Image.open(out)), want.color)
+    # The fandisk's faces show several shades, not one flat silhouette.
+    assert len(np.unique(want.color[want.face_id >= 0][:, 0])) > 15
+    assert main(["render", "-o", str(out), "--size", "160x120", "--quiet"]) == 0
+    scene, camera = hsr.scenes.get("cubes")
+    assert np.array_equal(np.asarray(Image.open(out)), hsr.render(scene, camera, 160, 120).color)
+    assert main(["render", path, "--view", "-55,25", "-o", str(out), "--size", "200x120",
+                 "--quiet"]) == 0
+    cam = hsr.views.framed(mesh.bounds(), hsr.views.direction(-55, 25), 200 / 120)
+    assert np.array_equal(np.asarray(Image.open(out)),
+                          hsr.render(mesh, cam, 200, 120, light="studio").color)

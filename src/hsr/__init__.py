@@ -26,7 +26,7 @@ from .scene import builtin as scenes
 from .scene import views
 from .scene.camera import Camera
 from .scene.camera_files import read_colmap, read_transforms, write_transforms
-from .scene.load import load
+from .scene.load import load, load_scene
 from .scene.mesh import Instance, Mesh, Scene
 
 __version__ = "0.1.0"
@@ -35,6 +35,6 @@ __all__ = [
     "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "bsp",
-    "hidden_lines", "load", "raycast", "read_colmap", "read_transforms", "render", "scenes",
+    "hidden_lines", "load", "load_scene", "raycast", "read_colmap", "read_transforms", "render", "scenes",
     "views", "write_lines_svg", "write_transforms",
 ]

@@ -70,58 +70,75 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
-    """Arguments shared by every command that renders: scene, camera, state, shading."""
-    p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files, drawn in order")
-    p.add_argument("--scene", default="cubes", choices=list(SCENES),
+    """Arguments shared by every command that renders, in groups: scene, camera, depth
+    state, culling and polygons, appearance, run."""
+    from .appearance.shading import LIGHTS
+
+    p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files (OBJ, PLY, STL, "
+                   "OFF, glTF/GLB: one object per node), drawn in order")
+    g = p.add_argument_group("scene")
+    g.add_argument("--scene", default="cubes", choices=list(SCENES),
                    help="built-in scene when no MODEL is given (default %(default)s)")
-    p.add_argument("--size", help="WxH in pixels (default: the --camera file's, else 800x600)")
-    p.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
-    p.add_argument("--view", dest="view_from", metavar="AZ,EL", help="frame the model from azimuth AZ (degrees "
-                   "from +Z towards +X) and elevation EL (degrees up)")
-    p.add_argument("--camera", metavar="FILE[:INDEX]", help="camera INDEX (default 0) of a "
-                   "NeRF transforms.json or a COLMAP text model folder")
-    p.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
-    p.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
-    p.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
-    p.add_argument("--near", type=float, help="near plane distance")
-    p.add_argument("--far", type=float, help="far plane distance")
-    p.add_argument("--ortho", type=float, metavar="HEIGHT",
-                   help="orthographic projection showing HEIGHT world units vertically")
-    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
-                   help="glCullFace")
-    p.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
-                   help="glFrontFace")
-    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
-                   help="glDepthFunc")
-    p.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
-    p.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
-    p.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
-    p.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
-    p.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
-                   help="how visible faces are coloured")
-    p.add_argument("--texture", metavar="IMAGE",
-                   help="diffuse texture for the MODELs (they need OBJ vt coordinates)")
-    p.add_argument("--no-texture", action="store_true", help="ignore textures")
-    p.add_argument("--texture-filter", default="bilinear", choices=["nearest", "bilinear"],
-                   help="GL_NEAREST or GL_LINEAR")
-    p.add_argument("--texture-wrap", default="repeat", choices=["repeat", "clamp"],
-                   help="GL_REPEAT or GL_CLAMP_TO_EDGE")
-    p.add_argument("--fog", metavar="MODE:PARAMS",
-                   help="depth cueing: linear:START,END, exp:DENSITY or exp2:DENSITY")
-    p.add_argument("--fog-color", default="128,128,128", help="fog colour r,g,b (0-255)")
-    p.add_argument("--fog-distance", default="radial", choices=["radial", "plane"],
-                   help="eye distance (radial) or |z_eye| (plane)")
-    p.add_argument("--polygon-mode", default="fill", choices=["fill", "line", "point"],
-                   help="glPolygonMode: line draws every edge, visible and hidden")
-    p.add_argument("--polygon-offset", metavar="FACTOR,UNITS",
-                   help="glPolygonOffset for filled triangles")
-    p.add_argument("--opacity", metavar="A[,A...]",
+    g.add_argument("--opacity", metavar="A[,A...]",
                    help="opacity per MODEL (or one for all), 0..1; < 1 is blended")
-    p.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
-    p.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
-    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+    g = p.add_argument_group("camera")
+    g.add_argument("--size", help="WxH in pixels (default: the --camera file's, else 800x600)")
+    g.add_argument("--view", dest="view_from", metavar="AZ,EL", help="frame the model from "
+                   "azimuth AZ (degrees from +Z towards +X) and elevation EL (degrees up) "
+                   "(default for MODELs: 35,25, a three-quarter view from above; built-in "
+                   "scenes: their own camera)")
+    g.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
+    g.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
+    g.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
+    g.add_argument("--camera", metavar="FILE[:INDEX]", help="camera INDEX (default 0) of a "
+                   "NeRF transforms.json or a COLMAP text model folder")
+    g.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
+    g.add_argument("--near", type=float, help="near plane distance (default: hug the model)")
+    g.add_argument("--far", type=float, help="far plane distance (default: hug the model)")
+    g.add_argument("--ortho", type=float, metavar="HEIGHT",
+                   help="orthographic projection showing HEIGHT world units vertically")
+    g = p.add_argument_group("depth state")
+    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help="glDepthFunc")
+    g.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
+    g.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
+    g.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
+    g.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
+    g = p.add_argument_group("culling and polygons")
+    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
+                   help="glCullFace")
+    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
+                   help="glFrontFace")
+    g.add_argument("--polygon-mode", default="fill", choices=["fill", "line", "point"],
+                   help="glPolygonMode: line draws every edge, visible and hidden")
+    g.add_argument("--polygon-offset", metavar="FACTOR,UNITS",
+                   help="glPolygonOffset for filled triangles")
+    g = p.add_argument_group("appearance")
+    g.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
+                   help="how visible faces are coloured")
+    g.add_argument("--light", choices=list(LIGHTS),
+                   help="studio: a key light from above-left-front and a fill, so shapes "
+                   "read; headlight: one light along the view, the textbooks' (default: "
+                   "studio for MODELs, headlight for built-in scenes, as the seeds draw them)")
+    g.add_argument("--texture", action="append", default=[], metavar="[MODEL=]IMAGE",
+                   help="diffuse texture for MODEL (or for the one MODEL given); the MODEL "
+                   "needs texture coordinates; repeatable, once per MODEL")
+    g.add_argument("--no-texture", action="store_true", help="ignore textures")
+    g.add_argument("--texture-filter", default="bilinear", choices=["nearest", "bilinear"],
+                   help="GL_NEAREST or GL_LINEAR")
+    g.add_argument("--texture-wrap", default="repeat", choices=["repeat", "clamp"],
+                   help="GL_REPEAT or GL_CLAMP_TO_EDGE")
+    g.add_argument("--fog", metavar="MODE:PARAMS",
+                   help="depth cueing: linear:START,END, exp:DENSITY or exp2:DENSITY")
+    g.add_argument("--fog-color", default="128,128,128", help="fog colour r,g,b (0-255)")
+    g.add_argument("--fog-distance", default="radial", choices=["radial", "plane"],
+                   help="eye distance (radial) or |z_eye| (plane)")
+    g.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
+    g = p.add_argument_group("run")
+    g.add_argument("--threads", type=int, help="threads for the kernels (default: all cores)")
+    g.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="algorithm option, e.g. accel=none (raycast); repeatable")
-    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+    g.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -141,42 +158,45 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
                        "or a built-in scene when no MODEL is given.")
     _add_scene_args(r, *shared)
-    r.add_argument("-o", "--output", help="colour image (default render.png; with --svg and "
-                   "no -o, only the SVG is written)")
-    r.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
+    rv = r.add_argument_group("visibility")
+    rv.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
                    help="visibility algorithm")
-    r.add_argument("--depth-out", help="write a depth buffer (.npy float32 or 16-bit .png)")
-    r.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
-                   help="window depth (0..1), eye depth or distance from the eye in world "
-                        "units (16-bit PNG: 1/1000 units) (default %(default)s)")
-    r.add_argument("--orbit", type=int, metavar="N", help="N views around the model at equal "
-                   "azimuth steps (elevation 20 degrees, or --view AZ,EL for the first): "
-                   "OUTPUT_000.png ... (and likewise the buffer outputs)")
-    r.add_argument("--normals-out", help="write world-space normals (.npy float32 or 8-bit "
-                   ".png)")
-    r.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
-    r.add_argument("--svg", help="with --lines: the exact visible edges as SVG; with "
+    rv.add_argument("--occlusion-cull", action="store_true",
+                   help="skip objects hidden behind nearer ones (same result, less work)")
+    rv.add_argument("--transparency", default="object", choices=["object", "exact"],
+                   help="order transparent objects per object (painter's) or per fragment")
+    rl = r.add_argument_group("lines")
+    rl.add_argument("--svg", help="with --lines: the exact visible edges as SVG; with "
                    "--algorithm bsp or newell: the ordered polygons (exact, no rasterization)")
-    r.add_argument("--lines", action="store_true",
+    rl.add_argument("--lines", action="store_true",
                    help="--svg draws visible edges, cut exactly where they become hidden")
-    r.add_argument("--hidden-layer", action="store_true",
+    rl.add_argument("--hidden-layer", action="store_true",
                    help="--svg --lines also draws the hidden parts, dashed")
-    r.add_argument("--hidden-line", action="store_true",
+    rl.add_argument("--hidden-line", action="store_true",
                    help="draw only visible edges (depth test against the polygon-offset fill)")
-    r.add_argument("--edges", default="all", choices=["all", "feature"],
+    rl.add_argument("--edges", default="all", choices=["all", "feature"],
                    help="edges for --hidden-line and --lines: all, or feature edges "
                    "(silhouettes, creases, boundaries)")
-    r.add_argument("--crease-angle", type=float, default=30.0,
+    rl.add_argument("--crease-angle", type=float, default=30.0,
                    help="feature edges: creases sharper than this many degrees")
-    r.add_argument("--line-color", help="line colour r,g,b (default: contrast with background)")
-    r.add_argument("--hidden-line-fill", default="background", choices=["background", "shaded"],
+    rl.add_argument("--line-color", help="line colour r,g,b (default: contrast with background)")
+    rl.add_argument("--hidden-line-fill", default="background", choices=["background", "shaded"],
                    help="what --hidden-line draws under the edges")
-    r.add_argument("--transparency", default="object", choices=["object", "exact"],
-                   help="order transparent objects per object (painter's) or per fragment")
-    r.add_argument("--error-map", help="write where the result differs from the z-buffer "
+    ro = r.add_argument_group("output")
+    ro.add_argument("-o", "--output", help="colour image (default render.png; with --svg and "
+                   "no -o, only the SVG is written)")
+    ro.add_argument("--depth-out", help="write a depth buffer (.npy float32 or 16-bit .png)")
+    ro.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
+                   help="window depth (0..1), eye depth or distance from the eye in world "
+                        "units (16-bit PNG: 1/1000 units) (default %(default)s)")
+    ro.add_argument("--orbit", type=int, metavar="N", help="N views around the model at equal "
+                   "azimuth steps (elevation 20 degrees, or --view AZ,EL for the first): "
+                   "OUTPUT_000.png ... (and likewise the buffer outputs)")
+    ro.add_argument("--normals-out", help="write world-space normals (.npy float32 or 8-bit "
+                   ".png)")
+    ro.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
+    ro.add_argument("--error-map", help="write where the result differs from the z-buffer "
                    "(red) as a PNG")
-    r.add_argument("--occlusion-cull", action="store_true",
-                   help="skip objects hidden behind nearer ones (same result, less work)")
     c = sub.add_parser("compare", help="render one scene with every algorithm and compare",
                        description="Render the scene with each algorithm and print time, "
                        "agreement with the z-buffer and algorithm-specific counts.")
@@ -248,15 +268,10 @@ def _camera_from_args(args, scene, default_camera, aspect):
     from .scene.camera import Camera
 
     up = _floats(args.up, 3, "--up")
-    if args.view_from is not None:
-        if args.eye is not None or args.ortho is not None:
-            raise CliError("--view frames the model: it does not combine with --eye or --ortho")
-        az, el = _floats(args.view_from, 2, "--view")
-        try:
-            return views.framed(scene.bounds(), views.direction(az, el), aspect, args.fov)
-        except CameraError as exc:
-            raise CliError(f"--view: {exc}") from None
-    if args.eye is None and args.target is None and default_camera is not None:
+    if args.view_from is not None and args.eye is not None:
+        raise CliError("--view frames the model: it does not combine with --eye")
+    if args.view_from is None and args.eye is None and args.target is None \
+            and default_camera is not None:
         # A built-in scene: its own camera, with the user's lens settings applied.
         cam = default_camera
         near = args.near if args.near is not None else cam.near
@@ -270,8 +285,14 @@ def _camera_from_args(args, scene, default_camera, aspect):
     eye = np.array(_floats(args.eye, 3, "--eye")) if args.eye else None
     try:
         if eye is None:
-            cam = Camera.frame(bounds, up=up, fov_y=args.fov, ortho_height=args.ortho)
+            # Frame the model's bounding sphere for this aspect ratio from --view, or by
+            # default from a three-quarter view above the front-right (views.DEFAULT_VIEW).
+            az, el = (_floats(args.view_from, 2, "--view") if args.view_from is not None
+                      else views.DEFAULT_VIEW)
+            cam = Camera.frame(bounds, views.direction(az, el), up, args.fov,
+                               ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect)
             eye = np.asarray(cam.eye) - np.asarray(cam.target) + target
+            up = cam.up
             auto_near, auto_far = cam.near, cam.far
         else:
             with np.errstate(all="ignore"):  # an absurd eye fails in Camera below
@@ -282,6 +303,8 @@ def _camera_from_args(args, scene, default_camera, aspect):
             return Camera.orthographic(eye, target, up, args.ortho, near, far)
         return Camera.look_at(eye, target, up, args.fov, near, far)
     except CameraError as exc:
+        if args.view_from is not None and args.eye is None:
+            raise CliError(f"--view: {exc}") from None
         given = [name for name, value in (("--eye", args.eye), ("--target", args.target),
                                           ("--near", args.near), ("--far", args.far))
                  if value is None]
@@ -316,39 +339,41 @@ def _setup(args):
     """Scene, camera, size, state, background and options from the shared arguments."""
     from .geometry.state import RenderState
     from .scene import builtin as scenes
-    from .scene.load import load
+    from .scene.load import load_scene
     from .scene.mesh import Scene
 
     file_camera, file_size = _file_camera(args)
     width, height = _size(args.size) if args.size else (file_size or (800, 600))
     default_camera = None
+    if args.light is None:
+        args.light = "studio" if args.models else "headlight"
     if args.models:
-        meshes = [load(path) for path in args.models]
-        if args.texture:
-            textured = [m for m in meshes if m.corner_uv is not None]
-            if not textured:
-                raise CliError("--texture: no MODEL has texture coordinates (OBJ vt)")
-            for m in textured:  # read (and checked) when shading starts
-                m.texture = args.texture
-        scene = Scene(meshes)
+        scene, owner = Scene(), []  # owner[i]: the MODEL instance i came from
+        for k, path in enumerate(args.models):
+            for inst in load_scene(path).instances:
+                scene.instances.append(inst)
+                owner.append(k)
+        _apply_textures(args, scene, owner)
     else:
         if args.texture:
             raise CliError("--texture needs MODEL files")
         scene, default_camera = scenes.get(args.scene)
+        owner = list(range(len(scene.instances)))
     if args.opacity:
+        count = len(args.models) if args.models else len(scene.instances)
         values = args.opacity.split(",")
-        if len(values) not in (1, len(scene.instances)):
-            raise CliError(f"--opacity needs 1 or {len(scene.instances)} values, "
-                           f"got {len(values)}")
+        if len(values) not in (1, count):
+            raise CliError(f"--opacity needs 1 or {count} values (one per "
+                           f"{'MODEL' if args.models else 'object'}), got {len(values)}")
         try:
-            opacity = [float(v) for v in values] * (len(scene.instances) if len(values) == 1
-                                                    else 1)
+            opacity = [float(v) for v in values] * (count if len(values) == 1 else 1)
         except ValueError:
             raise CliError(f"--opacity values must be numbers, got {args.opacity!r}") from None
-        for inst, a in zip(scene.instances, opacity):
+        for a in opacity:
             if not 0.0 <= a <= 1.0:
                 raise CliError(f"--opacity values must be in 0..1, got {a}")
-            inst.opacity = a
+        for inst, k in zip(scene.instances, owner):
+            inst.opacity = opacity[k]
     camera = file_camera or _camera_from_args(args, scene, default_camera, width / height)
     state = RenderState(depth_test=not args.no_depth_test, depth_func=args.depth_func,
                         depth_mask=not args.no_depth_write, clear_depth=args.clear_depth,
@@ -363,6 +388,44 @@ def _setup(args):
     return scene, camera, width, height, state, background, _options(args.option)
 
 
+def _apply_textures(args, scene, owner) -> None:
+    """--texture [MODEL=]IMAGE: each image to the instances of its MODEL (all of the one
+    MODEL when no MODEL= is given). A MODEL named twice, a MODEL not on the command line,
+    a bare IMAGE with several MODELs, or a MODEL without texture coordinates is an error:
+    never a silent choice."""
+    given = {}
+    for value in args.texture:
+        model, image = None, value
+        if "=" in value and not os.path.isfile(value):
+            model, image = value.split("=", 1)
+            matches = [k for k, path in enumerate(args.models)
+                       if model in (path, os.path.basename(path))]
+            if not matches:
+                raise CliError(f"--texture {value}: {model!r} is not one of the MODELs "
+                               f"({', '.join(args.models)})")
+            if len(matches) > 1:
+                raise CliError(f"--texture {value}: {model!r} names {len(matches)} MODELs; "
+                               f"give its path")
+            k = matches[0]
+        elif len(args.models) == 1:
+            k = 0
+        else:
+            raise CliError(f"--texture {value}: {len(args.models)} MODELs given; say which "
+                           f"with MODEL=IMAGE")
+        if k in given:
+            raise CliError(f"--texture: {args.models[k]} is given two textures "
+                           f"({given[k]} and {image})")
+        given[k] = image
+    for k, image in given.items():
+        targets = [inst for inst, o in zip(scene.instances, owner) if o == k]
+        if not any(inst.mesh.corner_uv is not None for inst in targets):
+            raise CliError(f"--texture {image}: {args.models[k]} has no texture coordinates "
+                           f"(OBJ vt / glTF TEXCOORD_0)")
+        for inst in targets:  # read (and checked) when shading starts
+            if inst.mesh.corner_uv is not None:
+                inst.mesh.texture = image
+
+
 def _look(args):
     from .appearance.fog import parse_fog
     from .appearance.shading import Look
@@ -370,7 +433,8 @@ def _look(args):
     fog = None
     if args.fog:
         fog = parse_fog(args.fog, _color(args.fog_color, "--fog-color"), args.fog_distance)
-    return Look(args.shading, not args.no_texture, args.texture_filter, args.texture_wrap, fog)
+    return Look(args.shading, not args.no_texture, args.texture_filter, args.texture_wrap, fog,
+                args.light)
 
 
 def _hidden_line(args):
@@ -521,7 +585,7 @@ def _write_svg(args, frame, scene, camera, width, height, background):
         raise CliError("--svg draws flat colours: use --shading flat, normal or random")
     xy, source, _ = polygons
     with Workers(args.threads) as workers:
-        colors = face_colors(args.shading, scene, camera, workers)[source]
+        colors = face_colors(args.shading, scene, camera, workers, light=args.light)[source]
     write_polygons_svg(args.svg, xy, colors, source, width, height, background)
 
 
@@ -599,12 +663,29 @@ def _cmd_report(args) -> int:
     return 0
 
 
+def _attach_negative_values(argv: list) -> list:
+    """``--view -55,25`` as ``--view=-55,25``: argparse takes a value that starts with '-'
+    and is not a plain number for an option and fails ("expected one argument")."""
+    out, k = [], 0
+    while k < len(argv):
+        token = argv[k]
+        if (token.startswith("--") and "=" not in token and k + 1 < len(argv)
+                and len(argv[k + 1]) > 1 and argv[k + 1][0] == "-"
+                and (argv[k + 1][1].isdigit() or argv[k + 1][1] == ".")):
+            out.append(f"{token}={argv[k + 1]}")
+            k += 2
+        else:
+            out.append(token)
+            k += 1
+    return out
+
+
 def main(argv=None) -> int:
     """Run the ``hsr`` command with ``argv`` (default: the process arguments) and return
     the exit code. Raises nothing for bad input: 0 on success, 2 with one line on stderr
     (``hsr: error: ...``) for any :class:`~hsr.errors.HsrError`, 130 when interrupted, 1
     when memory runs out after all."""
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = _attach_negative_values(sys.argv[1:] if argv is None else list(argv))
     debug = "--debug" in argv
     try:
         parser = build_parser()

@@ -184,6 +184,7 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
            occlusion_cull: bool = False, options: dict | None = None,
            look: Look | None = None, fog: Fog | None = None, textures: bool = True,
            texture_filter: str = "bilinear", texture_wrap: str = "repeat",
+           light: str = "headlight",
            hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
            **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
@@ -204,7 +205,9 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     Appearance (after visibility, the same for every algorithm): ``shading`` (see
     :data:`hsr.appearance.shading.SHADING_MODES`), ``textures`` (use mesh textures),
     ``texture_filter`` (nearest | bilinear), ``texture_wrap`` (repeat | clamp), ``fog``
-    (:class:`hsr.Fog`), or all of them as one :class:`hsr.Look`. ``hidden_line=True`` (or a
+    (:class:`hsr.Fog`), ``light`` (``headlight``: one light along the view, the
+    textbooks'; ``studio``: key and fill lights, shapes read better), or all of them as
+    one :class:`hsr.Look`. ``hidden_line=True`` (or a
     :class:`hsr.HiddenLine`) draws only the visible edges over the filled depth buffer.
     Instances with ``opacity < 1`` are blended after the opaque ones, sorted back to front
     per object (``transparency="object"``) or per fragment (``"exact"``).
@@ -231,7 +234,7 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
         state = RenderState(**state_fields)
     elif state_fields:
         state = state.with_(**state_fields)
-    look = as_look(look, shading, textures, texture_filter, texture_wrap, fog)
+    look = as_look(look, shading, textures, texture_filter, texture_wrap, fog, light)
     background = check_background(background)
     check_order(transparency)
     hidden_line = as_hidden_line(hidden_line)

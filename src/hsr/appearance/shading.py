@@ -28,20 +28,66 @@ from ..scene.mesh import instance_of, normal_matrix
 from .fog import Fog
 from .texture import FILTERS, WRAPS, sample
 
-__all__ = ["SHADING_MODES", "Look", "ShadeContext", "shade_fragments", "face_colors",
+__all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look", "ShadeContext", "shade_fragments", "face_colors",
            "paint_faces", "shade_depth", "face_random_colors", "linear_eye_depth",
            "vertex_normals", "as_look", "check_background", "shade_visible"]
 
 SHADING_MODES = ("flat", "gouraud", "normal", "random", "depth")
+LIGHTS = ("headlight", "studio")
+
+# The studio rig, in eye space (x right, y up, z towards the viewer): directions towards
+# each light and their strengths. A key light from above-left-front and a weaker fill from
+# the right, plus a little ambient, so faces turned differently get different shades
+# (the three-point lighting of photography, less the back light, which would only light
+# silhouettes). Fixed to the camera, so every view of a model is lit alike.
+_STUDIO_EYE = np.array([[-0.45, 0.6, 0.66], [0.7, 0.05, 0.71]])
+_STUDIO_POWER = np.array([0.78, 0.3])
+_STUDIO_AMBIENT = 0.12
+
+
+@dataclass(frozen=True)
+class LightRig:
+    """World-space unit directions towards the lights (L, 3), their strengths (L,) and an
+    ambient term: Lambert intensity ``ambient + sum_l power_l * max(0, n . dir_l)`` with the
+    normal turned towards the eye (two-sided)."""
+
+    directions: np.ndarray
+    power: np.ndarray
+    ambient: float
+
+
+def light_rig(light: str, camera) -> LightRig:
+    """The lights of ``light`` (one of :data:`LIGHTS`) for ``camera``: ``headlight`` is one
+    light along the view direction (tinyrenderer's and the seeds' look: intensity
+    ``|n . view|``); ``studio`` a key and a fill light fixed to the camera."""
+    check_choice(light, LIGHTS, "light")
+    forward = np.asarray(camera.forward, dtype=np.float64)
+    if light == "headlight":
+        return LightRig(-forward[None, :], np.ones(1), 0.0)
+    eye_dirs = _STUDIO_EYE / np.linalg.norm(_STUDIO_EYE, axis=1, keepdims=True)
+    # Eye -> world: the rows of the view rotation are the eye axes in world space.
+    world = eye_dirs @ camera.view_matrix[:3, :3]
+    return LightRig(np.ascontiguousarray(world), _STUDIO_POWER.copy(), _STUDIO_AMBIENT)
+
+
+def lambert(rig: LightRig, normals, toward_eye) -> np.ndarray:
+    """Two-sided Lambert intensity of ``normals`` (..., 3) under ``rig``; ``toward_eye``
+    (broadcastable to normals[..., 0]) is +1 or -1, turning each normal towards the eye."""
+    lit = np.maximum(0.0, (normals @ rig.directions.T) * np.asarray(toward_eye)[..., None])
+    return rig.ambient + lit @ rig.power
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
 @njit(cache=True, nogil=True)
-def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, visible, out):
+def _face_rgb(lo, hi, positions, faces, linear, forward, light_dirs, light_power, ambient,
+              base_rgb, mode, visible, out):
     """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
 
-    mode 0 (flat): ``base * |n . forward|``, Lambert with a light along the view direction,
-    two-sided. mode 1 (normal): ``(n * 0.5 + 0.5) * 255``. ``base_rgb`` is (F, 3) or (1, 3).
+    mode 0 (flat): ``base * (ambient + sum_l power_l * max(0, n' . dir_l))``, Lambert with
+    directional lights, two-sided: ``n'`` is the normal turned towards the eye (against
+    ``forward``). The headlight (one light along the view, no ambient) gives
+    ``base * |n . forward|``. mode 1 (normal): ``(n * 0.5 + 0.5) * 255``. ``base_rgb`` is
+    (F, 3) or (1, 3).
     Only faces with ``visible[f]`` are computed (the others are never looked up).
     """
     per_face = base_rgb.shape[0] == faces.shape[0]
@@ -66,13 +112,33 @@ def _face_rgb(lo, hi, positions, faces, linear, forward, base_rgb, mode, visible
             nx, ny, nz = nx / length, ny / length, nz / length
         b = f if per_face else 0
         if mode == 0:
-            shade = abs(nx * forward[0] + ny * forward[1] + nz * forward[2])
+            toward_eye = -1.0 if nx * forward[0] + ny * forward[1] + nz * forward[2] > 0.0 \
+                else 1.0
+            shade = ambient
+            for m in range(light_dirs.shape[0]):
+                lit = toward_eye * (nx * light_dirs[m, 0] + ny * light_dirs[m, 1]
+                                    + nz * light_dirs[m, 2])
+                if lit > 0.0:
+                    shade += light_power[m] * lit
             for c in range(3):
                 out[f, c] = np.uint8(min(255.0, base_rgb[b, c] * shade))
         else:
             out[f, 0] = np.uint8(min(255.0, (nx * 0.5 + 0.5) * 255.0))
             out[f, 1] = np.uint8(min(255.0, (ny * 0.5 + 0.5) * 255.0))
             out[f, 2] = np.uint8(min(255.0, (nz * 0.5 + 0.5) * 255.0))
+
+
+def _face_base(mesh) -> np.ndarray:
+    """(F, 3) or (1, 3) float64 base colour per face for the per-face paths: the face
+    colour times the mean of its vertex colours (vertex colours are interpolated only
+    per fragment)."""
+    if mesh.corner_colors is None:
+        return (mesh.face_colors.astype(np.float64) if mesh.face_colors is not None
+                else _DEFAULT_BASE[None, :])
+    vertex = mesh.corner_colors.astype(np.float64).mean(axis=1)
+    if mesh.face_colors is not None:
+        vertex *= mesh.face_colors / 255.0
+    return vertex
 
 
 def paint_faces(workers, face_id, face_rgb, background, image):
@@ -129,7 +195,8 @@ def _scan_rows(lo, hi, paint, face_id, face_rgb, background, image, seen):
     return covered
 
 
-def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
+def face_colors(mode: str, scene, camera, workers, face_id=None,
+                light: str = "headlight") -> np.ndarray:
     """(F, 3) uint8 colour of the faces visible in ``face_id`` (all faces when None) for
     the per-face shading modes (other rows are left unset); (0, 3) for ``depth``, which
     is per pixel."""
@@ -146,16 +213,17 @@ def face_colors(mode: str, scene, camera, workers, face_id=None) -> np.ndarray:
     else:
         visible = visible_faces(face_id, scene.n_faces, workers)
     out = np.empty((scene.n_faces, 3), dtype=np.uint8)
+    rig = light_rig(light, camera)
     offsets = scene.face_offsets()
     for k, inst in enumerate(scene.instances):
         lo, hi = offsets[k], offsets[k + 1]
         if not visible[lo:hi].any():
             continue
         mesh = inst.mesh
-        base = (mesh.face_colors.astype(np.float64) if mesh.face_colors is not None
-                else _DEFAULT_BASE[None, :])
+        base = _face_base(mesh)
         workers.run_range(_face_rgb, mesh.n_faces, mesh.positions, mesh.faces,
-                          np.ascontiguousarray(inst.model[:3, :3]), camera.forward, base,
+                          np.ascontiguousarray(inst.model[:3, :3]), camera.forward,
+                          rig.directions, rig.power, rig.ambient, base,
                           0 if mode == "flat" else 1, visible[lo:hi], out[lo:hi])
     return out
 
@@ -203,9 +271,12 @@ class Look:
     textures : use the meshes' textures where they have one and texture coordinates.
     texture_filter : ``nearest`` or ``bilinear``; texture_wrap : ``repeat`` or ``clamp``.
     fog : a :class:`hsr.Fog` or None.
+    light : ``headlight`` (one light along the view: the textbooks' look) or ``studio``
+        (a key light from above-left-front and a fill, fixed to the camera: shapes read
+        better; ``hsr render MODEL`` uses it). Both are two-sided.
 
-    Raises :class:`~hsr.errors.RenderError` for an unknown shading mode, filter or wrap, or
-    a fog that is not an :class:`hsr.Fog`.
+    Raises :class:`~hsr.errors.RenderError` for an unknown shading mode, filter, wrap or
+    light, or a fog that is not an :class:`hsr.Fog`.
     """
 
     shading: str = "flat"
@@ -213,9 +284,11 @@ class Look:
     texture_filter: str = "bilinear"
     texture_wrap: str = "repeat"
     fog: Fog | None = None
+    light: str = "headlight"
 
     def __post_init__(self):
         check_choice(self.shading, SHADING_MODES, "shading")
+        check_choice(self.light, LIGHTS, "light")
         check_choice(self.texture_filter, FILTERS, "texture filter")
         check_choice(self.texture_wrap, WRAPS, "texture wrap")
         if not isinstance(self.textures, (bool, np.bool_)):
@@ -224,10 +297,11 @@ class Look:
             raise RenderError(f"fog must be an hsr.Fog, got {type(self.fog).__name__}")
 
 
-def as_look(look, shading, textures, texture_filter, texture_wrap, fog) -> Look:
+def as_look(look, shading, textures, texture_filter, texture_wrap, fog,
+            light="headlight") -> Look:
     """The render's :class:`Look`: ``look`` if given, else one from the separate arguments."""
     if look is None:
-        return Look(shading, textures, texture_filter, texture_wrap, fog)
+        return Look(shading, textures, texture_filter, texture_wrap, fog, light)
     if not isinstance(look, Look):
         raise RenderError(f"look must be an hsr.Look, got {type(look).__name__}")
     return look
@@ -273,7 +347,9 @@ class ShadeContext:
         """True when colours cannot be a plain per-face table."""
         look = self.look
         return (look.shading == "gouraud" or look.fog is not None
-                or any(_textured(look, inst.mesh) for inst in self.scene.instances))
+                or any(_textured(look, inst.mesh) or (inst.mesh.corner_colors is not None
+                                                      and look.shading == "flat")
+                       for inst in self.scene.instances))
 
     def texture(self, k):
         if k not in self._textures:
@@ -348,6 +424,7 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
     needs_bary = look.fog is not None or look.shading in ("flat", "gouraud")
     bary = barycentrics_at(ctx.screen, rows, cols, faces) if needs_bary else None
     forward = np.asarray(camera.forward, dtype=np.float64)
+    rig = light_rig(look.light, camera)
     view = camera.view_matrix
     for k, local, idx in _instance_groups(scene, faces):
         inst = scene.instances[k]
@@ -361,16 +438,16 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
             normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             length = np.linalg.norm(normal, axis=1)
             normal /= np.where(length > 0, length, 1.0)[:, None]
-            facing = normal @ forward  # < 0: the face looks at the camera
+            # Two-sided: a face looking away from the eye is lit as if turned round.
+            toward_eye = np.where(normal @ forward > 0.0, -1.0, 1.0)
             if look.shading == "flat":
-                intensity = np.abs(facing)
+                intensity = lambert(rig, normal, toward_eye)
             else:
-                # Two-sided Lambert at the corners with the light along the view
-                # direction, then interpolated (Gouraud): back faces use -n.
-                sign = np.where(facing <= 0.0, 1.0, -1.0)
-                corner = ctx.corner_normals(k)[local] @ forward  # (K, 3)
-                lit = np.maximum(0.0, -corner * sign[:, None])
+                # Lambert at the corners, then interpolated (Gouraud 1971).
+                lit = lambert(rig, ctx.corner_normals(k)[local], toward_eye[:, None])
                 intensity = np.einsum("ij,ij->i", b, lit)
+            # glTF's base colour: texel x factor (face colour) x vertex colour, each
+            # where given; hsr's light grey where none is.
             if _textured(look, mesh):
                 uv = np.einsum("ij,ijk->ik", b, mesh.corner_uv[local])
                 base = sample(ctx.texture(k), uv, look.texture_filter, look.texture_wrap)
@@ -379,6 +456,11 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
             elif mesh.face_colors is not None:
                 base = mesh.face_colors[local].astype(np.float64)
             else:
+                base = None
+            if mesh.corner_colors is not None:
+                vertex = np.einsum("ij,ijk->ik", b, mesh.corner_colors[local].astype(np.float64))
+                base = vertex if base is None else base * (vertex / 255.0)
+            if base is None:
                 base = _DEFAULT_BASE[None, :]
             rgb[idx] = base * intensity[:, None]
         if look.fog is not None:
@@ -410,7 +492,8 @@ def shade_visible(ctx: ShadeContext, fragments, state, background):
         mode = look.shading if state.polygon_mode == "fill" else (
             look.shading if look.shading in ("flat", "normal", "random") else "flat")
         covered = paint_faces(ctx.workers, face_id,
-                              face_colors(mode, ctx.scene, ctx.camera, ctx.workers, face_id),
+                              face_colors(mode, ctx.scene, ctx.camera, ctx.workers, face_id,
+                                          look.light),
                               background, color)
         if look.shading == "depth" and state.polygon_mode == "fill":
             shade_depth(color, face_id, fragments.depth, ctx.camera, state.depth_range)

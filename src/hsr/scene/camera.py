@@ -127,7 +127,9 @@ class Camera:
     own focal lengths and principal point, as fractions of the image, ``(fx / W, fy / H,
     (cx + 0.5) / W, (cy + 0.5) / H)`` in OpenCV's pixels (centres on integers). It then
     sets the projection (an off-axis frustum, ``fov_y`` only describes it) and the camera
-    sees the same field at any image size.
+    sees the same field at any image size. For an orthographic camera (from a glOrtho
+    matrix) the same four numbers hold image fractions per world unit and where the view
+    axis meets the image (an off-centre box, ``ortho_height = 1 / b``).
     """
 
     eye: tuple
@@ -190,35 +192,49 @@ class Camera:
     @classmethod
     def from_matrices(cls, view, projection) -> "Camera":
         """A camera from OpenGL-convention 4x4 matrices: ``view`` (world -> eye, a rotation
-        and a translation) and a perspective ``projection`` (glFrustum / gluPerspective
-        form, possibly off-axis). The projection is kept exactly: the camera sees the same
+        and a translation) and a ``projection``: a perspective frustum (glFrustum /
+        gluPerspective form, possibly off-axis) or an orthographic box (glOrtho form,
+        possibly off-centre). The projection is kept exactly: the camera sees the same
         field at any image size.
 
         Raises :class:`~hsr.errors.CameraError` for a view with scaling or shear, or a
-        projection that is not a perspective frustum (orthographic matrices are not taken
-        yet: use :meth:`orthographic`).
+        projection of neither form (or with near >= far, or what :meth:`validate` refuses).
         """
         view = _matrix(view, (4, 4), "view matrix")
         proj = _matrix(projection, (4, 4), "projection matrix")
         if not np.array_equal(view[3], [0.0, 0.0, 0.0, 1.0]):
             raise CameraError(f"view matrix must be affine, got last row {view[3].tolist()}")
         _check_rotation(view[:3, :3], "the view matrix's 3x3 part")
-        if not (np.array_equal(proj[3], [0.0, 0.0, -1.0, 0.0]) and proj[0, 1] == 0
-                and proj[0, 3] == 0 and proj[1, 0] == 0 and proj[1, 3] == 0
-                and np.array_equal(proj[2, :2], [0.0, 0.0]) and proj[0, 0] > 0
-                and proj[1, 1] > 0 and proj[2, 2] != 1 and proj[2, 2] != -1):
-            raise CameraError("projection must be a perspective frustum (glFrustum form: last "
-                              "row 0, 0, -1, 0); orthographic matrices are not taken yet, use "
-                              "Camera.orthographic")
-        near = proj[2, 3] / (proj[2, 2] - 1.0)
-        far = proj[2, 3] / (proj[2, 2] + 1.0)
         rot = view[:3, :3]
         eye = -rot.T @ view[:3, 3]
+        off_diagonal_zero = (proj[0, 1] == 0 and proj[1, 0] == 0
+                             and np.array_equal(proj[2, :2], [0.0, 0.0])
+                             and proj[0, 0] > 0 and proj[1, 1] > 0)
+        frustum = (off_diagonal_zero and np.array_equal(proj[3], [0.0, 0.0, -1.0, 0.0])
+                   and proj[0, 3] == 0 and proj[1, 3] == 0
+                   and proj[2, 2] != 1 and proj[2, 2] != -1)
+        box = (off_diagonal_zero and np.array_equal(proj[3], [0.0, 0.0, 0.0, 1.0])
+               and proj[0, 2] == 0 and proj[1, 2] == 0 and proj[2, 2] < 0)
+        if not (frustum or box):
+            raise CameraError("projection must be a perspective frustum (glFrustum form: last "
+                              "row 0, 0, -1, 0) or an orthographic box (glOrtho form: last "
+                              "row 0, 0, 0, 1, near < far)")
         a, b = proj[0, 0] / 2.0, proj[1, 1] / 2.0
-        fov_y = math.degrees(2.0 * math.atan(1.0 / (2.0 * b)))
-        cam = cls(tuple(eye), tuple(eye - rot[2]), tuple(rot[1]), fov_y, float(near),
-                  float(far), intrinsics=(a, b, (1.0 - proj[0, 2]) / 2.0,
-                                          (1.0 + proj[1, 2]) / 2.0))
+        if box:
+            # glOrtho: z_ndc = P22 z_eye + P23 with P22 = -2 / (far - near) and
+            # P23 = -(far + near) / (far - near).
+            near = (proj[2, 3] + 1.0) / proj[2, 2]
+            far = (proj[2, 3] - 1.0) / proj[2, 2]
+            cam = cls(tuple(eye), tuple(eye - rot[2]), tuple(rot[1]), 45.0, float(near),
+                      float(far), ortho_height=float(1.0 / b),
+                      intrinsics=(a, b, (1.0 + proj[0, 3]) / 2.0, (1.0 - proj[1, 3]) / 2.0))
+        else:
+            near = proj[2, 3] / (proj[2, 2] - 1.0)
+            far = proj[2, 3] / (proj[2, 2] + 1.0)
+            fov_y = math.degrees(2.0 * math.atan(1.0 / (2.0 * b)))
+            cam = cls(tuple(eye), tuple(eye - rot[2]), tuple(rot[1]), fov_y, float(near),
+                      float(far), intrinsics=(a, b, (1.0 - proj[0, 2]) / 2.0,
+                                              (1.0 + proj[1, 2]) / 2.0))
         cam.validate()
         return cam
 
@@ -255,12 +271,18 @@ class Camera:
 
     @classmethod
     def frame(cls, bounds, direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0), fov_y=45.0,
-              ortho_height=None, margin=1.1):
+              ortho_height=None, margin=1.1, aspect=1.0):
         """A camera that sees the whole box ``bounds`` ((2, 3): min, max) from ``direction``
         (pointing from the target towards the eye), with near/far hugging the box.
 
+        The box's bounding sphere fits in both the vertical and the horizontal field of
+        view of an image of ``aspect`` (width / height), ``margin`` times its radius. When
+        ``direction`` is parallel to ``up`` (looking straight down or up), the image top
+        points along -Z (looking down) or +Z (looking up) instead.
+
         Raises :class:`~hsr.errors.CameraError` for bounds that are not a finite box within
-        +-1e100, a zero direction, or a camera :meth:`validate` refuses.
+        +-1e100, a zero direction, an aspect or margin that is not a positive number, or a
+        camera :meth:`validate` refuses.
         """
         try:
             bounds = np.asarray(bounds, dtype=np.float64)
@@ -268,9 +290,12 @@ class Camera:
             raise CameraError(f"cannot frame bounds {bounds!r}: they must be a finite (2, 3) "
                               f"box") from None
         if bounds.shape != (2, 3) or not np.isfinite(bounds).all() \
-                or np.abs(bounds).max() > MAX_COORDINATE:
+                or np.abs(bounds).max() > MAX_COORDINATE or (bounds[1] < bounds[0]).any():
             raise CameraError(f"cannot frame bounds {bounds.tolist()!r}: they must be a finite "
-                              f"(2, 3) box within +-{MAX_COORDINATE:g}")
+                              f"(2, 3) box (min, max) within +-{MAX_COORDINATE:g}")
+        aspect, margin = _finite(aspect, "aspect"), _finite(margin, "margin")
+        if not (aspect > 0 and margin > 0):
+            raise CameraError(f"aspect and margin must be > 0, got {aspect!r}, {margin!r}")
         center = bounds.mean(axis=0)
         radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-9)
         direction = _vec3(direction, "view direction")
@@ -278,15 +303,20 @@ class Camera:
         if norm == 0:
             raise CameraError("view direction must not be zero")
         direction = direction / norm
+        up = _vec3(up, "up")
+        up_norm = np.linalg.norm(up)
+        if up_norm > 0 and abs(direction @ up) > 0.999 * up_norm:
+            up = np.array([0.0, 0.0, -math.copysign(1.0, direction @ up)])
         if ortho_height is not None:
             dist = 3.0 * radius
             eye = center + direction * dist
             return cls.orthographic(eye, center, up, ortho_height, dist - radius * 1.5,
                                     dist + radius * 1.5)
-        half = math.radians(_finite(fov_y, "fov")) / 2.0
-        if not 0 < half < math.pi / 2:
+        half_y = math.radians(_finite(fov_y, "fov")) / 2.0
+        if not 0 < half_y < math.pi / 2:
             raise CameraError(f"fov must be in (0, 180) degrees, got {fov_y}")
-        dist = margin * radius / math.sin(half)
+        half_x = math.atan(aspect * math.tan(half_y))
+        dist = margin * radius / math.sin(min(half_x, half_y))
         eye = center + direction * dist
         near = max(dist - radius * 1.5, dist * 1e-3)
         return cls.look_at(eye, center, up, fov_y, near, dist + radius * 1.5)
@@ -346,10 +376,18 @@ class Camera:
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """(4, 4) eye -> clip space for an image of the given width / height."""
-        if self.is_orthographic:
+        if self.is_orthographic and self.intrinsics is None:
             half_h = self.ortho_height / 2.0
             half_w = half_h * aspect
             return orthographic_matrix(-half_w, half_w, -half_h, half_h, self.near, self.far)
+        if self.is_orthographic:
+            # A box kept from a glOrtho matrix: x_ndc = 2 a x_eye + 2 c - 1 and
+            # y_ndc = 2 b y_eye + 1 - 2 d (c, d: the image fraction where the axis lands).
+            a, b, c, d = self.intrinsics
+            proj = orthographic_matrix(-1.0, 1.0, -1.0, 1.0, self.near, self.far)
+            proj[0, 0], proj[0, 3] = 2.0 * a, 2.0 * c - 1.0
+            proj[1, 1], proj[1, 3] = 2.0 * b, 1.0 - 2.0 * d
+            return proj
         if self.intrinsics is None:
             return perspective_matrix(self.fov_y, aspect, self.near, self.far)
         # An off-axis frustum from the normalised intrinsics: x_ndc = 2 (u + 0.5) / W - 1

@@ -1,54 +1,186 @@
 """``hsr.load``: a mesh from a file (OBJ by hsr's own reader, every other format through
 trimesh with ``process=False``: no merging, no reordering), a trimesh object or arrays.
+``hsr.load_scene``: a :class:`Scene` with one instance per node of a glTF / GLB file (or of
+a ``trimesh.Scene``).
 
 trimesh keeps file order for single-material OBJ files but regroups faces by material when
 an OBJ has several ``usemtl`` blocks, so OBJ files are read by :mod:`hsr.scene.obj`.
+
+Node order (and so the global face ids) is the glTF file's: a depth-first walk of the
+default scene from its root nodes, each node before its children, in the order the file
+lists them (glTF 2.0, section 3.5 "Scenes"). trimesh keeps the node hierarchy and the
+transforms but not that order, so the walk is done here on the file's own JSON; node names
+are made unique exactly as trimesh makes them, which is how the two are matched.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import struct
+
+import numpy as np
 
 from ..errors import MeshError
-from .mesh import Mesh, as_mesh, from_trimesh
-from .files import MAX_MESH_BYTES, check_regular
+from .files import MAX_MESH_BYTES, check_regular, read_regular
+from .mesh import Mesh, Scene, as_mesh, from_trimesh
 from .obj import read_obj
 
-__all__ = ["load"]
+__all__ = ["load", "load_scene"]
+
+_GLTF_EXTENSIONS = (".gltf", ".glb")
 
 
 def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
-    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh`` or a
-    ``(vertices, faces)`` pair. Face order is kept exactly. Only regular files of at most
-    ``max_bytes`` are read. Raises :class:`MeshError` for anything missing, unreadable,
-    malformed, too large or invalid (bad indices, NaN or infinite coordinates used by a
-    face, no faces)."""
+    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh``, a
+    ``trimesh.Scene`` holding one mesh, or a ``(vertices, faces)`` pair. Face order is kept
+    exactly. Only regular files of at most ``max_bytes`` are read. A file or scene with
+    several meshes or nodes is refused: :func:`load_scene` keeps each node as an instance.
+
+    Raises :class:`MeshError` for anything missing, unreadable, malformed, too large or
+    invalid (bad indices, NaN or infinite coordinates used by a face, no faces), and for a
+    source of several meshes."""
+    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+        return _single(_scene_from_trimesh(source, None, "trimesh scene"), "the trimesh scene")
     if not isinstance(source, (str, os.PathLike)):
         return as_mesh(source)
     path = os.fspath(source)
     if path.lower().endswith(".obj"):
         return read_obj(path, max_bytes=max_bytes)
-    check_regular(path, "mesh file", max_bytes)
-    return _load_with_trimesh(path)
+    loaded, header = _read_with_trimesh(path, max_bytes)
+    if type(loaded).__name__ == "Scene":
+        return _single(_scene_from_trimesh(loaded, header, os.path.basename(path)), path)
+    return from_trimesh(loaded, os.path.basename(path))
 
 
-def _load_with_trimesh(path: str) -> Mesh:
+def load_scene(source, max_bytes: int = MAX_MESH_BYTES) -> Scene:
+    """A :class:`Scene` from a glTF / GLB file (or any file trimesh reads as a scene), a
+    ``trimesh.Scene``, or anything :func:`load` takes (one instance).
+
+    One instance per node that holds a mesh (a node whose mesh has several primitives
+    gives one instance per primitive, named ``NODE/1``, ``NODE/2``, ...), placed by the
+    node's world transform, named after the node; nodes that use the same mesh share one
+    :class:`Mesh`. Instances come in the file's node order (see the module notes), so
+    ``face_id`` is global in node order and ``object_id`` is the instance index.
+    Materials: base-colour textures (embedded or external) and factors, vertex colours and
+    face colours (see :func:`hsr.scene.mesh.from_trimesh`).
+
+    Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
+    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+        return _scene_from_trimesh(source, None, "trimesh scene")
+    if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):
+        return Scene([load(source, max_bytes)])
+    path = os.fspath(source)
+    loaded, header = _read_with_trimesh(path, max_bytes)
+    if type(loaded).__name__ == "Scene":
+        return _scene_from_trimesh(loaded, header, os.path.basename(path))
+    return Scene([from_trimesh(loaded, os.path.basename(path))])
+
+
+def _single(scene: Scene, what: str) -> Mesh:
+    """The one mesh of ``scene``, its node transform applied to the positions."""
+    if len(scene.instances) != 1:
+        raise MeshError(f"{what}: holds {len(scene.instances)} mesh nodes; use "
+                        f"hsr.load_scene to keep each as an instance")
+    inst = scene.instances[0]
+    mesh = inst.mesh
+    if np.array_equal(inst.model, np.eye(4)):
+        return mesh
+    positions = mesh.positions @ inst.model[:3, :3].T + inst.model[:3, 3]
+    return Mesh(positions, mesh.faces, mesh.corner_uv, None, mesh.face_colors, mesh.texture,
+                mesh.name, mesh.corner_colors)
+
+
+def _read_with_trimesh(path: str, max_bytes: int):
+    """(trimesh object, glTF JSON header or None) of a file."""
     import trimesh  # imported lazily: it is slow to import and OBJ does not need it
 
+    check_regular(path, "mesh file", max_bytes)
+    header = None
+    if path.lower().endswith(_GLTF_EXTENSIONS):
+        header = _gltf_header(read_regular(path, "mesh file", max_bytes), path)
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
-    if isinstance(loaded, trimesh.Scene):
-        geometries = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
-        if not geometries:
-            raise MeshError(f"{path}: no triangles found (empty or unrecognised file)")
-        if len(geometries) > 1:
-            raise MeshError(
-                f"{path}: the file holds {len(geometries)} meshes; hsr cannot keep one face "
-                "order across them, export a single mesh"
-            )
-        loaded = geometries[0]
-    if not isinstance(loaded, trimesh.Trimesh):
+    if type(loaded).__name__ not in ("Scene", "Trimesh"):
         raise MeshError(f"{path}: no triangles found ({type(loaded).__name__})")
-    return from_trimesh(loaded, os.path.basename(path))
+    return loaded, header
+
+
+def _gltf_header(data: bytes, path: str) -> dict:
+    """The JSON of a .gltf file or of a .glb's first chunk (glTF 2.0, section 4.4)."""
+    try:
+        if data[:4] == b"glTF":
+            length, kind = struct.unpack_from("<I4s", data, 12)
+            if kind != b"JSON":
+                raise ValueError("the first GLB chunk is not JSON")
+            text = data[20:20 + length]
+        else:
+            text = data
+        header = json.loads(text)
+    except (ValueError, struct.error, UnicodeDecodeError) as exc:
+        raise MeshError(f"{path}: not a glTF file ({exc})") from None
+    if not isinstance(header, dict):
+        raise MeshError(f"{path}: not a glTF file (the JSON is not an object)")
+    return header
+
+
+def _gltf_node_order(header: dict) -> list | None:
+    """Node names (as trimesh names them) of the default scene, depth first, parents
+    before children, in file order; None when the header does not describe a tree."""
+    from trimesh.util import unique_name
+
+    nodes = header.get("nodes", [])
+    names, counts = {}, {}
+    for i, node in enumerate(nodes):  # the same loop as trimesh.exchange.gltf
+        names[unique_name(node.get("name", str(i)), names, counts=counts)] = i
+    by_index = {i: name for name, i in names.items()}
+    scenes = header.get("scenes") or [{}]
+    scene_index = header.get("scene", 0)
+    if not isinstance(scene_index, int) or not 0 <= scene_index < len(scenes):
+        return None
+    order, stack, seen = [], list(reversed(scenes[scene_index].get("nodes", []))), set()
+    while stack:
+        i = stack.pop()
+        if not isinstance(i, int) or not 0 <= i < len(nodes) or i in seen:
+            return None
+        seen.add(i)
+        order.append(by_index[i])
+        stack.extend(reversed(nodes[i].get("children", [])))
+    return order
+
+
+def _scene_from_trimesh(ts, header, label: str) -> Scene:
+    """One instance per geometry node of the trimesh scene ``ts``, in glTF node order when
+    ``header`` gives it, else in the order the geometry was added to ``ts``."""
+    graph = ts.graph
+    geometry_order = {name: k for k, name in enumerate(ts.geometry)}
+    holders = {}  # frame -> geometry name, for frames that hold a triangle mesh
+    for frame in graph.nodes_geometry:
+        _, geom_name = graph[frame]
+        if type(ts.geometry.get(geom_name)).__name__ == "Trimesh":
+            holders[frame] = geom_name
+    if not holders:
+        raise MeshError(f"{label}: no triangles found (empty or unrecognised file)")
+    children = graph.transforms.children if hasattr(graph.transforms, "children") else {}
+    order = _gltf_node_order(header) if header is not None else None
+    frames = []  # (frame, instance name)
+    if order is not None:
+        for node in order:
+            if node in holders:
+                frames.append((node, node))
+            else:  # several primitives: trimesh hangs one child frame per primitive
+                prims = sorted((f for f in children.get(node, ()) if f in holders
+                                and f not in order), key=lambda f: geometry_order[holders[f]])
+                frames += [(f, f"{node}/{k + 1}") for k, f in enumerate(prims)]
+    if len(frames) != len(holders):  # not a glTF file, or a tree trimesh read differently
+        frames = [(f, f) for f in sorted(holders, key=lambda f: geometry_order[holders[f]])]
+    meshes, scene = {}, Scene()
+    for frame, name in frames:
+        geom_name = holders[frame]
+        if geom_name not in meshes:
+            meshes[geom_name] = from_trimesh(ts.geometry[geom_name], geom_name)
+        transform, _ = graph[frame]
+        scene.add(meshes[geom_name], np.asarray(transform, dtype=np.float64), name=name)
+    return scene

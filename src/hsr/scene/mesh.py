@@ -33,7 +33,10 @@ class Mesh:
     corner_uv : (F, 3, 2) float64 or None, texture coordinates per face corner
         (OBJ convention: v = 0 is the bottom row of the image).
     corner_normals : (F, 3, 3) float64 or None, normals per face corner.
-    face_colors : (F, 3) uint8 or None, a base colour per face.
+    face_colors : (F, 3) uint8 or None, a base colour per face (with a texture: a factor
+        the texel is multiplied by, as glTF's ``baseColorFactor``).
+    corner_colors : (F, 3, 3) uint8 or None, a base colour per face corner (vertex
+        colours), interpolated across the face; multiplies ``face_colors`` and the texture.
     texture : path or (H, W, 3|4) uint8 array or None, the diffuse texture.
     name : a label used in messages.
 
@@ -48,6 +51,7 @@ class Mesh:
     face_colors: np.ndarray | None = None
     texture: object = None
     name: str = "mesh"
+    corner_colors: np.ndarray | None = None
 
     def __post_init__(self):
         self.positions, self.faces = _validate_arrays(self.positions, self.faces, self.name)
@@ -62,7 +66,20 @@ class Mesh:
                 raise MeshError(
                     f"{self.name}: face_colors must have shape ({n_faces}, 3), got {colors.shape}"
                 )
-            self.face_colors = np.clip(colors, 0, 255).astype(np.uint8)
+            self.face_colors = _colors(colors, self.name, "face_colors")
+        if self.corner_colors is not None:
+            colors = np.asarray(self.corner_colors)
+            if colors.shape != (n_faces, 3, 3):
+                raise MeshError(f"{self.name}: corner_colors must have shape ({n_faces}, 3, 3), "
+                                f"got {colors.shape}")
+            self.corner_colors = _colors(colors, self.name, "corner_colors")
+
+    def __repr__(self):
+        extras = [what for what, value in (("uv", self.corner_uv), ("normals",
+                  self.corner_normals), ("face colours", self.face_colors), ("vertex colours",
+                  self.corner_colors), ("texture", self.texture)) if value is not None]
+        return (f"<hsr.Mesh {self.name!r}: {len(self.positions)} vertices, {self.n_faces} "
+                f"faces{', ' + ', '.join(extras) if extras else ''}>")
 
     @property
     def n_faces(self) -> int:
@@ -132,6 +149,15 @@ def _validate_arrays(positions, faces, name):
     return np.ascontiguousarray(positions), np.ascontiguousarray(faces)
 
 
+def _colors(values, name, what) -> np.ndarray:
+    """uint8 colours from numbers in 0..255 (floats are rounded, out-of-range clipped)."""
+    if not (np.issubdtype(values.dtype, np.number) or values.dtype == np.bool_):
+        raise MeshError(f"{name}: {what} must be numbers in 0..255")
+    if not np.issubdtype(values.dtype, np.integer) and not np.isfinite(values).all():
+        raise MeshError(f"{name}: {what} has a NaN or infinite value")
+    return np.clip(np.round(values), 0, 255).astype(np.uint8)
+
+
 def _validate_corner(values, shape, what, name):
     if values is None:
         return None
@@ -147,6 +173,7 @@ def _validate_corner(values, shape, what, name):
 class Instance:
     """A mesh placed in the world by a 4x4 model matrix (column vectors: p_world = M @ p).
     ``opacity`` < 1 makes the instance transparent (alpha blended, see hsr.appearance.transparency).
+    ``name`` labels it (a glTF node's name; default the mesh's name).
 
     Raises :class:`~hsr.errors.MeshError` for a model matrix that is not a finite affine
     4x4 (last row 0, 0, 0, 1) or places vertices beyond 1e100, or an opacity outside [0, 1].
@@ -155,8 +182,13 @@ class Instance:
     mesh: Mesh
     model: np.ndarray = field(default_factory=lambda: np.eye(4))
     opacity: float = 1.0
+    name: str | None = None
 
     def __post_init__(self):
+        if self.name is None:
+            self.name = self.mesh.name
+        if not isinstance(self.name, str):
+            raise MeshError(f"instance name must be a string, got {self.name!r}")
         try:
             model = np.asarray(self.model, dtype=np.float64)
         except (TypeError, ValueError):
@@ -208,18 +240,26 @@ class Scene:
             else:
                 self.add(*item)
 
-    def add(self, mesh: Mesh, model=None, opacity: float = 1.0) -> "Scene":
+    def add(self, mesh: Mesh, model=None, opacity: float = 1.0,
+            name: str | None = None) -> "Scene":
         """Append an instance of ``mesh`` (a Mesh, trimesh.Trimesh or (vertices, faces))
-        placed by ``model`` (4x4, default identity). Returns the scene.
+        placed by ``model`` (4x4, default identity), labelled ``name`` (default the mesh's
+        name). Returns the scene.
 
         Raises :class:`~hsr.errors.MeshError` as :class:`Mesh` and :class:`Instance` do."""
         if not isinstance(mesh, Mesh):
             mesh = as_mesh(mesh)
-        self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity))
+        self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity,
+                                       name))
         return self
 
     def __len__(self):
         return len(self.instances)
+
+    def __repr__(self):
+        meshes = len({id(inst.mesh) for inst in self.instances})
+        return (f"<hsr.Scene: {len(self.instances)} instances of {meshes} meshes, "
+                f"{self.n_faces} faces>")
 
     @property
     def n_faces(self) -> int:
@@ -263,6 +303,9 @@ def as_mesh(source) -> Mesh:
         return Mesh(source[0], source[1], name="arrays")
     if type(source).__name__ == "Trimesh":
         return from_trimesh(source, "trimesh")
+    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+        raise MeshError("a trimesh.Scene holds nodes: make an hsr Scene with "
+                        "hsr.load_scene(scene) (one instance per node)")
     raise MeshError(f"cannot make a mesh from {type(source).__name__}")
 
 
@@ -278,12 +321,40 @@ def as_scene(source) -> Scene:
 
 
 def from_trimesh(tm, name: str) -> Mesh:
+    """A Mesh from a ``trimesh.Trimesh``, faces in its order, with what its visual holds:
+    texture coordinates and the base-colour texture and factor of its material (glTF PBR
+    or OBJ/MTL), vertex colours (interpolated) or face colours. Alpha is not used: hsr
+    draws these surfaces opaque (set ``Instance.opacity`` to blend)."""
     faces = np.asarray(tm.faces)
-    corner_uv = None
-    uv = getattr(tm.visual, "uv", None)
-    if uv is not None and len(uv) == len(tm.vertices):
-        corner_uv = np.asarray(uv, dtype=np.float64)[faces]
-    return Mesh(np.asarray(tm.vertices), faces, corner_uv=corner_uv, name=name)
+    visual = getattr(tm, "visual", None)
+    kind = getattr(visual, "kind", None)
+    corner_uv = texture = face_colors = corner_colors = None
+    if kind == "texture":
+        uv = getattr(visual, "uv", None)
+        material = getattr(visual, "material", None)
+        image = getattr(material, "baseColorTexture", None)
+        if image is None:
+            image = getattr(material, "image", None)
+        if uv is not None and len(uv) == len(tm.vertices):
+            corner_uv = np.asarray(uv, dtype=np.float64)[faces]
+            if image is not None:
+                texture = np.asarray(image.convert("RGB"))
+        factor = getattr(material, "baseColorFactor", None)
+        if factor is None:
+            factor = getattr(material, "main_color", None)
+        if factor is not None:
+            rgb = np.asarray(factor, dtype=np.float64).reshape(-1)[:3]
+            if texture is None or not np.all(rgb == 255):
+                face_colors = np.broadcast_to(rgb, (len(faces), 3))
+        colors = getattr(visual, "vertex_attributes", {}).get("color")
+        if colors is not None and len(colors) == len(tm.vertices):
+            corner_colors = np.asarray(colors)[:, :3][faces]
+    elif kind == "vertex":
+        corner_colors = np.asarray(visual.vertex_colors)[:, :3][faces]
+    elif kind == "face":
+        face_colors = np.asarray(visual.face_colors)[:, :3]
+    return Mesh(np.asarray(tm.vertices), faces, corner_uv=corner_uv, face_colors=face_colors,
+                texture=texture, name=name, corner_colors=corner_colors)
 
 
 @njit(cache=True, nogil=True, inline="always")

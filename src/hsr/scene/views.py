@@ -16,9 +16,10 @@ import numpy as np
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["framed", "orbit", "sphere", "hemisphere", "direction"]
+__all__ = ["DEFAULT_VIEW", "default", "framed", "orbit", "sphere", "hemisphere", "direction"]
 
-_MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
+DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter view
+MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
 
 
 def _sphere_of(bounds) -> tuple[np.ndarray, float]:
@@ -40,26 +41,16 @@ def direction(azimuth: float, elevation: float) -> np.ndarray:
 def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     """A perspective camera on the line from the centre of ``bounds`` along ``toward`` (a
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
-    with near and far hugging the sphere."""
-    center, radius = _sphere_of(bounds)
-    toward = np.asarray(toward, dtype=np.float64)
-    norm = float(np.linalg.norm(toward))
-    if not (np.isfinite(norm) and norm > 0):
-        raise CameraError(f"view direction must be a non-zero vector, got {toward!r}")
-    if not (math.isfinite(aspect) and aspect > 0):
-        raise CameraError(f"aspect must be > 0, got {aspect!r}")
-    toward = toward / norm
-    half_y = math.radians(fov_y) / 2.0
-    if not 0.0 < half_y < math.pi / 2:
-        raise CameraError(f"fov must be in (0, 180) degrees, got {fov_y}")
-    half_x = math.atan(aspect * math.tan(half_y))
-    dist = _MARGIN * radius / math.sin(min(half_x, half_y))
-    eye = center + toward * dist
-    # Looking straight down or up, +Y cannot be "up": use -Z (the image top points away).
-    up = (0.0, 1.0, 0.0) if abs(toward[1]) < 0.999 else (0.0, 0.0, -math.copysign(1.0,
-                                                                                  toward[1]))
-    return Camera.look_at(eye, center, up, fov_y, max(dist - 1.1 * radius, dist * 1e-3),
-                          dist + 1.1 * radius)
+    with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin)."""
+    _sphere_of(bounds)
+    return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
+
+
+def default(bounds, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
+    """The first look at a model: a three-quarter view from the front-right and above
+    (azimuth 35, elevation 25 degrees: three faces of a box show, so the shape reads),
+    framing the whole model. ``hsr render MODEL`` uses it."""
+    return framed(bounds, direction(*DEFAULT_VIEW), aspect, fov_y)
 
 
 def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
