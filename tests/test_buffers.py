@@ -73,5 +73,6 @@ def test_gouraud_frame_interpolates_corner_normals():
 def test_frame_repr_is_short_and_notebooks_get_a_png():
     scene, cam = scenes.get("cubes")
     frame = hsr.render(scene, cam, W, H)
-    assert repr(frame).startswith("Frame(64x48, zbuffer, ") and len(repr(frame)) < 100
+    assert repr(frame).startswith("Frame(64x48, zbuffer, 48 triangles, ") and len(repr(frame)) < 100
+    assert repr(scene) == "<hsr.Scene: 4 instances of 1 mesh, 48 faces>"
     assert frame._repr_png_()[:8] == b"\x89PNG\r\n\x1a\n"

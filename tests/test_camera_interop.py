@@ -312,13 +312,15 @@ def test_view_sets_frame_the_whole_model(models_dir, kind, size):
     bounds = mesh.bounds()
     if kind == "frame":  # Camera.frame: straight on, and from above (up parallel to view)
         cams = [hsr.Camera.frame(bounds, d, aspect=w / h) for d in ((0, 0, 1), (0, 1, 0))]
-    elif kind == "default":
-        cams = [hsr.views.default(bounds, aspect=w / h)]
+    elif kind == "default":  # from the box's corners, and from the vertices themselves
+        cams = [hsr.views.default(bounds, aspect=w / h), hsr.views.default(mesh, aspect=w / h)]
     else:
         cams = getattr(hsr.views, kind)(bounds, 6, aspect=w / h)
         assert len(cams) == 6
     corners = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
                         for z in bounds[:, 2]])
+    if kind == "default":
+        corners = mesh.positions  # the tightest: every vertex inside the image
     for cam in cams:
         frame = hsr.render(mesh, cam, w, h)
         covered = frame.face_id >= 0
@@ -330,6 +332,10 @@ def test_view_sets_frame_the_whole_model(models_dir, kind, size):
         uv = cam_pts[:, :2] / cam_pts[:, 2:] * [K[0, 0], K[1, 1]] + K[:2, 2]
         assert (cam_pts[:, 2] > 0).all()
         assert ((uv >= -0.5) & (uv <= [w - 0.5, h - 0.5])).all()
+        if kind == "default" and cam is cams[1]:
+            # As close as the vertices allow: one reaches the 5% margin.
+            ndc = (uv + 0.5) / [w, h] * 2 - 1
+            assert abs(np.abs(ndc).max() - 1 / 1.05) < 1e-6
 
 
 def test_view_directions():
@@ -353,3 +359,30 @@ def test_view_directions():
         hsr.views.sphere(bounds, 0)
     with pytest.raises(hsr.CameraError, match="bounds"):
         hsr.views.orbit([[0, 0, 0], [np.nan, 1, 1]], 3)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_projection_matches_opencv_project_points(seed):
+    """A second, outside reference: cv2.projectPoints with the same K, R, t (zero
+    distortion) gives the pixel that hsr's matrices give, in OpenCV's pixels (hsr's
+    continuous window coordinate minus the half pixel)."""
+    from conftest import need
+
+    try:
+        import cv2
+    except ImportError:
+        cv2 = None
+    need(cv2 is not None, "opencv-python-headless is not installed (the test extra has it)")
+    rng = np.random.default_rng(seed)
+    K, R, t = random_opencv(rng)
+    cam = hsr.Camera.from_opencv(K, R, t, W, H, near=0.5, far=50)
+    pts_cam = np.stack([rng.uniform(-2, 2, 50), rng.uniform(-2, 2, 50),
+                        rng.uniform(1, 20, 50)], axis=1)
+    world = (pts_cam - t) @ R
+    uv_cv, _ = cv2.projectPoints(world, cv2.Rodrigues(R)[0], t, K, np.zeros(5))
+    clip = np.c_[world, np.ones(len(world))] @ (cam.projection_matrix(W / H)
+                                               @ cam.view_matrix).T
+    ndc = clip[:, :2] / clip[:, 3:]
+    x_window = (ndc[:, 0] + 1) / 2 * W
+    y_window = (1 - ndc[:, 1]) / 2 * H  # row 0 at the top
+    assert np.allclose(np.c_[x_window - 0.5, y_window - 0.5], uv_cv[:, 0], atol=1e-6)

@@ -249,6 +249,28 @@ def test_metric_depth_and_normals_out(tmp_path, capsys):
     assert np.array_equal(np.load(tmp_path / "n.npy"), frame.normals)
 
 
+def test_exr_buffers_read_back_with_openexr(tmp_path):
+    """.exr depth and normals, read back with the OpenEXR binding: float32, bit for bit,
+    +inf kept on the background of eye depth, row 0 at the top."""
+    import OpenEXR
+
+    import hsr
+
+    scene, cam = hsr.scenes.get("cubes")
+    frame = hsr.render(scene, cam, 64, 48)
+    assert main(["render", "--size", "64x48", "-o", str(tmp_path / "c.png"), "--quiet",
+                 "--depth-out", str(tmp_path / "d.exr"), "--depth-kind", "eye",
+                 "--normals-out", str(tmp_path / "n.exr")]) == 0
+    with OpenEXR.File(str(tmp_path / "d.exr")) as exr:
+        depth = exr.channels()["Z"].pixels
+    assert depth.dtype == np.float32 and depth.shape == (48, 64)
+    assert np.array_equal(depth, frame.eye_depth)  # +inf included
+    with OpenEXR.File(str(tmp_path / "n.exr")) as exr:
+        ch = exr.channels()
+        normals = np.stack([ch[k].pixels for k in "XYZ"], axis=2)
+    assert np.array_equal(normals, frame.normals)
+
+
 def test_camera_from_transforms_json_and_colmap(tmp_path, capsys):
     import json
 
@@ -331,10 +353,12 @@ def test_first_look_of_a_model(tmp_path, capsys, models_dir):
     out = tmp_path / "f.png"
     assert main(["render", path, "-o", str(out), "--size", "200x120", "--quiet"]) == 0
     mesh = hsr.load(path)
-    cam = hsr.views.default(mesh.bounds(), 200 / 120)
+    cam = hsr.views.default(mesh, 200 / 120)
     assert np.allclose(cam.forward, -hsr.views.direction(35, 25))
     want = hsr.render(mesh, cam, 200, 120, light="studio")
     assert np.array_equal(np.asarray(Image.open(out)), want.color)
+    # Python without a camera: the same first look.
+    assert np.array_equal(hsr.render(mesh, width=200, height=120).color, want.color)
     # The fandisk's faces show several shades, not one flat silhouette.
     assert len(np.unique(want.color[want.face_id >= 0][:, 0])) > 15
     assert main(["render", "-o", str(out), "--size", "160x120", "--quiet"]) == 0
@@ -342,6 +366,7 @@ def test_first_look_of_a_model(tmp_path, capsys, models_dir):
     assert np.array_equal(np.asarray(Image.open(out)), hsr.render(scene, camera, 160, 120).color)
     assert main(["render", path, "--view", "-55,25", "-o", str(out), "--size", "200x120",
                  "--quiet"]) == 0
-    cam = hsr.views.framed(mesh.bounds(), hsr.views.direction(-55, 25), 200 / 120)
+    cam = hsr.Camera.frame(mesh.bounds(), hsr.views.direction(-55, 25), margin=1.05,
+                           aspect=200 / 120, fit="points", points=mesh.positions)
     assert np.array_equal(np.asarray(Image.open(out)),
                           hsr.render(mesh, cam, 200, 120, light="studio").color)

@@ -185,15 +185,16 @@ def build_parser() -> argparse.ArgumentParser:
     ro = r.add_argument_group("output")
     ro.add_argument("-o", "--output", help="colour image (default render.png; with --svg and "
                    "no -o, only the SVG is written)")
-    ro.add_argument("--depth-out", help="write a depth buffer (.npy float32 or 16-bit .png)")
+    ro.add_argument("--depth-out", help="write a depth buffer (.npy or .exr float32, or 16-bit "
+                    ".png)")
     ro.add_argument("--depth-kind", default="window", choices=["window", "eye", "distance"],
                    help="window depth (0..1), eye depth or distance from the eye in world "
                         "units (16-bit PNG: 1/1000 units) (default %(default)s)")
     ro.add_argument("--orbit", type=int, metavar="N", help="N views around the model at equal "
                    "azimuth steps (elevation 20 degrees, or --view AZ,EL for the first): "
                    "OUTPUT_000.png ... (and likewise the buffer outputs)")
-    ro.add_argument("--normals-out", help="write world-space normals (.npy float32 or 8-bit "
-                   ".png)")
+    ro.add_argument("--normals-out", help="write world-space normals (.npy or .exr float32, or "
+                    "8-bit .png)")
     ro.add_argument("--ids-out", help="write the face-id buffer (.npy int32, -1 = background)")
     ro.add_argument("--error-map", help="write where the result differs from the z-buffer "
                    "(red) as a PNG")
@@ -290,7 +291,10 @@ def _camera_from_args(args, scene, default_camera, aspect):
             az, el = (_floats(args.view_from, 2, "--view") if args.view_from is not None
                       else views.DEFAULT_VIEW)
             cam = Camera.frame(bounds, views.direction(az, el), up, args.fov,
-                               ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect)
+                               ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect,
+                               fit="points", points=views.model_points(scene))
+            if args.target is None:  # the framing's own aim (the middle of the picture)
+                target = np.asarray(cam.target)
             eye = np.asarray(cam.eye) - np.asarray(cam.target) + target
             up = cam.up
             auto_near, auto_far = cam.near, cam.far
@@ -454,9 +458,9 @@ def _cmd_render(args) -> int:
         args.output = None if args.svg else "render.png"
     if args.output:
         check_output(args.output)
-    for path, kinds in ((args.depth_out, (".npy", ".png")), (args.ids_out, (".npy",)),
+    for path, kinds in ((args.depth_out, (".npy", ".exr", ".png")), (args.ids_out, (".npy",)),
                         (args.svg, (".svg",)), (args.error_map, None),
-                        (args.normals_out, (".npy", ".png"))):
+                        (args.normals_out, (".npy", ".exr", ".png"))):
         if path:
             check_output(path, kinds)
     scene, camera, width, height, state, background, options = _setup(args)

@@ -28,6 +28,7 @@ from .lines.raster import draw_hidden_lines, fill_state, polygon_edges
 from .parallel import Workers
 from .scene.camera import Camera
 from .scene.mesh import as_scene, instance_of
+from .scene.views import default as default_view
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
@@ -72,7 +73,8 @@ class Frame:
 
     def __repr__(self) -> str:
         s = self.stats
-        return (f"Frame({self.width}x{self.height}, {s.get('algorithm', '?')}, "
+        triangles = f"{s['triangles_in']} triangles, " if "triangles_in" in s else ""
+        return (f"Frame({self.width}x{self.height}, {s.get('algorithm', '?')}, {triangles}"
                 f"{s.get('pixels_covered', int(np.count_nonzero(self.face_id >= 0)))} pixels "
                 f"covered, {s.get('timings_ms', {}).get('total', float('nan')):.1f} ms)")
 
@@ -177,18 +179,20 @@ class Frame:
         save_ids(self.face_id, path)
 
 
-def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
+def render(scene, camera: Camera | None = None, width: int = 640, height: int = 480, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
            shading: str = "flat", background=(0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
            occlusion_cull: bool = False, options: dict | None = None,
            look: Look | None = None, fog: Fog | None = None, textures: bool = True,
            texture_filter: str = "bilinear", texture_wrap: str = "repeat",
-           light: str = "headlight",
+           light: str | None = None,
            hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
            **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
-    ``camera`` into a ``width`` x ``height`` Frame.
+    ``camera`` into a ``width`` x ``height`` Frame. Without a camera: the first look of
+    ``hsr render MODEL`` (:func:`hsr.views.default`: a three-quarter view framed tight,
+    and the studio light unless ``light`` says otherwise).
 
     ``state`` (or keyword fields of :class:`RenderState`, e.g. ``cull="back"``,
     ``depth_func="lequal"``, ``polygon_mode="line"``, ``polygon_offset=(1, 1)``) sets the
@@ -205,9 +209,9 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     Appearance (after visibility, the same for every algorithm): ``shading`` (see
     :data:`hsr.appearance.shading.SHADING_MODES`), ``textures`` (use mesh textures),
     ``texture_filter`` (nearest | bilinear), ``texture_wrap`` (repeat | clamp), ``fog``
-    (:class:`hsr.Fog`), ``light`` (``headlight``: one light along the view, the
-    textbooks'; ``studio``: key and fill lights, shapes read better), or all of them as
-    one :class:`hsr.Look`. ``hidden_line=True`` (or a
+    (:class:`hsr.Fog`), ``light`` (``headlight``, the default with a camera: one light
+    along the view, the textbooks'; ``studio``: key and fill lights, shapes read better),
+    or all of them as one :class:`hsr.Look`. ``hidden_line=True`` (or a
     :class:`hsr.HiddenLine`) draws only the visible edges over the filled depth buffer.
     Instances with ``opacity < 1`` are blended after the opaque ones, sorted back to front
     per object (``transparency="object"``) or per fragment (``"exact"``).
@@ -220,9 +224,15 @@ def render(scene, camera: Camera, width: int = 640, height: int = 480, *,
     t_start = time.perf_counter()
     check_size(width, height)
     check_memory(width, height)
+    if camera is None:
+        # The first look, as ``hsr render MODEL`` draws it.
+        scene = as_scene(scene)
+        camera = default_view(scene, width / height)
+        light = "studio" if light is None else light
     if not isinstance(camera, Camera):
         raise RenderError(f"camera must be an hsr.Camera, got {type(camera).__name__}")
     camera.validate()
+    light = "headlight" if light is None else light
     fields = RenderState.__dataclass_fields__
     unknown = sorted(set(state_fields) - set(fields))
     if unknown:

@@ -65,6 +65,18 @@ def _matrix(value, shape, what) -> np.ndarray:
     return m
 
 
+def _points(value) -> np.ndarray:
+    try:
+        pts = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise CameraError("points must be an (N, 3) array of numbers") from None
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all() \
+            or np.abs(pts).max() > MAX_COORDINATE:
+        raise CameraError(f"points must be a finite (N, 3) array with N >= 1, got shape "
+                          f"{pts.shape}")
+    return pts
+
+
 def _check_rotation(R: np.ndarray, what: str) -> None:
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
         raise CameraError(f"{what} must be a rotation (orthonormal, det +1)")
@@ -271,12 +283,18 @@ class Camera:
 
     @classmethod
     def frame(cls, bounds, direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0), fov_y=45.0,
-              ortho_height=None, margin=1.1, aspect=1.0):
+              ortho_height=None, margin=1.1, aspect=1.0, fit="sphere", points=None):
         """A camera that sees the whole box ``bounds`` ((2, 3): min, max) from ``direction``
         (pointing from the target towards the eye), with near/far hugging the box.
 
-        The box's bounding sphere fits in both the vertical and the horizontal field of
-        view of an image of ``aspect`` (width / height), ``margin`` times its radius. When
+        ``fit="sphere"``: the box's bounding sphere fits in both the vertical and the
+        horizontal field of view of an image of ``aspect`` (width / height), ``margin``
+        times its radius (the same distance from every direction: what view sets want).
+        ``fit="box"`` (perspective only): the eye comes as close as the box's eight corners
+        allow, each inside both fields of view shrunk by ``margin`` (a tighter picture of
+        the same whole model); ``fit="points"``: as close as the (N, 3) ``points`` allow
+        (a model's vertices: as tight as the model itself, and still whole, since each
+        triangle lies within its corners' projection). When
         ``direction`` is parallel to ``up`` (looking straight down or up), the image top
         points along -Z (looking down) or +Z (looking up) instead.
 
@@ -316,10 +334,51 @@ class Camera:
         if not 0 < half_y < math.pi / 2:
             raise CameraError(f"fov must be in (0, 180) degrees, got {fov_y}")
         half_x = math.atan(aspect * math.tan(half_y))
+        if fit in ("box", "points"):
+            if fit == "box":
+                points = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
+                                   for z in bounds[:, 2]])
+            else:
+                points = _points(points)
+            return cls._frame_points(points, center, radius, direction, up, fov_y,
+                                     math.tan(half_x) / margin, math.tan(half_y) / margin)
+        if fit != "sphere":
+            raise CameraError(f"fit must be 'sphere', 'box' or 'points', got {fit!r}")
         dist = margin * radius / math.sin(min(half_x, half_y))
         eye = center + direction * dist
         near = max(dist - radius * 1.5, dist * 1e-3)
         return cls.look_at(eye, center, up, fov_y, near, dist + radius * 1.5)
+
+    @classmethod
+    def _frame_points(cls, points, center, radius, direction, up, fov_y, tan_x, tan_y):
+        """The nearest eye on ``center + d * direction`` that sees every point within the
+        half-angle tangents ``tan_x``, ``tan_y``: a point at offset ``o`` from the centre
+        has lateral coordinates ``o . right``, ``o . up`` and depth ``d - o . direction``,
+        so it is inside when ``d >= o . direction + |o . right| / tan_x`` (and likewise for
+        up); ``d`` is the largest such bound. The view's rotation is gluLookAt's, the same
+        at every distance."""
+        rot = look_at_matrix(center + direction, center, up)[:3, :3]
+
+        def nearest(center):
+            offsets = points - center
+            along = offsets @ direction
+            lateral_x, lateral_y = offsets @ rot[0], offsets @ rot[1]
+            # 5% of the radius in front of the nearest point at least: near stays > 0.
+            dist = float(np.max(along + np.maximum(np.maximum(
+                np.abs(lateral_x) / tan_x, np.abs(lateral_y) / tan_y), 0.05 * radius)))
+            return dist, along, lateral_x / (dist - along), lateral_y / (dist - along)
+
+        dist, along, slope_x, slope_y = nearest(center)
+        # Then aim at the middle of what is seen (the box's centre is not the picture's):
+        # move the target sideways by the middle of the slopes at the target's distance,
+        # and fit again (any centre fits; this one leaves equal margins, nearly).
+        center = center + dist * ((slope_x.max() + slope_x.min()) / 2 * rot[0]
+                                  + (slope_y.max() + slope_y.min()) / 2 * rot[1])
+        dist, along, _, _ = nearest(center)
+        depth = dist - along
+        near = max(0.95 * float(depth.min()), dist * 1e-3)
+        far = 1.05 * float(depth.max())
+        return cls.look_at(center + direction * dist, center, up, fov_y, near, far)
 
     @property
     def is_orthographic(self) -> bool:

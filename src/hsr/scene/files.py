@@ -101,18 +101,44 @@ PNG_SCALES = {"window": 65535.0, "eye": 1000.0, "distance": 1000.0}
 
 
 def _save_buffer(path, array: np.ndarray, what: str, write_png) -> None:
-    """Write ``array`` to a ``.npy`` (float32) or, through ``write_png(path)``, a ``.png``;
-    any other extension, or a failed write, is an :class:`OutputError`."""
+    """Write ``array`` to a ``.npy`` (float32), an ``.exr`` (float32, see
+    :func:`write_exr`) or, through ``write_png(path)``, a ``.png``; any other extension, or a
+    failed write, is an :class:`OutputError`."""
     path = _check_dir(path)
     lower = path.lower()
     try:
         if lower.endswith(".npy"):
             np.save(path, array.astype(np.float32))
+        elif lower.endswith(".exr"):
+            write_exr(path, array)
         elif lower.endswith(".png"):
             write_png(path)
         else:
-            raise OutputError(f"cannot write {what} to {path}: use .npy or .png")
+            raise OutputError(f"cannot write {what} to {path}: use .npy, .exr or .png")
     except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc}") from None
+
+
+def write_exr(path, array: np.ndarray) -> None:
+    """An OpenEXR file of float32 channels (ZIP compressed, lossless): ``Z`` for an (H, W)
+    buffer, ``X``, ``Y``, ``Z`` for an (H, W, 3) one; row 0 at the top, as EXR stores it.
+    Through the OpenEXR project's own binding (``pip install openexr``, the ``exr``
+    extra). Raises :class:`OutputError` when it is not installed or the write fails."""
+    try:
+        import OpenEXR
+    except ImportError:
+        raise OutputError(f"cannot write {path}: .exr needs the OpenEXR package "
+                          f"(pip install 'hsr[exr]' or pip install openexr)") from None
+    data = np.ascontiguousarray(array, dtype=np.float32)
+    if data.ndim == 2:
+        channels = {"Z": data}
+    else:
+        channels = {name: np.ascontiguousarray(data[:, :, k]) for k, name in enumerate("XYZ")}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    try:
+        with OpenEXR.File(header, channels) as exr:
+            exr.write(os.fspath(path))
+    except (RuntimeError, ValueError, TypeError) as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None
 
 

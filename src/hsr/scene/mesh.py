@@ -258,8 +258,9 @@ class Scene:
 
     def __repr__(self):
         meshes = len({id(inst.mesh) for inst in self.instances})
-        return (f"<hsr.Scene: {len(self.instances)} instances of {meshes} meshes, "
-                f"{self.n_faces} faces>")
+        n = len(self.instances)
+        return (f"<hsr.Scene: {n} instance{'s' * (n != 1)} of {meshes} "
+                f"mesh{'es' * (meshes != 1)}, {self.n_faces} faces>")
 
     @property
     def n_faces(self) -> int:

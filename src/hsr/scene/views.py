@@ -5,6 +5,10 @@ Framing fits the bounding sphere of ``bounds`` in both the vertical and the hori
 field of view of an image of the given ``aspect`` (width / height), with a small margin,
 so the model is whole at every aspect ratio. Azimuth is measured from +Z towards +X,
 elevation up from the XZ plane (+Y is up), in degrees.
+
+Every function raises :class:`~hsr.errors.CameraError` for bounds that are not a finite
+(2, 3) box, a zero direction, an aspect that is not > 0, a fov outside (0, 180) degrees or
+a number of views outside 1..1000000.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import numpy as np
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["DEFAULT_VIEW", "default", "framed", "orbit", "sphere", "hemisphere", "direction"]
+__all__ = ["DEFAULT_VIEW", "default", "model_points", "framed", "orbit", "sphere", "hemisphere", "direction"]
 
 DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter view
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
@@ -41,34 +45,57 @@ def direction(azimuth: float, elevation: float) -> np.ndarray:
 def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     """A perspective camera on the line from the centre of ``bounds`` along ``toward`` (a
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
-    with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin)."""
+    with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin).
+    Raises :class:`~hsr.errors.CameraError` as the module says."""
     _sphere_of(bounds)
     return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
 
 
-def default(bounds, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
+def default(model, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     """The first look at a model: a three-quarter view from the front-right and above
-    (azimuth 35, elevation 25 degrees: three faces of a box show, so the shape reads),
-    framing the whole model. ``hsr render MODEL`` uses it."""
-    return framed(bounds, direction(*DEFAULT_VIEW), aspect, fov_y)
+    (azimuth 35, elevation 25 degrees: three faces of a box show, so the shape reads).
+    ``model`` is a Mesh or Scene (the eye comes as close as its vertices allow with a 5%
+    margin: the whole model, as large as it fits) or a (2, 3) box (as close as the box's
+    corners allow). ``hsr render MODEL`` uses it. Raises
+    :class:`~hsr.errors.CameraError` as the module says."""
+    points = model_points(model) if hasattr(model, "bounds") else None
+    bounds = model.bounds() if points is not None else model
+    _sphere_of(bounds)
+    return Camera.frame(bounds, direction(*DEFAULT_VIEW), (0.0, 1.0, 0.0), fov_y,
+                        margin=MARGIN, aspect=aspect,
+                        fit="box" if points is None else "points", points=points)
+
+
+def model_points(model) -> np.ndarray:
+    """(N, 3) world-space positions of the vertices that faces use, of a Mesh or of every
+    instance of a Scene."""
+    instances = getattr(model, "instances", None)
+    parts = []
+    for mesh, matrix in ([(i.mesh, i.model) for i in instances] if instances is not None
+                         else [(model, np.eye(4))]):
+        used = mesh.positions[np.unique(mesh.faces)]
+        parts.append(used @ matrix[:3, :3].T + matrix[:3, 3])
+    return np.concatenate(parts)
 
 
 def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
           fov_y: float = 45.0, azimuth: float = 0.0) -> list:
     """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
-    at ``elevation``."""
+    at ``elevation``. Raises :class:`~hsr.errors.CameraError` as the module says."""
     n = _count(n)
     return [framed(bounds, direction(azimuth + 360.0 * k / n, elevation), aspect, fov_y)
             for k in range(n)]
 
 
 def sphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
-    """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice)."""
+    """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice). Raises
+    :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y) for d in _fibonacci(_count(n), -1.0)]
 
 
 def hemisphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
-    """``n`` cameras spread evenly over the upper hemisphere (y >= 0)."""
+    """``n`` cameras spread evenly over the upper hemisphere (y >= 0). Raises
+    :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y) for d in _fibonacci(_count(n), 0.0)]
 
 
