@@ -221,7 +221,9 @@ def test_view_frames_the_model_from_azimuth_and_elevation(models_dir, tmp_path, 
     assert main(["render", model, "--view", "30,20", "--size", "64x48", "-o",
                  str(tmp_path / "s.png"), "--ids-out", str(ids), "--quiet"]) == 0
     mesh = hsr.load(model)
-    cam = hsr.views.framed(mesh.bounds(), hsr.views.direction(30, 20), 64 / 48)
+    # Framed as tight as the vertices allow (Camera.frame fit="points", 5% margin).
+    cam = hsr.Camera.frame(mesh.bounds(), hsr.views.direction(30, 20), margin=1.05,
+                           aspect=64 / 48, fit="points", points=mesh.positions)
     assert np.array_equal(np.load(ids), hsr.render(mesh, cam, 64, 48).face_id)
 
 

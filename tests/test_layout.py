@@ -12,7 +12,7 @@ SRC = os.path.join(os.path.dirname(__file__), "..", "src", "hsr")
 # (render, cli) or helpers every stage may use (errors, parallel).
 STAGES = {"errors": 0, "parallel": 0, "scene": 1, "geometry": 2, "raster": 3,
           "algorithms": 4, "appearance": 5, "lines": 5, "render": 6, "__init__": 6,
-          "explain": 7, "cli": 8, "__main__": 9}
+          "explain": 7, "batch": 7, "cli": 8, "__main__": 9}
 
 
 def _modules():
@@ -136,7 +136,8 @@ def test_public_entry_points_document_what_they_raise():
                     hsr.load_scene, hsr.Camera.from_opencv, hsr.Camera.from_matrices,
                     hsr.Camera.to_opencv, hsr.views.default, hsr.views.framed,
                     hsr.views.orbit, hsr.views.sphere, hsr.views.hemisphere,
-                    hsr.read_transforms, hsr.write_transforms, hsr.read_colmap]
+                    hsr.read_transforms, hsr.write_transforms, hsr.read_colmap,
+                    hsr.batch.render_views, hsr.batch.parse_views]
     silent = [f.__qualname__ for f in entry_points
               if not any(w in (inspect.getdoc(f) or "") for w in ("Raises", "Raise "))]
     assert not silent, f"public entry points that do not say what they raise: {silent}"

@@ -4,7 +4,9 @@ paths resolve), as a reader would run them one after another. Python blocks shar
 namespace (a later block uses the ``mesh`` or ``scene`` of an earlier one, as in a
 notebook). Only installing (``pip``), the test suite itself and the on-demand benchmarks
 are not run; anything else that is not an ``hsr`` command fails the test, so a new kind
-of example has to be added here on purpose."""
+of example has to be added here on purpose. ``sh`` blocks are commands for a cluster
+(``dask scheduler`` on another machine); tests/test_batch.py runs ``hsr batch
+--scheduler`` against a scheduler and a worker it starts."""
 
 import os
 import re
@@ -54,7 +56,7 @@ def beside_shared(tmp_path, monkeypatch, models_dir):
 
 
 def test_readme_runs_as_written(beside_shared, capsys):
-    namespace, ran_python, ran_hsr = {"__name__": "readme"}, 0, []
+    namespace, ran_python, ran_hsr = {"__name__": "__main__"}, 0, []
     for lang, body in fenced_blocks():
         if lang == "python":
             exec(compile(body, "README.md", "exec"), namespace)
@@ -72,8 +74,11 @@ def test_readme_runs_as_written(beside_shared, capsys):
     assert ran_python >= 6 and len(ran_hsr) >= 25
     # What the examples say they write is there.
     for name in ("bunny.png", "parts.glb", "transforms.json", "lines.svg", "cubes.png",
-                 "normals.exr", "eye.exr", "spot_003.png", "report.html", "compare.png"):
+                 "normals.exr", "eye.exr", "spot_003.png", "report.html", "compare.png",
+                 "views/manifest.json", "stores/spot.zarr/zarr.json",
+                 "from_python/spot/ids/0005.npy"):
         assert (beside_shared / name).stat().st_size > 0, name
+    assert namespace["result"].rendered == 6  # the batch example's guarded main ran
     assert namespace["names"] == ["left", "right", "ball"]
     assert namespace["seen"] == {"left", "right", "ball"}
 

@@ -17,6 +17,7 @@ transparency) and :mod:`hsr.lines` (polygon modes, hidden lines, SVG) -> :func:`
 from .algorithms import ALGORITHMS, bsp, raycast
 from .appearance.fog import Fog
 from .appearance.shading import Look
+from . import batch
 from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
 from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
 from .lines.raster import HiddenLine
@@ -34,7 +35,7 @@ __version__ = "0.1.0"
 __all__ = [
     "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
-    "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "bsp",
-    "hidden_lines", "load", "load_scene", "raycast", "read_colmap", "read_transforms", "render", "scenes",
-    "views", "write_lines_svg", "write_transforms",
+    "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "batch", "bsp",
+    "hidden_lines", "load", "load_scene", "raycast", "read_colmap", "read_transforms",
+    "render", "scenes", "views", "write_lines_svg", "write_transforms",
 ]

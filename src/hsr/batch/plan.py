@@ -1,0 +1,226 @@
+"""What a batch will do, decided on the client before anything runs: which cameras each
+model gets (a view-set spec, camera files, or cameras given in Python), which outputs are
+written where, how views are grouped into tasks, and which views a resumed run skips.
+Nothing here loads a mesh or renders."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+
+from ..errors import HsrError, RenderError
+from ..scene.camera import Camera
+
+__all__ = ["OUTPUTS", "FORMATS", "BatchError", "ViewSpec", "parse_views", "output_path",
+           "group_views", "model_stems"]
+
+
+class BatchError(HsrError):
+    """A batch job is malformed (views, outputs, models, output folder)."""
+
+
+# Output name -> (file extension, what it holds).
+OUTPUTS = {
+    "color": (".png", "(H, W, 3) uint8 colour image"),
+    "window_depth": (".npy", "(H, W) float32 window depth, the clear depth on background"),
+    "eye_depth": (".npy", "(H, W) float32 depth along the view axis, +inf on background"),
+    "distance": (".npy", "(H, W) float32 distance from the eye, +inf on background"),
+    "normals": (".npy", "(H, W, 3) float32 world-space unit normals, 0 on background"),
+    "ids": (".npy", "(H, W) int32 face ids, -1 on background"),
+    "object_ids": (".npy", "(H, W) int32 instance (node) index, -1 on background"),
+}
+FORMATS = ("files", "zarr")
+_SETS = ("orbit", "sphere", "hemisphere")
+MAX_VIEWS = 1_000_000
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    """Views for every model: a view set computed from each model's bounds (``kind`` one
+    of orbit / sphere / hemisphere, ``count``, ``elevation`` for orbit), or fixed
+    ``cameras`` (the same for every model), or ``per_model`` cameras keyed by model path."""
+
+    kind: str
+    count: int = 0
+    elevation: float = 20.0
+    cameras: tuple = ()
+    per_model: dict | None = None
+    text: str = ""
+
+    def count_for(self, model: str) -> int:
+        if self.kind in _SETS:
+            return self.count
+        if self.kind == "per-model":
+            return len(self.per_model[model])
+        return len(self.cameras)
+
+
+def parse_views(views, models, near=0.1, far=100.0) -> ViewSpec:
+    """A :class:`ViewSpec` from ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``,
+    a transforms.json or COLMAP folder (the same cameras for every model),
+    ``per-model:FILE`` (a JSON object from each model's path or file name to a
+    transforms.json or COLMAP folder, relative to FILE), a list of :class:`hsr.Camera`,
+    or a dict from model path to such a list. Raises :class:`BatchError` for anything
+    else, and :class:`~hsr.errors.CameraError` for a bad camera file."""
+    from ..scene.camera_files import read_colmap, read_transforms
+
+    if isinstance(views, dict):
+        return ViewSpec("per-model", per_model=_per_model(views, models), text="per-model")
+    if isinstance(views, (list, tuple)):
+        return ViewSpec("cameras", cameras=_cameras(views, "views"), text="cameras")
+    if not isinstance(views, str) or not views:
+        raise BatchError(f"views must be a spec string, a list of cameras or a dict of them, "
+                         f"got {type(views).__name__}")
+    head, _, rest = views.partition(":")
+    if head in _SETS:
+        parts = rest.split(":") if rest else []
+        if not parts or len(parts) > (2 if head == "orbit" else 1):
+            raise BatchError(f"views {views!r}: use {head}:N" + ("[:ELEVATION]"
+                                                                if head == "orbit" else ""))
+        count = _int(parts[0], f"views {views!r}: N")
+        if not 1 <= count <= MAX_VIEWS:
+            raise BatchError(f"views {views!r}: N must be in 1..{MAX_VIEWS}")
+        elevation = 20.0
+        if len(parts) == 2:
+            elevation = _float(parts[1], f"views {views!r}: ELEVATION")
+            if not -90.0 <= elevation <= 90.0:
+                raise BatchError(f"views {views!r}: ELEVATION must be in -90..90 degrees")
+        return ViewSpec(head, count, elevation, text=views)
+    if head == "per-model":
+        return ViewSpec("per-model", per_model=_per_model_file(rest, models, near, far),
+                        text=views)
+    if os.path.isdir(views):
+        return ViewSpec("cameras", cameras=tuple(read_colmap(views, near=near, far=far)[0]),
+                        text=views)
+    if os.path.exists(views):
+        return ViewSpec("cameras", cameras=tuple(read_transforms(views, near=near, far=far)[0]),
+                        text=views)
+    raise BatchError(f"views {views!r}: not orbit:N[:EL], sphere:N, hemisphere:N, "
+                     f"per-model:FILE, nor an existing transforms.json or COLMAP folder")
+
+
+def _int(text, what) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise BatchError(f"{what} must be an integer, got {text!r}") from None
+
+
+def _float(text, what) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise BatchError(f"{what} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise BatchError(f"{what} must be finite, got {text!r}")
+    return value
+
+
+def _cameras(items, what) -> tuple:
+    items = tuple(items)
+    if not items or not all(isinstance(c, Camera) for c in items):
+        raise BatchError(f"{what}: a non-empty list of hsr.Camera is needed")
+    for cam in items:
+        cam.validate()
+    return items
+
+
+def _per_model(mapping, models) -> dict:
+    out = {}
+    for model in models:
+        keys = [k for k in (model, os.path.basename(model)) if k in mapping]
+        if not keys:
+            raise BatchError(f"views: no cameras for model {model!r}")
+        out[model] = _cameras(mapping[keys[0]], f"views for {model!r}")
+    return out
+
+
+def _per_model_file(path, models, near, far) -> dict:
+    from ..scene.camera_files import read_colmap, read_transforms
+    from ..scene.files import read_regular
+
+    try:
+        doc = json.loads(read_regular(path, "per-model views file", 64 << 20, BatchError))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise BatchError(f"{path}: not JSON ({exc})") from None
+    if not isinstance(doc, dict) or not all(isinstance(v, str) for v in doc.values()):
+        raise BatchError(f"{path}: must be a JSON object from model to a transforms.json or "
+                         f"COLMAP folder")
+    folder = os.path.dirname(os.path.abspath(path))
+    mapping = {}
+    for key, target in doc.items():
+        target = os.path.join(folder, target)
+        mapping[key] = (read_colmap(target, near=near, far=far)[0] if os.path.isdir(target)
+                        else read_transforms(target, near=near, far=far)[0])
+    return _per_model(mapping, models)
+
+
+def check_outputs(outputs) -> tuple:
+    """The output names, checked (at least one, no repeats, each known)."""
+    if isinstance(outputs, str):
+        outputs = [o for o in outputs.split(",") if o]
+    outputs = tuple(outputs)
+    unknown = [o for o in outputs if o not in OUTPUTS]
+    if not outputs or unknown or len(set(outputs)) != len(outputs):
+        raise BatchError(f"outputs must be distinct names from {', '.join(OUTPUTS)}; "
+                         f"got {', '.join(map(str, outputs)) or 'none'}")
+    return outputs
+
+
+def model_stems(models) -> dict:
+    """Model path -> its folder name under the output folder (the file's stem); two models
+    with one stem are refused rather than written over each other."""
+    stems = {}
+    for model in models:
+        stem = os.path.splitext(os.path.basename(os.fspath(model)))[0] or "model"
+        if stem in stems.values():
+            other = next(m for m, s in stems.items() if s == stem)
+            raise BatchError(f"models {other!r} and {model!r} would both write to "
+                             f"{stem}/: rename one")
+        stems[model] = stem
+    return stems
+
+
+def output_path(out_dir, stem, output, view) -> str:
+    """``OUT/<stem>/<output>/<view:04d><ext>``."""
+    return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")
+
+
+def group_views(views, width, height, workers) -> list:
+    """Views (indices) in tasks: about 4 M pixels of work per task (a 512 x 512 view takes
+    milliseconds; a task costs the scheduler about a millisecond), but at least four tasks
+    per worker when there are few views, so every worker has work and a lost worker
+    costs little."""
+    views = list(views)
+    if not views:
+        return []
+    by_pixels = max(1, (4 << 20) // max(1, width * height))
+    by_spread = max(1, math.ceil(len(views) / (4 * max(1, workers))))
+    size = max(1, min(by_pixels, by_spread, 64))
+    return [views[k:k + size] for k in range(0, len(views), size)]
+
+
+def check_size(size) -> tuple:
+    from ..geometry.viewport import check_size as check_image
+
+    try:
+        width, height = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise BatchError(f"size must be (width, height), got {size!r}") from None
+    check_image(width, height)
+    return width, height
+
+
+def probe_options(options: dict) -> None:
+    """Refuse render options ``hsr.render`` refuses (a typo, a bad value) before any
+    work is sent out: one render of one triangle at 1 x 1 pixel with them."""
+    from ..render import render
+    from ..scene.mesh import Mesh
+
+    for name in ("threads", "into", "counts"):
+        if name in options:
+            raise RenderError(f"{name} is not a batch render option")
+    tri = Mesh([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]])
+    render(tri, Camera.look_at((0, 0, 3), (0, 0, 0)), 1, 1, threads=1, **options)

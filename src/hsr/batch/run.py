@@ -1,0 +1,256 @@
+"""The client side of a batch: start (or use) a Dask cluster, plan each model on a worker,
+send groups of views as tasks, collect the manifest rows as they finish, and write the
+manifest. The scheduling, retries after a lost worker and data movement are Dask's
+(``dask.distributed``); hsr only says what each task is."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+
+from ..errors import OutputError
+from .plan import (FORMATS, BatchError, check_outputs, check_size, group_views, model_stems,
+                   output_path, parse_views, probe_options)
+
+__all__ = ["render_views", "BatchResult", "local_cluster"]
+
+
+@dataclass
+class BatchResult:
+    """What a batch did: one manifest row per view (``model``, ``view``, ``status`` ok /
+    failed / skipped, ``error``, ``ms``), where the manifest is, and the wall time."""
+
+    rows: list = field(default_factory=list)
+    manifest: str = ""
+    seconds: float = 0.0
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] == "failed" for r in self.rows)
+
+    @property
+    def rendered(self) -> int:
+        return sum(r["status"] == "ok" for r in self.rows)
+
+    @property
+    def skipped(self) -> int:
+        return sum(r["status"] == "skipped" for r in self.rows)
+
+    @property
+    def views_per_second(self) -> float:
+        return self.rendered / self.seconds if self.seconds > 0 else 0.0
+
+    def summary(self) -> str:
+        total = len(self.rows)
+        text = (f"{self.rendered:,} of {total:,} views rendered in {self.seconds:.1f} s "
+                f"({self.views_per_second:.1f} views/s)")
+        if self.skipped:
+            text += f", {self.skipped:,} already done"
+        if self.failed:
+            text += f"; {self.failed:,} of {total:,} views failed; see {self.manifest}"
+        return text
+
+
+def local_cluster(workers: int | None = None):
+    """A Dask cluster on this machine, bound to 127.0.0.1 (its dashboard too, on a free
+    port): ``workers`` processes (default
+    one per core) of one thread each. Each render then runs single-threaded in its
+    process: two processes keep two cores busy on small views, where one multithreaded
+    render cannot (benchmarks/bench_batch.py measures both)."""
+    from distributed import LocalCluster
+
+    cores = os.cpu_count() or 1
+    n = cores if workers is None else workers
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1024:
+        raise BatchError(f"workers must be an integer in 1..1024, got {workers!r}")
+    return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                        dashboard_address="127.0.0.1:0", silence_logs=40)
+
+
+def render_views(models, views, size=(512, 512), outputs=("color",), out="batch",
+                 client=None, *, format="files", resume=False, workers=None,
+                 progress=None, near=0.1, far=100.0, **render_options) -> BatchResult:
+    """Render every model from every view, on a Dask cluster, writing the outputs to
+    ``out`` (see the README section "Many views at scale" for the layout).
+
+    ``models``: paths every worker can read (each is loaded once per worker). ``views``:
+    ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``, a transforms.json or COLMAP
+    folder, ``per-model:FILE``, a list of :class:`hsr.Camera` or a dict of them per
+    model (see :func:`hsr.batch.plan.parse_views`). ``outputs``: names from
+    :data:`hsr.batch.plan.OUTPUTS`. ``client``: any ``distributed.Client``; without one a
+    local cluster of ``workers`` processes runs the job and is closed after it.
+    ``format``: ``files`` or ``zarr``. ``resume``: skip views whose outputs all exist.
+    ``render_options`` go to :func:`hsr.render` (algorithm, cull, shading, light, ...).
+    Results are bit for bit ``hsr.render``'s with the same camera and options.
+
+    Raises :class:`~hsr.batch.plan.BatchError` for malformed views, outputs, models or
+    format, :class:`~hsr.errors.CameraError` for a bad camera file,
+    :class:`~hsr.errors.RenderError` for render options ``hsr.render`` refuses, and
+    :class:`~hsr.errors.OutputError` when ``out`` cannot be written. A model or view that
+    fails is a ``failed`` row of the manifest, never an exception.
+    """
+    models = [os.fspath(m) for m in models]
+    if not models:
+        raise BatchError("no models given")
+    width, height = check_size(size)
+    outputs = check_outputs(outputs)
+    if format not in FORMATS:
+        raise BatchError(f"format must be one of {', '.join(FORMATS)}, got {format!r}")
+    stems = model_stems(models)
+    spec = parse_views(views, models, near, far)
+    probe_options(render_options)
+    out = os.fspath(out)
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot write to {out}: {exc}") from None
+    if progress is None:
+        progress = sys.stderr.isatty()
+
+    start = time.perf_counter()
+    own_cluster = None
+    if client is None:
+        from distributed import Client
+
+        own_cluster = local_cluster(workers)
+        client = Client(own_cluster)
+    try:
+        rows = _run(client, models, stems, spec, (width, height), outputs, out, format,
+                    resume, render_options, progress, threads=1 if own_cluster else None)
+    finally:
+        if own_cluster is not None:
+            client.close()
+            own_cluster.close()
+    result = BatchResult(rows, os.path.join(out, "manifest.json"), time.perf_counter() - start)
+    _write_manifest(result, spec, (width, height), outputs, format, render_options)
+    return result
+
+
+def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
+         threads) -> list:
+    from distributed import as_completed
+
+    from .tasks import MeshCache, plan_model, render_group
+
+    client.register_plugin(MeshCache())
+    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+    rows = []
+    plans = {client.submit(plan_model, m, spec, size, pure=False): m for m in models}
+    jobs = as_completed(list(plans))
+    bar = _progress_bar(progress, sum(spec.count_for(m) for m in models))
+    for future in jobs:
+        if future in plans:
+            model = plans[future]
+            plan = future.result()
+            if "error" in plan:
+                failed = [{"model": model, "view": v, "status": "failed",
+                           "error": plan["error"], "ms": 0.0}
+                          for v in range(spec.count_for(model))]
+                rows += failed
+                bar.update(len(failed))
+                continue
+            cameras = plan["cameras"]
+            todo = _prepare(out, stems[model], cameras, size, outputs, fmt, resume)
+            skipped = [v for v in range(len(cameras)) if v not in set(todo)]
+            rows += [{"model": model, "view": v, "status": "skipped", "error": None,
+                      "ms": 0.0} for v in skipped]
+            bar.update(len(skipped))
+            for group in group_views(todo, size[0], size[1], n_workers):
+                task = client.submit(render_group, model, stems[model], group,
+                                     [cameras[v] for v in group], size, outputs, out, fmt,
+                                     options, threads, pure=False)
+                jobs.add(task)
+        else:
+            done = future.result()
+            rows += done
+            bar.update(len(done))
+    bar.close()
+    rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
+    return rows
+
+
+def _prepare(out, stem, cameras, size, outputs, fmt, resume) -> list:
+    """Write the model's transforms.json (and create its zarr store); return the views
+    still to render (all of them unless ``resume``)."""
+    from ..scene.camera_files import write_transforms
+
+    folder = os.path.join(out, stem)
+    os.makedirs(folder, exist_ok=True)
+    width, height = size
+    first = "color" if "color" in outputs else outputs[0]
+    if not any(c.is_orthographic for c in cameras):
+        write_transforms(os.path.join(folder, "transforms.json"), cameras, width, height,
+                         [os.path.relpath(output_path(out, stem, first, v), folder)
+                          for v in range(len(cameras))])
+    views = range(len(cameras))
+    if fmt == "zarr":
+        return _prepare_zarr(out, stem, cameras, size, outputs, resume)
+    if not resume:
+        return list(views)
+    return [v for v in views
+            if not all(os.path.exists(output_path(out, stem, o, v)) for o in outputs)]
+
+
+def _prepare_zarr(out, stem, cameras, size, outputs, resume) -> list:
+    """One Zarr v3 store per model: an array per output, (views, H, W[, C]) with one view
+    per chunk, a ``done`` mark per view, the cameras (OpenGL view and projection
+    matrices) in the attributes. ``resume`` keeps the store and returns the views not
+    marked done."""
+    import numpy as np
+    import zarr
+
+    width, height = size
+    path = os.path.join(out, f"{stem}.zarr")
+    n = len(cameras)
+    if resume and os.path.isdir(path):
+        group = zarr.open_group(path, mode="r")
+        if "done" in group and group["done"].shape == (n,) \
+                and all(o in group for o in outputs):
+            done = group["done"][:]
+            return [v for v in range(n) if not done[v]]
+    group = zarr.open_group(path, mode="w", zarr_format=3)
+    shapes = {"color": ((3,), "uint8"), "normals": ((3,), "float32"),
+              "ids": ((), "int32"), "object_ids": ((), "int32")}
+    for name in outputs:
+        extra, dtype = shapes.get(name, ((), "float32"))
+        fill = {"ids": -1, "object_ids": -1}.get(name, 0)
+        group.create_array(name, shape=(n, height, width) + extra,
+                           chunks=(1, height, width) + extra, dtype=dtype, fill_value=fill)
+    group.create_array("done", shape=(n,), chunks=(1,), dtype="uint8", fill_value=0)
+    aspect = width / height
+    group.attrs["cameras"] = [{"view_matrix": np.asarray(c.view_matrix).tolist(),
+                               "projection_matrix": np.asarray(
+                                   c.projection_matrix(aspect)).tolist()} for c in cameras]
+    group.attrs["size"] = [width, height]
+    return list(range(n))
+
+
+def _progress_bar(enabled: bool, total: int):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="view", desc="hsr batch", disable=not enabled,
+                leave=False, dynamic_ncols=True)
+
+
+def _write_manifest(result, spec, size, outputs, fmt, options) -> None:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .tasks import write_atomic
+
+    try:
+        hsr_version = version("hsr")
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        hsr_version = "unknown"
+    doc = {"hsr": hsr_version, "views": spec.text, "size": list(size),
+           "outputs": list(outputs), "format": fmt,
+           "render_options": {k: v if isinstance(v, (str, int, float, bool)) or v is None
+                              else repr(v) for k, v in options.items()},
+           "summary": {"views": len(result.rows), "rendered": result.rendered,
+                       "skipped": result.skipped, "failed": result.failed,
+                       "seconds": round(result.seconds, 3)},
+           "tasks": result.rows}
+    text = json.dumps(doc, indent=1).encode()
+    write_atomic(result.manifest, lambda f: f.write(text))

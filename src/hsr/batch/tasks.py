@@ -1,0 +1,174 @@
+"""What runs on a Dask worker: load a model once per worker (a worker plugin keeps the
+loaded scenes), place its cameras, render a group of views and write each output under a
+temporary name, renamed into place when complete (so an interrupted run never leaves a
+half-written file under a final name). Every function returns small rows for the
+manifest; no image travels back to the client."""
+
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from collections import OrderedDict
+
+import numpy as np
+from distributed import WorkerPlugin
+
+from .plan import OUTPUTS, output_path
+
+__all__ = ["MeshCache", "PLUGIN_NAME", "plan_model", "render_group", "write_atomic"]
+
+PLUGIN_NAME = "hsr-mesh-cache"
+
+
+class MeshCache(WorkerPlugin):
+    """A Dask worker plugin holding the scenes
+    this worker has loaded, least recently used first out, up to ``max_faces`` faces in
+    all (so a worker that sees thousands of models keeps a bounded amount). A model is
+    keyed by its path, size and modification time: an edited file is loaded again."""
+
+    name = PLUGIN_NAME
+
+    def __init__(self, max_faces: int = 20_000_000):
+        self.max_faces = max_faces
+        self.scenes = OrderedDict()
+
+    def setup(self, worker=None):
+        self.scenes = OrderedDict()
+
+    def teardown(self, worker=None):
+        self.scenes.clear()
+
+    def get(self, path: str):
+        from ..scene.load import load_scene
+
+        stat = os.stat(path)
+        key = (os.path.abspath(path), stat.st_size, stat.st_mtime_ns)
+        if key in self.scenes:
+            self.scenes.move_to_end(key)
+            return self.scenes[key]
+        scene = load_scene(path)
+        self.scenes[key] = scene
+        while len(self.scenes) > 1 and sum(s.n_faces for s in self.scenes.values()) \
+                > self.max_faces:
+            self.scenes.popitem(last=False)
+        return scene
+
+
+def _cache() -> MeshCache:
+    """This worker's cache (a plain one outside a worker: the tasks also run inline)."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().plugins[PLUGIN_NAME]
+    except (ImportError, ValueError, KeyError):
+        return MeshCache()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def plan_model(path: str, spec, size) -> dict:
+    """Load the model (into this worker's cache) and place its cameras: ``{"cameras":
+    [...]}`` or ``{"error": one line}``."""
+    from ..errors import HsrError
+    from ..scene import views
+
+    try:
+        scene = _cache().get(path)
+        width, height = size
+        if spec.kind == "per-model":
+            cameras = list(spec.per_model[path])
+        elif spec.kind == "cameras":
+            cameras = list(spec.cameras)
+        elif spec.kind == "orbit":
+            cameras = views.orbit(scene.bounds(), spec.count, spec.elevation, width / height)
+        else:
+            cameras = getattr(views, spec.kind)(scene.bounds(), spec.count, width / height)
+        return {"cameras": cameras, "faces": scene.n_faces}
+    except (HsrError, OSError) as exc:
+        return {"error": _one_line(exc)}
+
+
+def write_atomic(path: str, write) -> None:
+    """``write(file)`` into a temporary file beside ``path``, then rename it over
+    ``path`` (atomic on POSIX and Windows within one folder)."""
+    folder = os.path.dirname(path)
+    os.makedirs(folder, exist_ok=True)
+    tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex}.tmp")
+    try:
+        with open(tmp, "wb") as handle:
+            write(handle)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def buffers(frame, outputs):
+    """Output name -> array of a frame."""
+    source = {"color": lambda: frame.color, "window_depth": lambda: frame.depth,
+              "eye_depth": lambda: frame.eye_depth, "distance": lambda: frame.distance,
+              "normals": lambda: frame.normals, "ids": lambda: frame.face_id,
+              "object_ids": lambda: frame.object_id}
+    return {name: source[name]() for name in outputs}
+
+
+def _write_files(out_dir, stem, view, arrays) -> None:
+    from PIL import Image
+
+    for name, array in arrays.items():
+        path = output_path(out_dir, stem, name, view)
+        if OUTPUTS[name][0] == ".png":
+            write_atomic(path, lambda f, a=array: Image.fromarray(a).save(f, format="PNG"))
+        else:
+            write_atomic(path, lambda f, a=array: np.save(f, a))
+
+
+def _write_zarr(store, view, arrays) -> None:
+    """Each output's chunk of this view, then the view's ``done`` mark: a view without its
+    mark is redone by ``resume`` (zarr writes a chunk as one file, but the mark makes the
+    whole view one unit)."""
+    import zarr
+
+    group = zarr.open_group(store, mode="r+")
+    for name, array in arrays.items():
+        group[name][view] = array
+    group["done"][view] = 1
+
+
+def render_group(path: str, stem: str, views: list, cameras: list, size, outputs,
+                 out_dir: str, fmt: str, options: dict, threads) -> list:
+    """Render ``views`` (indices, with their ``cameras``) of one model and write the
+    outputs; one manifest row per view (status ``ok`` or ``failed`` with a one-line
+    error, milliseconds)."""
+    from ..errors import HsrError
+    from ..render import render
+
+    rows = []
+    try:
+        scene = _cache().get(path)
+    except (HsrError, OSError) as exc:
+        message = _one_line(exc)
+        return [{"model": path, "view": v, "status": "failed", "error": message, "ms": 0.0}
+                for v in views]
+    width, height = size
+    store = os.path.join(out_dir, f"{stem}.zarr") if fmt == "zarr" else None
+    for view, camera in zip(views, cameras):
+        start = time.perf_counter()
+        try:
+            frame = render(scene, camera, width, height, threads=threads, **options)
+            arrays = buffers(frame, outputs)
+            if store is None:
+                _write_files(out_dir, stem, view, arrays)
+            else:
+                _write_zarr(store, view, arrays)
+            rows.append({"model": path, "view": view, "status": "ok", "error": None,
+                         "ms": round((time.perf_counter() - start) * 1000.0, 3)})
+        except (HsrError, OSError, MemoryError, ValueError) as exc:
+            rows.append({"model": path, "view": view, "status": "failed",
+                         "error": _one_line(exc),
+                         "ms": round((time.perf_counter() - start) * 1000.0, 3)})
+    return rows

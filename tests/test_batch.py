@@ -1,0 +1,232 @@
+"""``hsr batch`` on a real Dask cluster (issue #15): a LocalCluster of two worker processes on
+the loopback interface, and a scheduler and a worker started as separate processes for the
+CLI's --scheduler. Every output is compared with ``hsr.render`` run here, view by view."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import hsr
+from hsr.batch import BatchError, render_views
+from hsr.cli import main
+
+distributed = pytest.importorskip("distributed")
+
+SIZE = (96, 72)
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                       silence_logs=50)
+    with distributed.Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def models(models_dir):
+    return [os.path.join(models_dir, "spot.obj"), os.path.join(models_dir, "african_head.obj")]
+
+
+def expected(model, cam, size=SIZE, **options):
+    return hsr.render(hsr.load_scene(model), cam, *size, **options)
+
+
+def test_batch_matches_render_view_by_view(client, models, tmp_path):
+    bad = tmp_path / "corrupt.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    out = tmp_path / "out"
+    result = render_views(models + [str(bad)], "orbit:8", SIZE,
+                          ("color", "eye_depth", "ids", "normals", "window_depth"), out, client,
+                          shading="gouraud", cull="back", light="studio")
+    rows = json.loads((out / "manifest.json").read_text())["tasks"]
+    assert len(rows) == 24 and rows == result.rows
+    assert [(r["model"], r["view"]) for r in rows] == [(m, v) for m in models + [str(bad)]
+                                                        for v in range(8)]
+    # The corrupt model fails alone, each of its views with the reader's one-line error.
+    assert all(r["status"] == "ok" for r in rows[:16])
+    assert all(r["status"] == "failed" and "vertex index 7" in r["error"] for r in rows[16:])
+    for model in models:
+        stem = os.path.splitext(os.path.basename(model))[0]
+        scene = hsr.load_scene(model)
+        cams = hsr.views.orbit(scene.bounds(), 8, 20.0, SIZE[0] / SIZE[1])
+        # transforms.json reads back into the same cameras (a NeRF file has no near and
+        # far planes: the rows of the projection that place pixels must agree).
+        read, files, size = hsr.read_transforms(out / stem / "transforms.json")
+        assert size == SIZE and files[5] == "color/0005.png"
+        for cam, back in zip(cams, read):
+            assert np.allclose(cam.view_matrix, back.view_matrix, atol=1e-9)
+            assert np.allclose(cam.projection_matrix(4 / 3)[[0, 1, 3]],
+                               back.projection_matrix(4 / 3)[[0, 1, 3]], atol=1e-9)
+        for v in (0, 3, 7):
+            want = hsr.render(scene, cams[v], *SIZE, shading="gouraud", cull="back",
+                              light="studio")
+            got = np.asarray(Image.open(out / stem / "color" / f"{v:04d}.png"))
+            assert np.array_equal(got, want.color)
+            for name, buffer in (("eye_depth", want.eye_depth), ("ids", want.face_id),
+                                 ("normals", want.normals), ("window_depth", want.depth)):
+                array = np.load(out / stem / name / f"{v:04d}.npy")
+                assert array.dtype == buffer.dtype and np.array_equal(array, buffer), name
+    assert "2 of" not in result.summary() and "8 of 24 views failed" in result.summary()
+
+
+def test_a_killed_worker_loses_nothing(client, models_dir, tmp_path):
+    """SIGKILL one worker process while the job runs: Dask reruns its tasks on the other
+    (and the restarted) worker; every view is done once in the manifest and right."""
+    model = os.path.join(models_dir, "stanford-bunny.obj")
+    out = tmp_path / "out"
+    outcome = {}
+
+    def job():
+        outcome["result"] = render_views([model], "sphere:48", (160, 120), ("ids",), out,
+                                         client)
+
+    thread = threading.Thread(target=job)
+    thread.start()
+    folder = out / "stanford-bunny" / "ids"
+    deadline = time.time() + 60
+    while time.time() < deadline and not (folder.is_dir() and len(os.listdir(folder)) >= 3):
+        time.sleep(0.02)
+    pids = client.run(os.getpid)
+    victim = sorted(pids.values())[0]
+    os.kill(victim, signal.SIGKILL)
+    thread.join(180)
+    assert not thread.is_alive()
+    rows = outcome["result"].rows
+    assert [r["view"] for r in rows] == list(range(48))
+    assert all(r["status"] == "ok" for r in rows), [r for r in rows if r["status"] != "ok"]
+    scene = hsr.load_scene(model)
+    cams = hsr.views.sphere(scene.bounds(), 48, 160 / 120)
+    for v in range(0, 48, 7):
+        assert np.array_equal(np.load(folder / f"{v:04d}.npy"),
+                              hsr.render(scene, cams[v], 160, 120).face_id)
+    assert not [n for n in os.listdir(folder) if n.endswith(".tmp")]
+
+
+def test_resume_after_a_killed_run_redoes_nothing_finished(models_dir, tmp_path):
+    """The CLI is killed (SIGKILL, no clean-up) part way; --resume renders exactly the
+    views without all their outputs and leaves finished files untouched."""
+    model = os.path.join(models_dir, "stanford-bunny.obj")
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "hsr", "batch", model, "--views", "orbit:40", "--size",
+            "192x144", "--outputs", "color,ids", "--out", str(out), "--workers", "2",
+            "--quiet"]
+    proc = subprocess.Popen(args, start_new_session=True)
+    color = out / "stanford-bunny" / "color"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (color.is_dir() and len(os.listdir(color)) >= 4):
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGKILL)  # the client and its local cluster
+    proc.wait()
+    finished = {v for v in range(40)
+                if (color / f"{v:04d}.png").exists()
+                and (out / "stanford-bunny" / "ids" / f"{v:04d}.npy").exists()}
+    assert 0 < len(finished) < 40, "the kill came too late or too early to test resume"
+    stamps = {v: os.stat(color / f"{v:04d}.png").st_mtime_ns for v in finished}
+    assert main(["batch", model, "--views", "orbit:40", "--size", "192x144", "--outputs",
+                 "color,ids", "--out", str(out), "--workers", "2", "--resume", "--quiet"]) == 0
+    rows = json.loads((out / "manifest.json").read_text())["tasks"]
+    assert {r["view"] for r in rows if r["status"] == "skipped"} == finished
+    assert {r["view"] for r in rows if r["status"] == "ok"} == set(range(40)) - finished
+    assert all(os.stat(color / f"{v:04d}.png").st_mtime_ns == stamps[v] for v in finished)
+    scene = hsr.load_scene(model)
+    cams = hsr.views.orbit(scene.bounds(), 40, 20.0, 192 / 144)
+    for v in (min(finished), max(set(range(40)) - finished)):
+        assert np.array_equal(np.asarray(Image.open(color / f"{v:04d}.png")),
+                              hsr.render(scene, cams[v], 192, 144, light="studio").color)
+
+
+def test_zarr_store_and_resume(client, models, tmp_path):
+    import zarr
+
+    out = tmp_path / "z"
+    render_views(models[:1], "hemisphere:5", SIZE, ("color", "eye_depth", "ids"), out, client,
+                 format="zarr")
+    group = zarr.open_group(out / "spot.zarr", mode="r")
+    assert group["color"].shape == (5, 72, 96, 3) and group["color"].chunks == (1, 72, 96, 3)
+    assert group["done"][:].tolist() == [1] * 5
+    scene = hsr.load_scene(models[0])
+    cams = hsr.views.hemisphere(scene.bounds(), 5, 96 / 72)
+    for v in range(5):
+        want = hsr.render(scene, cams[v], *SIZE)
+        assert np.array_equal(group["ids"][v], want.face_id)
+        assert np.array_equal(group["eye_depth"][v], want.eye_depth)
+        assert np.allclose(group.attrs["cameras"][v]["view_matrix"], cams[v].view_matrix)
+    result = render_views(models[:1], "hemisphere:5", SIZE, ("color", "eye_depth", "ids"),
+                          out, client, format="zarr", resume=True)
+    assert result.skipped == 5 and result.rendered == 0
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_cli_against_a_separately_started_cluster(models, tmp_path, capsys):
+    """`dask scheduler` and `dask worker` as their own processes, as on a real cluster."""
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    bin_dir = os.path.dirname(sys.executable)
+    scheduler = subprocess.Popen([os.path.join(bin_dir, "dask"), "scheduler", "--host",
+                                  "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = subprocess.Popen([os.path.join(bin_dir, "dask"), "worker", address, "--nthreads",
+                               "1", "--host", "127.0.0.1", "--no-dashboard"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        with distributed.Client(address, timeout="30s") as c:
+            c.wait_for_workers(1, timeout=60)
+        out = tmp_path / "remote"
+        assert main(["batch", *models, "--views", "orbit:4:30", "--size", "96x72",
+                     "--outputs", "ids", "--out", str(out), "--scheduler", address]) == 0
+        printed = capsys.readouterr().out
+        assert "8 of 8 views rendered" in printed
+        scene = hsr.load_scene(models[1])
+        cam = hsr.views.orbit(scene.bounds(), 4, 30.0, 96 / 72)[2]
+        assert np.array_equal(np.load(out / "african_head" / "ids" / "0002.npy"),
+                              hsr.render(scene, cam, *SIZE).face_id)
+    finally:
+        for proc in (worker, scheduler):
+            proc.terminate()
+            proc.wait(30)
+
+
+@pytest.mark.parametrize("kwargs,error,message", [
+    ({"views": "orbit:0"}, BatchError, "1..1000000"),
+    ({"views": "orbit:4:95"}, BatchError, "ELEVATION"),
+    ({"views": "cube:4"}, BatchError, "not orbit"),
+    ({"outputs": ("color", "colour")}, BatchError, "outputs must be"),
+    ({"outputs": ("ids", "ids")}, BatchError, "outputs must be"),
+    ({"format": "hdf5"}, BatchError, "format"),
+    ({"size": (0, 10)}, hsr.RenderError, "width"),
+    ({"cul": "back"}, hsr.RenderError, "no argument cul"),
+    ({"algorithm": "painter", "depth_func": "greater"}, hsr.RenderError, "greater"),
+])
+def test_bad_jobs_are_refused_before_any_work(models, tmp_path, kwargs, error, message):
+    args = {"views": "orbit:2", "size": SIZE, "outputs": ("color",), "out": tmp_path / "o"}
+    args.update(kwargs)
+    with pytest.raises(error, match=message):
+        render_views(models, **args)
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_bad_job_is_one_line(models, tmp_path, capsys):
+    twin = tmp_path / "spot.obj"
+    twin.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    code = main(["batch", models[0], str(twin), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "rename one" in err
+    code = main(["batch", models[0], "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"])
+    assert code == 2 and "does not combine" in capsys.readouterr().err
