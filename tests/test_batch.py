@@ -230,3 +230,79 @@ def test_cli_bad_job_is_one_line(models, tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1 and "rename one" in err
     code = main(["batch", models[0], "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"])
     assert code == 2 and "does not combine" in capsys.readouterr().err
+
+
+def test_views_per_task():
+    from hsr.batch.plan import group_views
+
+    # 512 x 512: 16 views make 4 M pixels; 128 views on 2 workers: 16 a task, 8 tasks.
+    assert [len(g) for g in group_views(range(128), 512, 512, 2)] == [16] * 8
+    # Few views: still four tasks per worker.
+    assert [len(g) for g in group_views(range(8), 64, 64, 2)] == [1] * 8
+    # Many small models in one job: each model's 16 tiny views in one task.
+    assert group_views(range(16), 128, 128, 2, job_views=16_000) == [list(range(16))]
+    # Large views: one 4K view a task.
+    assert len(group_views(range(10), 3840, 2160, 2)) == 10
+
+
+def test_per_model_cameras_and_camera_lists(client, models, tmp_path):
+    """per-model:FILE gives each model its own camera file; a Python list of cameras is
+    used for every model."""
+    scenes = [hsr.load_scene(m) for m in models]
+    own = [hsr.views.hemisphere(s.bounds(), 2 + k, 4 / 3) for k, s in enumerate(scenes)]
+    for k, cams in enumerate(own):
+        hsr.write_transforms(tmp_path / f"cams{k}.json", cams, *SIZE)
+    (tmp_path / "views.json").write_text(json.dumps(
+        {os.path.basename(models[0]): "cams0.json", models[1]: "cams1.json"}))
+    out = tmp_path / "per"
+    result = render_views(models, f"per-model:{tmp_path / 'views.json'}", SIZE, ("ids",), out,
+                          client)
+    assert [r["view"] for r in result.rows] == [0, 1, 0, 1, 2]
+    read = hsr.read_transforms(tmp_path / "cams1.json")[0]
+    assert np.array_equal(np.load(out / "african_head" / "ids" / "0002.npy"),
+                          hsr.render(scenes[1], read[2], *SIZE).face_id)
+    shared = own[0]
+    result = render_views(models, list(shared), SIZE, ("ids",), tmp_path / "list", client)
+    assert result.rendered == 4
+    assert np.array_equal(np.load(tmp_path / "list" / "african_head" / "ids" / "0001.npy"),
+                          hsr.render(scenes[1], shared[1], *SIZE).face_id)
+
+
+def test_a_worker_with_several_threads_shares_its_cache(models, tmp_path):
+    """Two threads in one worker ask the mesh cache at once (the cache's dict was once
+    changed while another thread walked it: the whole job stopped)."""
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                                       dashboard_address="127.0.0.1:0", silence_logs=50)
+    paths = []
+    for k in range(8):
+        path = tmp_path / f"tri{k}.obj"
+        path.write_text(f"v 0 0 0\nv 1 0 {k}\nv 0 1 0\nv 1 1 1\nf 1 2 3\nf 2 4 3\n")
+        paths.append(str(path))
+    with distributed.Client(cluster) as c:
+        result = render_views(paths + models, "orbit:3", (32, 24), ("ids",), tmp_path / "o", c)
+    cluster.close()
+    assert result.failed == 0 and result.rendered == 30
+
+
+def test_mesh_cache_loads_a_model_once_when_threads_ask_together(models_dir):
+    """Four threads ask for the bunny at the same moment: one load, one scene for all
+    (without the cache's lock each thread loaded its own copy, and the eviction loop
+    could walk the dict while another thread changed it)."""
+    from hsr.batch.tasks import MeshCache
+
+    cache = MeshCache()
+    barrier = threading.Barrier(4)
+    got = []
+    path = os.path.join(models_dir, "stanford-bunny.obj")
+
+    def ask():
+        barrier.wait()
+        got.append(cache.get(path))
+
+    threads = [threading.Thread(target=ask) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(got) == 4 and all(scene is got[0] for scene in got)
+    assert len(cache.scenes) == 1

@@ -174,6 +174,18 @@ def test_embedded_texture_is_used_the_right_way_up(tmp_path):
     hand = hsr.Mesh(quad.vertices, quad.faces, corner_uv=uv[quad.faces], texture=image)
     assert np.array_equal(frame.color,
                           hsr.render(hand, CAM, W, H, texture_filter="nearest").color)
+    # The same as a .gltf with its buffer and image in separate files beside it.
+    parts = trimesh.Scene()
+    parts.add_geometry(facing_quad(trimesh.visual.TextureVisuals(uv=uv, material=material)),
+                       node_name="only", geom_name="geom")
+    folder = tmp_path / "external"
+    folder.mkdir()
+    for name, data in parts.export(file_type="gltf").items():
+        (folder / name).write_bytes(data)
+    assert any(n.endswith(".png") for n in os.listdir(folder))  # the image is its own file
+    external = hsr.load_scene(str(folder / "model.gltf"))
+    assert np.array_equal(hsr.render(external, CAM, W, H, texture_filter="nearest").color,
+                          frame.color)
 
 
 def test_base_colour_factor_face_and_vertex_colours(tmp_path):

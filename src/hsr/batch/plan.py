@@ -188,16 +188,17 @@ def output_path(out_dir, stem, output, view) -> str:
     return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")
 
 
-def group_views(views, width, height, workers) -> list:
-    """Views (indices) in tasks: about 4 M pixels of work per task (a 512 x 512 view takes
-    milliseconds; a task costs the scheduler about a millisecond), but at least four tasks
-    per worker when there are few views, so every worker has work and a lost worker
-    costs little."""
+def group_views(views, width, height, workers, job_views=None) -> list:
+    """Views (indices) of one model in tasks: about 4 M pixels of work per task (a 512 x
+    512 view takes milliseconds; a task costs the scheduler about a millisecond), but at
+    least four tasks per worker over the whole job (``job_views``, default these views),
+    so every worker has work and a lost worker costs little."""
     views = list(views)
     if not views:
         return []
     by_pixels = max(1, (4 << 20) // max(1, width * height))
-    by_spread = max(1, math.ceil(len(views) / (4 * max(1, workers))))
+    total = len(views) if job_views is None else max(job_views, len(views))
+    by_spread = max(1, math.ceil(total / (4 * max(1, workers))))
     size = max(1, min(by_pixels, by_spread, 64))
     return [views[k:k + size] for k in range(0, len(views), size)]
 

@@ -136,15 +136,18 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
     from .tasks import MeshCache, plan_model, render_group
 
     client.register_plugin(MeshCache())
-    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+    n_workers = max(1, sum(w.get("nthreads", 1) for w in
+                           client.scheduler_info().get("workers", {}).values()))
     rows = []
     plans = {client.submit(plan_model, m, spec, size, pure=False): m for m in models}
+    groups = {}  # render task -> (model, views)
     jobs = as_completed(list(plans))
-    bar = _progress_bar(progress, sum(spec.count_for(m) for m in models))
+    job_views = sum(spec.count_for(m) for m in models)
+    bar = _progress_bar(progress, job_views)
     for future in jobs:
         if future in plans:
             model = plans[future]
-            plan = future.result()
+            plan = _outcome(future)
             if "error" in plan:
                 failed = [{"model": model, "view": v, "status": "failed",
                            "error": plan["error"], "ms": 0.0}
@@ -158,18 +161,34 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
             rows += [{"model": model, "view": v, "status": "skipped", "error": None,
                       "ms": 0.0} for v in skipped]
             bar.update(len(skipped))
-            for group in group_views(todo, size[0], size[1], n_workers):
+            for group in group_views(todo, size[0], size[1], n_workers, job_views):
                 task = client.submit(render_group, model, stems[model], group,
                                      [cameras[v] for v in group], size, outputs, out, fmt,
                                      options, threads, pure=False)
+                groups[task] = (model, group)
                 jobs.add(task)
         else:
-            done = future.result()
+            model, group = groups.pop(future)
+            done = _outcome(future)
+            if isinstance(done, dict):  # the task itself failed (e.g. its worker kept dying)
+                done = [{"model": model, "view": v, "status": "failed",
+                         "error": done["error"], "ms": 0.0} for v in group]
             rows += done
             bar.update(len(done))
     bar.close()
     rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
     return rows
+
+
+def _outcome(future):
+    """The task's result, or ``{"error": one line}`` when the task raised or Dask gave it
+    up (a worker lost too often): one task's failure never stops the job."""
+    from .tasks import one_line
+
+    try:
+        return future.result()
+    except Exception as exc:  # noqa: BLE001 - recorded in the manifest
+        return {"error": one_line(exc)}
 
 
 def _prepare(out, stem, cameras, size, outputs, fmt, resume) -> list:

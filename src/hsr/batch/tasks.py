@@ -7,6 +7,7 @@ manifest; no image travels back to the client."""
 from __future__ import annotations
 
 import os
+import threading
 import time
 import uuid
 from collections import OrderedDict
@@ -32,6 +33,7 @@ class MeshCache(WorkerPlugin):
     def __init__(self, max_faces: int = 20_000_000):
         self.max_faces = max_faces
         self.scenes = OrderedDict()
+        self.lock = threading.Lock()
 
     def setup(self, worker=None):
         self.scenes = OrderedDict()
@@ -40,19 +42,29 @@ class MeshCache(WorkerPlugin):
         self.scenes.clear()
 
     def get(self, path: str):
+        """The scene of ``path``, loaded on first use. A worker with several threads runs
+        tasks at once: one lock guards the cache, and a model is loaded once even when
+        two tasks ask for it together."""
         from ..scene.load import load_scene
 
         stat = os.stat(path)
         key = (os.path.abspath(path), stat.st_size, stat.st_mtime_ns)
-        if key in self.scenes:
-            self.scenes.move_to_end(key)
-            return self.scenes[key]
-        scene = load_scene(path)
-        self.scenes[key] = scene
-        while len(self.scenes) > 1 and sum(s.n_faces for s in self.scenes.values()) \
-                > self.max_faces:
-            self.scenes.popitem(last=False)
-        return scene
+        with self.lock:
+            if key in self.scenes:
+                self.scenes.move_to_end(key)
+                return self.scenes[key]
+            scene = load_scene(path)
+            self.scenes[key] = scene
+            while len(self.scenes) > 1 and sum(s.n_faces for s in self.scenes.values()) \
+                    > self.max_faces:
+                self.scenes.popitem(last=False)
+            return scene
+
+    def __getstate__(self):  # sent to the workers empty, without its lock
+        return {"max_faces": self.max_faces}
+
+    def __setstate__(self, state):
+        self.__init__(state["max_faces"])
 
 
 def _cache() -> MeshCache:
@@ -65,15 +77,20 @@ def _cache() -> MeshCache:
         return MeshCache()
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
+def one_line(exc: BaseException) -> str:
+    """An exception as one line of at most 300 characters; anything but an
+    :class:`~hsr.errors.HsrError` (an hsr bug, a worker lost) is named by its type."""
+    from ..errors import HsrError
+
+    text = " ".join(str(exc).split())
+    if not isinstance(exc, (HsrError, OSError)) or not text:
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
     return text if len(text) <= 300 else text[:297] + "..."
 
 
 def plan_model(path: str, spec, size) -> dict:
     """Load the model (into this worker's cache) and place its cameras: ``{"cameras":
     [...]}`` or ``{"error": one line}``."""
-    from ..errors import HsrError
     from ..scene import views
 
     try:
@@ -88,8 +105,8 @@ def plan_model(path: str, spec, size) -> dict:
         else:
             cameras = getattr(views, spec.kind)(scene.bounds(), spec.count, width / height)
         return {"cameras": cameras, "faces": scene.n_faces}
-    except (HsrError, OSError) as exc:
-        return {"error": _one_line(exc)}
+    except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
+        return {"error": one_line(exc)}
 
 
 def write_atomic(path: str, write) -> None:
@@ -144,14 +161,13 @@ def render_group(path: str, stem: str, views: list, cameras: list, size, outputs
     """Render ``views`` (indices, with their ``cameras``) of one model and write the
     outputs; one manifest row per view (status ``ok`` or ``failed`` with a one-line
     error, milliseconds)."""
-    from ..errors import HsrError
     from ..render import render
 
     rows = []
     try:
         scene = _cache().get(path)
-    except (HsrError, OSError) as exc:
-        message = _one_line(exc)
+    except Exception as exc:  # noqa: BLE001 - as in plan_model
+        message = one_line(exc)
         return [{"model": path, "view": v, "status": "failed", "error": message, "ms": 0.0}
                 for v in views]
     width, height = size
@@ -167,8 +183,8 @@ def render_group(path: str, stem: str, views: list, cameras: list, size, outputs
                 _write_zarr(store, view, arrays)
             rows.append({"model": path, "view": view, "status": "ok", "error": None,
                          "ms": round((time.perf_counter() - start) * 1000.0, 3)})
-        except (HsrError, OSError, MemoryError, ValueError) as exc:
+        except Exception as exc:  # noqa: BLE001 - one view's failure is its manifest row
             rows.append({"model": path, "view": view, "status": "failed",
-                         "error": _one_line(exc),
+                         "error": one_line(exc),
                          "ms": round((time.perf_counter() - start) * 1000.0, 3)})
     return rows

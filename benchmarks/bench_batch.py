@@ -1,0 +1,141 @@
+"""Views per second of ``hsr batch`` against a plain Python loop over ``hsr.render``, in the
+same run, writing the same files.
+
+    python benchmarks/bench_batch.py [--views 128] [--size 512] [--meshes 1000] [--mesh-views 16]
+
+Jobs: (1) the Stanford bunny from ``orbit:N`` at SIZE x SIZE, colour PNG + face ids; (2)
+``--meshes`` small procedural meshes (perturbed icospheres, 1,280 triangles each, written
+as OBJ files) x ``--mesh-views`` views at 128 x 128, to show what a task costs when each
+view is tiny. For each job: the plain loop (load each mesh once, ``hsr.render`` with the
+default threads, the same files written), ``hsr batch`` with the default local cluster
+(one single-threaded worker per core) and with one worker of all the threads. The
+overhead is the share of the workers' wall time not spent inside render + write (the
+manifest's per-view ms). Runs on demand, never as part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+import numpy as np
+from PIL import Image
+
+import hsr
+from hsr.batch.run import render_views
+
+MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
+
+
+def plain_loop(models, spec_views, size, out):
+    """The loop a user writes by hand: each mesh loaded once, each view rendered and its
+    colour PNG and face ids written."""
+    count = 0
+    for path in models:
+        scene = hsr.load_scene(path)
+        kind, n = spec_views
+        cams = getattr(hsr.views, kind)(scene.bounds(), n, aspect=1.0)
+        stem = os.path.splitext(os.path.basename(path))[0]
+        os.makedirs(os.path.join(out, stem), exist_ok=True)
+        for v, cam in enumerate(cams):
+            frame = hsr.render(scene, cam, size, size, light="studio")
+            Image.fromarray(frame.color).save(os.path.join(out, stem, f"{v:04d}.png"))
+            np.save(os.path.join(out, stem, f"{v:04d}.npy"), frame.face_id)
+            count += 1
+    return count
+
+
+def batch(models, spec, size, out, client):
+    result = render_views(models, spec, (size, size), ("color", "ids"), out, client,
+                          light="studio", progress=False)
+    assert result.failed == 0, result.summary()
+    return result
+
+
+def cluster(workers, threads):
+    from distributed import Client, LocalCluster
+
+    c = LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True,
+                     host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=50)
+    return c, Client(c)
+
+
+def procedural(folder, count):
+    import trimesh
+
+    rng = np.random.default_rng(0)
+    base = trimesh.creation.icosphere(subdivisions=3)
+    paths = []
+    for k in range(count):
+        v = base.vertices * rng.uniform(0.5, 2.0, 3) + rng.normal(scale=0.03,
+                                                                 size=base.vertices.shape)
+        path = os.path.join(folder, f"m{k:04d}.obj")
+        with open(path, "w") as f:
+            f.write("".join(f"v {x:.6f} {y:.6f} {z:.6f}\n" for x, y, z in v))
+            f.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in base.faces))
+        paths.append(path)
+    return paths
+
+
+def run_job(label, models, kind, n, size, scratch, rows):
+    spec = f"{kind}:{n}"
+    views = len(models) * n
+    # Warm the kernels in this process first (the workers load Numba's cache likewise).
+    plain_loop(models[:1], (kind, 1), size, os.path.join(scratch, "warm"))
+    start = time.perf_counter()
+    plain_loop(models, (kind, n), size, os.path.join(scratch, "loop"))
+    loop_s = time.perf_counter() - start
+    cores = os.cpu_count() or 1
+    for workers, threads, what in ((cores, 1, f"batch, {cores} workers x 1 thread (default)"),
+                                   (1, cores, f"batch, 1 worker x {cores} threads")):
+        c, client = cluster(workers, threads)
+        try:
+            batch(models[:1], f"{kind}:1", size, os.path.join(scratch, "warm_b"), client)
+            start = time.perf_counter()
+            result = batch(models, spec, size, os.path.join(scratch, f"b{workers}"), client)
+            wall = time.perf_counter() - start
+        finally:
+            client.close()
+            c.close()
+        busy = sum(r["ms"] for r in result.rows) / 1000.0
+        overhead = 1.0 - busy / (wall * workers * threads)
+        rows.append((label, what, views, wall, views / wall, (views / wall) / (views / loop_s),
+                     overhead))
+    rows.append((label, "plain loop over hsr.render", views, loop_s, views / loop_s, 1.0,
+                 float("nan")))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--views", type=int, default=128)
+    parser.add_argument("--size", type=int, default=512)
+    parser.add_argument("--meshes", type=int, default=1000)
+    parser.add_argument("--mesh-views", type=int, default=16)
+    args = parser.parse_args()
+    rows = []
+    scratch = tempfile.mkdtemp(prefix="hsr-bench-batch-")
+    try:
+        bunny = [os.path.join(MODELS, "stanford-bunny.obj")]
+        run_job(f"bunny, {args.size}x{args.size}", bunny, "orbit", args.views, args.size,
+                scratch, rows)
+        if args.meshes:
+            folder = os.path.join(scratch, "meshes")
+            os.makedirs(folder)
+            models = procedural(folder, args.meshes)
+            run_job(f"{args.meshes} meshes x {args.mesh_views} views, 128x128", models,
+                    "sphere", args.mesh_views, 128, scratch, rows)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    print(f"{'job':32} | {'how':36} | views | wall s | views/s | x loop | overhead")
+    for label, what, views, wall, vps, ratio, overhead in rows:
+        print(f"{label:32} | {what:36} | {views:5d} | {wall:6.2f} | {vps:7.1f} | {ratio:6.2f} | "
+              + ("" if overhead != overhead else f"{overhead:.1%}"))
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
