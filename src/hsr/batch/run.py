@@ -131,56 +131,57 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
 
 def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
          threads) -> list:
+    """Every task is sent at once: the views still to do are known on the client (the
+    count comes from the spec, resume looks at the files), and each task places its
+    model's cameras itself from the spec (on every worker the same function of the same
+    bounds gives the same cameras), so no task waits for another and each worker loads a
+    model at most once. One task per model also returns all the cameras, for the
+    transforms.json (and the zarr attributes)."""
     from distributed import as_completed
 
-    from .tasks import MeshCache, plan_model, render_group
+    from .tasks import MeshCache, render_task
 
     client.register_plugin(MeshCache())
     n_workers = max(1, sum(w.get("nthreads", 1) for w in
                            client.scheduler_info().get("workers", {}).values()))
-    rows = []
-    plans = {client.submit(plan_model, m, spec, size, pure=False): m for m in models}
-    groups = {}  # render task -> (model, views)
-    jobs = as_completed(list(plans))
     job_views = sum(spec.count_for(m) for m in models)
     bar = _progress_bar(progress, job_views)
-    for future in jobs:
-        if future in plans:
-            model = plans[future]
-            plan = _outcome(future)
-            if "error" in plan:
-                failed = [{"model": model, "view": v, "status": "failed",
-                           "error": plan["error"], "ms": 0.0}
-                          for v in range(spec.count_for(model))]
-                rows += failed
-                bar.update(len(failed))
-                continue
-            cameras = plan["cameras"]
-            todo = _prepare(out, stems[model], cameras, size, outputs, fmt, resume)
-            skipped = [v for v in range(len(cameras)) if v not in set(todo)]
-            rows += [{"model": model, "view": v, "status": "skipped", "error": None,
-                      "ms": 0.0} for v in skipped]
-            bar.update(len(skipped))
-            for group in group_views(todo, size[0], size[1], n_workers, job_views):
-                task = client.submit(render_group, model, stems[model], group,
-                                     [cameras[v] for v in group], size, outputs, out, fmt,
-                                     options, threads, pure=False)
-                groups[task] = (model, group)
-                jobs.add(task)
-        else:
-            model, group = groups.pop(future)
-            done = _outcome(future)
-            if isinstance(done, dict):  # the task itself failed (e.g. its worker kept dying)
-                done = [{"model": model, "view": v, "status": "failed",
-                         "error": done["error"], "ms": 0.0} for v in group]
-            rows += done
-            bar.update(len(done))
+    rows, tasks = [], {}  # task -> (model, the views it renders)
+    for model in models:
+        count = spec.count_for(model)
+        todo = _todo(out, stems[model], count, size, outputs, fmt, resume)
+        skipped = sorted(set(range(count)) - set(todo))
+        rows += [{"model": model, "view": v, "status": "skipped", "error": None, "ms": 0.0}
+                 for v in skipped]
+        bar.update(len(skipped))
+        given = (spec.per_model[model] if spec.kind == "per-model"
+                 else spec.cameras if spec.kind == "cameras" else None)
+        for k, group in enumerate(group_views(todo, size[0], size[1], n_workers, job_views)
+                                  or [[]]):
+            # Given cameras travel with their views only (the describing task: all of
+            # them), never the whole job's.
+            placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
+                         else ("all", list(given)) if k == 0
+                         else ("these", [given[v] for v in group]))
+            task = client.submit(render_task, model, stems[model], group, placement, k == 0,
+                                 size, outputs, out, fmt, options, threads, pure=False)
+            tasks[task] = (model, group)
+    for future in as_completed(list(tasks)):
+        model, group = tasks.pop(future)
+        done = _outcome(future)
+        if "error" in done:  # the model, or the task itself (e.g. its worker kept dying)
+            done = {"rows": [{"model": model, "view": v, "status": "failed",
+                              "error": done["error"], "ms": 0.0} for v in group]}
+        if "cameras" in done:
+            _describe(out, stems[model], done["cameras"], size, outputs, fmt)
+        rows += done["rows"]
+        bar.update(len(done["rows"]))
     bar.close()
     rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
     return rows
 
 
-def _outcome(future):
+def _outcome(future) -> dict:
     """The task's result, or ``{"error": one line}`` when the task raised or Dask gave it
     up (a worker lost too often): one task's failure never stops the job."""
     from .tasks import one_line
@@ -191,9 +192,23 @@ def _outcome(future):
         return {"error": one_line(exc)}
 
 
-def _prepare(out, stem, cameras, size, outputs, fmt, resume) -> list:
-    """Write the model's transforms.json (and create its zarr store); return the views
-    still to render (all of them unless ``resume``)."""
+def _todo(out, stem, count, size, outputs, fmt, resume) -> list:
+    """The views still to render (all of them unless ``resume``); for zarr, creates the
+    model's store when it is not resumed."""
+    if fmt == "zarr":
+        return _prepare_zarr(out, stem, count, size, outputs, resume)
+    if not resume:
+        return list(range(count))
+    return [v for v in range(count)
+            if not all(os.path.exists(output_path(out, stem, o, v)) for o in outputs)]
+
+
+def _describe(out, stem, cameras, size, outputs, fmt) -> None:
+    """The model's cameras beside its outputs: transforms.json (NeRF convention, the
+    path of each view's first output), and for zarr the OpenGL matrices in the store's
+    attributes."""
+    import numpy as np
+
     from ..scene.camera_files import write_transforms
 
     folder = os.path.join(out, stem)
@@ -204,26 +219,26 @@ def _prepare(out, stem, cameras, size, outputs, fmt, resume) -> list:
         write_transforms(os.path.join(folder, "transforms.json"), cameras, width, height,
                          [os.path.relpath(output_path(out, stem, first, v), folder)
                           for v in range(len(cameras))])
-    views = range(len(cameras))
     if fmt == "zarr":
-        return _prepare_zarr(out, stem, cameras, size, outputs, resume)
-    if not resume:
-        return list(views)
-    return [v for v in views
-            if not all(os.path.exists(output_path(out, stem, o, v)) for o in outputs)]
+        import zarr
+
+        group = zarr.open_group(os.path.join(out, f"{stem}.zarr"), mode="r+")
+        aspect = width / height
+        group.attrs["cameras"] = [{"view_matrix": c.view_matrix.tolist(),
+                                   "projection_matrix": np.asarray(
+                                       c.projection_matrix(aspect)).tolist()}
+                                  for c in cameras]
 
 
-def _prepare_zarr(out, stem, cameras, size, outputs, resume) -> list:
+def _prepare_zarr(out, stem, count, size, outputs, resume) -> list:
     """One Zarr v3 store per model: an array per output, (views, H, W[, C]) with one view
-    per chunk, a ``done`` mark per view, the cameras (OpenGL view and projection
-    matrices) in the attributes. ``resume`` keeps the store and returns the views not
-    marked done."""
-    import numpy as np
+    per chunk, a ``done`` mark per view (the cameras are added by :func:`_describe`).
+    ``resume`` keeps a matching store and returns the views not marked done."""
     import zarr
 
     width, height = size
     path = os.path.join(out, f"{stem}.zarr")
-    n = len(cameras)
+    n = count
     if resume and os.path.isdir(path):
         group = zarr.open_group(path, mode="r")
         if "done" in group and group["done"].shape == (n,) \
@@ -239,10 +254,6 @@ def _prepare_zarr(out, stem, cameras, size, outputs, resume) -> list:
         group.create_array(name, shape=(n, height, width) + extra,
                            chunks=(1, height, width) + extra, dtype=dtype, fill_value=fill)
     group.create_array("done", shape=(n,), chunks=(1,), dtype="uint8", fill_value=0)
-    aspect = width / height
-    group.attrs["cameras"] = [{"view_matrix": np.asarray(c.view_matrix).tolist(),
-                               "projection_matrix": np.asarray(
-                                   c.projection_matrix(aspect)).tolist()} for c in cameras]
     group.attrs["size"] = [width, height]
     return list(range(n))
 

@@ -17,7 +17,8 @@ from distributed import WorkerPlugin
 
 from .plan import OUTPUTS, output_path
 
-__all__ = ["MeshCache", "PLUGIN_NAME", "plan_model", "render_group", "write_atomic"]
+__all__ = ["MeshCache", "PLUGIN_NAME", "place_cameras", "render_task", "render_group",
+           "write_atomic"]
 
 PLUGIN_NAME = "hsr-mesh-cache"
 
@@ -88,25 +89,40 @@ def one_line(exc: BaseException) -> str:
     return text if len(text) <= 300 else text[:297] + "..."
 
 
-def plan_model(path: str, spec, size) -> dict:
-    """Load the model (into this worker's cache) and place its cameras: ``{"cameras":
-    [...]}`` or ``{"error": one line}``."""
+def place_cameras(scene, placement, size) -> list:
+    """The cameras of a model: ``("set", kind, count, elevation)`` places a view set around
+    the scene (the same cameras on every worker: the same function of the same bounds),
+    ``("all", cameras)`` are all of them as given."""
     from ..scene import views
 
+    if placement[0] == "all":
+        return list(placement[1])
+    _, kind, count, elevation = placement
+    aspect = size[0] / size[1]
+    if kind == "orbit":
+        return views.orbit(scene.bounds(), count, elevation, aspect)
+    return getattr(views, kind)(scene.bounds(), count, aspect)
+
+
+def render_task(path: str, stem: str, views: list, placement, describe: bool, size,
+                outputs, out_dir: str, fmt: str, options: dict, threads) -> dict:
+    """Load the model (once per worker), place its cameras, render ``views`` and write
+    their outputs: ``{"rows": [...]}`` (one manifest row per view: status ``ok`` or
+    ``failed`` with a one-line error, milliseconds), with ``"cameras"`` (all of the
+    model's) when ``describe``; ``{"error": one line}`` when the model cannot be loaded or
+    its cameras placed."""
     try:
         scene = _cache().get(path)
-        width, height = size
-        if spec.kind == "per-model":
-            cameras = list(spec.per_model[path])
-        elif spec.kind == "cameras":
-            cameras = list(spec.cameras)
-        elif spec.kind == "orbit":
-            cameras = views.orbit(scene.bounds(), spec.count, spec.elevation, width / height)
-        else:
-            cameras = getattr(views, spec.kind)(scene.bounds(), spec.count, width / height)
-        return {"cameras": cameras, "faces": scene.n_faces}
+        # ("these", cameras): just this task's views' cameras, in order.
+        cameras = None if placement[0] == "these" else place_cameras(scene, placement, size)
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
         return {"error": one_line(exc)}
+    mine = placement[1] if cameras is None else [cameras[v] for v in views]
+    done = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
+                                 fmt, options, threads)}
+    if describe:
+        done["cameras"] = cameras
+    return done
 
 
 def write_atomic(path: str, write) -> None:
@@ -156,20 +172,13 @@ def _write_zarr(store, view, arrays) -> None:
     group["done"][view] = 1
 
 
-def render_group(path: str, stem: str, views: list, cameras: list, size, outputs,
+def render_group(scene, path: str, stem: str, views: list, cameras: list, size, outputs,
                  out_dir: str, fmt: str, options: dict, threads) -> list:
-    """Render ``views`` (indices, with their ``cameras``) of one model and write the
-    outputs; one manifest row per view (status ``ok`` or ``failed`` with a one-line
-    error, milliseconds)."""
+    """Render ``views`` (indices, with their ``cameras``) of one loaded model and write the
+    outputs; one manifest row per view."""
     from ..render import render
 
     rows = []
-    try:
-        scene = _cache().get(path)
-    except Exception as exc:  # noqa: BLE001 - as in plan_model
-        message = one_line(exc)
-        return [{"model": path, "view": v, "status": "failed", "error": message, "ms": 0.0}
-                for v in views]
     width, height = size
     store = os.path.join(out_dir, f"{stem}.zarr") if fmt == "zarr" else None
     for view, camera in zip(views, cameras):
