@@ -89,19 +89,21 @@ def one_line(exc: BaseException) -> str:
     return text if len(text) <= 300 else text[:297] + "..."
 
 
-def place_cameras(scene, placement, size) -> list:
-    """The cameras of a model: ``("set", kind, count, elevation)`` places a view set around
-    the scene (the same cameras on every worker: the same function of the same bounds),
-    ``("all", cameras)`` are all of them as given."""
-    from ..scene import views
+def place_cameras(scene, placement, size, views=None) -> list:
+    """The cameras of a model: ``("set", kind, count, elevation)`` frames a view set around
+    the scene (the same cameras on every worker: the same function of the same bounds;
+    only ``views``, when given, are framed), ``("all", cameras)`` are all of them as
+    given. Returns the cameras of ``views`` (default all)."""
+    from ..scene import views as view_sets
 
     if placement[0] == "all":
-        return list(placement[1])
+        cameras = list(placement[1])
+        return cameras if views is None else [cameras[v] for v in views]
     _, kind, count, elevation = placement
-    aspect = size[0] / size[1]
-    if kind == "orbit":
-        return views.orbit(scene.bounds(), count, elevation, aspect)
-    return getattr(views, kind)(scene.bounds(), count, aspect)
+    dirs = view_sets.directions(kind, count, elevation)
+    bounds = scene.bounds()
+    return [view_sets.framed(bounds, dirs[v], size[0] / size[1])
+            for v in (range(count) if views is None else views)]
 
 
 def render_task(path: str, stem: str, views: list, placement, describe: bool, size,
@@ -114,10 +116,11 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
     try:
         scene = _cache().get(path)
         # ("these", cameras): just this task's views' cameras, in order.
-        cameras = None if placement[0] == "these" else place_cameras(scene, placement, size)
+        mine = (placement[1] if placement[0] == "these"
+                else place_cameras(scene, placement, size, views))
+        cameras = place_cameras(scene, placement, size) if describe else None
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
         return {"error": one_line(exc)}
-    mine = placement[1] if cameras is None else [cameras[v] for v in views]
     done = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
                                  fmt, options, threads)}
     if describe:
@@ -126,10 +129,9 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
 
 
 def write_atomic(path: str, write) -> None:
-    """``write(file)`` into a temporary file beside ``path``, then rename it over
-    ``path`` (atomic on POSIX and Windows within one folder)."""
+    """``write(file)`` into a temporary file beside ``path`` (its folder must exist), then
+    rename it over ``path`` (atomic on POSIX and Windows within one folder)."""
     folder = os.path.dirname(path)
-    os.makedirs(folder, exist_ok=True)
     tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex}.tmp")
     try:
         with open(tmp, "wb") as handle:
@@ -150,6 +152,7 @@ def buffers(frame, outputs):
 
 
 def _write_files(out_dir, stem, view, arrays) -> None:
+    """Each output of one view as its own file (the folders exist: see render_group)."""
     from PIL import Image
 
     for name, array in arrays.items():
@@ -181,6 +184,9 @@ def render_group(scene, path: str, stem: str, views: list, cameras: list, size, 
     rows = []
     width, height = size
     store = os.path.join(out_dir, f"{stem}.zarr") if fmt == "zarr" else None
+    if store is None:
+        for name in outputs:
+            os.makedirs(os.path.dirname(output_path(out_dir, stem, name, 0)), exist_ok=True)
     for view, camera in zip(views, cameras):
         start = time.perf_counter()
         try:

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["DEFAULT_VIEW", "default", "model_points", "framed", "orbit", "sphere", "hemisphere", "direction"]
+__all__ = ["DEFAULT_VIEW", "default", "directions", "model_points", "framed", "orbit", "sphere", "hemisphere", "direction"]
 
 DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter view
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
@@ -78,25 +78,38 @@ def model_points(model) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0) -> list:
+    """The unit directions (centre towards eye) of a view set: ``orbit`` (``n`` equal
+    azimuth steps from ``azimuth`` at ``elevation``), ``sphere`` or ``hemisphere``.
+    :func:`orbit`, :func:`sphere` and :func:`hemisphere` frame a camera along each; a
+    batch task frames only the views it renders. Raises
+    :class:`~hsr.errors.CameraError` as the module says, and for an unknown kind."""
+    n = _count(n)
+    if kind == "orbit":
+        return [direction(azimuth + 360.0 * k / n, elevation) for k in range(n)]
+    if kind in ("sphere", "hemisphere"):
+        return list(_fibonacci(n, -1.0 if kind == "sphere" else 0.0))
+    raise CameraError(f"view set must be orbit, sphere or hemisphere, got {kind!r}")
+
+
 def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
           fov_y: float = 45.0, azimuth: float = 0.0) -> list:
     """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
     at ``elevation``. Raises :class:`~hsr.errors.CameraError` as the module says."""
-    n = _count(n)
-    return [framed(bounds, direction(azimuth + 360.0 * k / n, elevation), aspect, fov_y)
-            for k in range(n)]
+    return [framed(bounds, d, aspect, fov_y)
+            for d in directions("orbit", n, elevation, azimuth)]
 
 
 def sphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
     """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
-    return [framed(bounds, d, aspect, fov_y) for d in _fibonacci(_count(n), -1.0)]
+    return [framed(bounds, d, aspect, fov_y) for d in directions("sphere", n)]
 
 
 def hemisphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
     """``n`` cameras spread evenly over the upper hemisphere (y >= 0). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
-    return [framed(bounds, d, aspect, fov_y) for d in _fibonacci(_count(n), 0.0)]
+    return [framed(bounds, d, aspect, fov_y) for d in directions("hemisphere", n)]
 
 
 def _count(n) -> int:
