@@ -261,6 +261,12 @@ def test_per_model_cameras_and_camera_lists(client, models, tmp_path):
     read = hsr.read_transforms(tmp_path / "cams1.json")[0]
     assert np.array_equal(np.load(out / "african_head" / "ids" / "0002.npy"),
                           hsr.render(scenes[1], read[2], *SIZE).face_id)
+    # A transforms.json for every model.
+    result = render_views(models, str(tmp_path / "cams1.json"), SIZE, ("ids",),
+                          tmp_path / "file", client)
+    assert [r["view"] for r in result.rows] == [0, 1, 2, 0, 1, 2]
+    assert np.array_equal(np.load(tmp_path / "file" / "spot" / "ids" / "0001.npy"),
+                          hsr.render(scenes[0], read[1], *SIZE).face_id)
     shared = own[0]
     result = render_views(models, list(shared), SIZE, ("ids",), tmp_path / "list", client)
     assert result.rendered == 4

@@ -116,9 +116,10 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
     try:
         scene = _cache().get(path)
         # ("these", cameras): just this task's views' cameras, in order.
-        mine = (placement[1] if placement[0] == "these"
-                else place_cameras(scene, placement, size, views))
         cameras = place_cameras(scene, placement, size) if describe else None
+        mine = (placement[1] if placement[0] == "these"
+                else [cameras[v] for v in views] if describe
+                else place_cameras(scene, placement, size, views))
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
         return {"error": one_line(exc)}
     done = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
