@@ -190,7 +190,8 @@ def test_cli_against_a_separately_started_cluster(models, tmp_path, capsys):
             c.wait_for_workers(1, timeout=60)
         out = tmp_path / "remote"
         assert main(["batch", *models, "--views", "orbit:4:30", "--size", "96x72",
-                     "--outputs", "ids", "--out", str(out), "--scheduler", address]) == 0
+                     "--outputs", "ids", "--out", str(out), "--scheduler", address,
+                     "--views-per-task", "3"]) == 0
         printed = capsys.readouterr().out
         assert "8 of 8 views rendered" in printed
         scene = hsr.load_scene(models[1])
@@ -210,6 +211,7 @@ def test_cli_against_a_separately_started_cluster(models, tmp_path, capsys):
     ({"outputs": ("color", "colour")}, BatchError, "outputs must be"),
     ({"outputs": ("ids", "ids")}, BatchError, "outputs must be"),
     ({"format": "hdf5"}, BatchError, "format"),
+    ({"views_per_task": 0}, BatchError, "views_per_task"),
     ({"size": (0, 10)}, hsr.RenderError, "width"),
     ({"cul": "back"}, hsr.RenderError, "no argument cul"),
     ({"algorithm": "painter", "depth_func": "greater"}, hsr.RenderError, "greater"),
@@ -243,6 +245,8 @@ def test_views_per_task():
     assert group_views(range(16), 128, 128, 2, job_views=16_000) == [list(range(16))]
     # Large views: one 4K view a task.
     assert len(group_views(range(10), 3840, 2160, 2)) == 10
+    # Set by hand (a large cluster: fewer, longer tasks).
+    assert [len(g) for g in group_views(range(10), 64, 64, 2, per_task=4)] == [4, 4, 2]
 
 
 def test_per_model_cameras_and_camera_lists(client, models, tmp_path):

@@ -254,6 +254,8 @@ def _add_batch_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace, SHADING_M
                    "tcp://10.0.0.5:8786 (default: a local cluster on this machine)")
     g.add_argument("--workers", type=int, help="local worker processes (default: one per "
                    "core)")
+    g.add_argument("--views-per-task", type=int, metavar="N", help="views in one task "
+                   "(default: about 4M pixels, at least four tasks per worker)")
     g = b.add_argument_group("rendering")
     g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
                    help="visibility algorithm")
@@ -293,6 +295,7 @@ def _cmd_batch(args) -> int:
         result = render_views(
             args.models, args.views, _size(args.size), args.outputs, args.out, client,
             format=args.format, resume=args.resume, workers=args.workers,
+            views_per_task=args.views_per_task,
             progress=not args.quiet and sys.stderr.isatty(), near=args.near, far=args.far,
             algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
             depth_func=args.depth_func, shading=args.shading, light=args.light,

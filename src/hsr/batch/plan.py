@@ -188,18 +188,20 @@ def output_path(out_dir, stem, output, view) -> str:
     return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")
 
 
-def group_views(views, width, height, workers, job_views=None) -> list:
+def group_views(views, width, height, workers, job_views=None, per_task=None) -> list:
     """Views (indices) of one model in tasks: about 4 M pixels of work per task (a 512 x
     512 view takes milliseconds; a task costs the scheduler about a millisecond), but at
     least four tasks per worker over the whole job (``job_views``, default these views),
-    so every worker has work and a lost worker costs little."""
+    so every worker has work and a lost worker costs little. ``per_task`` overrides it
+    (large clusters: fewer, longer tasks keep the scheduler's rate and the loads of each
+    model down)."""
     views = list(views)
     if not views:
         return []
     by_pixels = max(1, (4 << 20) // max(1, width * height))
     total = len(views) if job_views is None else max(job_views, len(views))
     by_spread = max(1, math.ceil(total / (4 * max(1, workers))))
-    size = max(1, min(by_pixels, by_spread, 64))
+    size = max(1, min(by_pixels, by_spread, 64)) if per_task is None else per_task
     return [views[k:k + size] for k in range(0, len(views), size)]
 
 

@@ -72,7 +72,8 @@ def local_cluster(workers: int | None = None):
 
 def render_views(models, views, size=(512, 512), outputs=("color",), out="batch",
                  client=None, *, format="files", resume=False, workers=None,
-                 progress=None, near=0.1, far=100.0, **render_options) -> BatchResult:
+                 progress=None, near=0.1, far=100.0, views_per_task=None,
+                 **render_options) -> BatchResult:
     """Render every model from every view, on a Dask cluster, writing the outputs to
     ``out`` (see the README section "Many views at scale" for the layout).
 
@@ -83,6 +84,8 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     :data:`hsr.batch.plan.OUTPUTS`. ``client``: any ``distributed.Client``; without one a
     local cluster of ``workers`` processes runs the job and is closed after it.
     ``format``: ``files`` or ``zarr``. ``resume``: skip views whose outputs all exist.
+    ``views_per_task``: views in one task (default: about 4 M pixels, at least four tasks
+    per worker thread).
     ``render_options`` go to :func:`hsr.render` (algorithm, cull, shading, light, ...).
     Results are bit for bit ``hsr.render``'s with the same camera and options.
 
@@ -100,6 +103,10 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     if format not in FORMATS:
         raise BatchError(f"format must be one of {', '.join(FORMATS)}, got {format!r}")
     stems = model_stems(models)
+    if views_per_task is not None and (isinstance(views_per_task, bool) or not isinstance(
+            views_per_task, int) or not 1 <= views_per_task <= 100_000):
+        raise BatchError(f"views_per_task must be an integer in 1..100000, got "
+                         f"{views_per_task!r}")
     spec = parse_views(views, models, near, far)
     probe_options(render_options)
     out = os.fspath(out)
@@ -119,7 +126,8 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         client = Client(own_cluster)
     try:
         rows = _run(client, models, stems, spec, (width, height), outputs, out, format,
-                    resume, render_options, progress, threads=1 if own_cluster else None)
+                    resume, render_options, progress, 1 if own_cluster else None,
+                    views_per_task)
     finally:
         if own_cluster is not None:
             client.close()
@@ -130,7 +138,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
 
 
 def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
-         threads) -> list:
+         threads, views_per_task) -> list:
     """Every task is sent at once: the views still to do are known on the client (the
     count comes from the spec, resume looks at the files), and each task places its
     model's cameras itself from the spec (on every worker the same function of the same
@@ -156,8 +164,8 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         bar.update(len(skipped))
         given = (spec.per_model[model] if spec.kind == "per-model"
                  else spec.cameras if spec.kind == "cameras" else None)
-        for k, group in enumerate(group_views(todo, size[0], size[1], n_workers, job_views)
-                                  or [[]]):
+        for k, group in enumerate(group_views(todo, size[0], size[1], n_workers, job_views,
+                                              views_per_task) or [[]]):
             # Given cameras travel with their views only (the describing task: all of
             # them), never the whole job's.
             placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
