@@ -26,6 +26,7 @@ class BatchResult:
     rows: list = field(default_factory=list)
     manifest: str = ""
     seconds: float = 0.0
+    task_seconds: float = 0.0  # time inside the tasks (loads, cameras, views), all workers
 
     @property
     def failed(self) -> int:
@@ -125,21 +126,25 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         own_cluster = local_cluster(workers)
         client = Client(own_cluster)
     try:
-        rows = _run(client, models, stems, spec, (width, height), outputs, out, format,
-                    resume, render_options, progress, 1 if own_cluster else None,
-                    views_per_task)
+        rows, task_seconds = _run(client, models, stems, spec, (width, height), outputs, out,
+                                  format,
+                    resume, render_options, progress, 1, views_per_task)
     finally:
         if own_cluster is not None:
             client.close()
             own_cluster.close()
-    result = BatchResult(rows, os.path.join(out, "manifest.json"), time.perf_counter() - start)
+    result = BatchResult(rows, os.path.join(out, "manifest.json"), time.perf_counter() - start,
+                         task_seconds)
     _write_manifest(result, spec, (width, height), outputs, format, render_options)
     return result
 
 
 def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
          threads, views_per_task) -> list:
-    """Every task is sent at once: the views still to do are known on the client (the
+    """Each render runs on ``threads`` (1) of the kernels: the parallelism is Dask's, a
+    worker thread per core (a multithreaded render in each of several worker threads
+    oversubscribed the cores and, for small views, spent more on thread hand-offs than
+    on the view). Every task is sent at once: the views still to do are known on the client (the
     count comes from the spec, resume looks at the files), and each task places its
     model's cameras itself from the spec (on every worker the same function of the same
     bounds gives the same cameras), so no task waits for another and each worker loads a
@@ -154,7 +159,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
                            client.scheduler_info().get("workers", {}).values()))
     job_views = sum(spec.count_for(m) for m in models)
     bar = _progress_bar(progress, job_views)
-    rows, tasks = [], {}  # task -> (model, the views it renders)
+    rows, tasks, busy = [], {}, [0.0]  # task -> (model, the views it renders)
     for model in models:
         count = spec.count_for(model)
         todo = _todo(out, stems[model], count, size, outputs, fmt, resume)
@@ -183,10 +188,11 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         if "cameras" in done:
             _describe(out, stems[model], done["cameras"], size, outputs, fmt)
         rows += done["rows"]
+        busy[0] += done.get("task_ms", 0.0) / 1000.0
         bar.update(len(done["rows"]))
     bar.close()
     rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
-    return rows
+    return rows, busy[0]
 
 
 def _outcome(future) -> dict:

@@ -113,6 +113,7 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
     ``failed`` with a one-line error, milliseconds), with ``"cameras"`` (all of the
     model's) when ``describe``; ``{"error": one line}`` when the model cannot be loaded or
     its cameras placed."""
+    start = time.perf_counter()
     try:
         scene = _cache().get(path)
         # ("these", cameras): just this task's views' cameras, in order.
@@ -126,6 +127,7 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
                                  fmt, options, threads)}
     if describe:
         done["cameras"] = cameras
+    done["task_ms"] = (time.perf_counter() - start) * 1000.0  # load, cameras, views
     return done
 
 
