@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import MeshError
 from .files import MAX_MESH_BYTES, check_regular, read_regular
-from .mesh import Mesh, Scene, as_mesh, from_trimesh
+from .mesh import Mesh, Scene, as_mesh, from_trimesh, normal_matrix
 from .obj import read_obj
 
 __all__ = ["load", "load_scene"]
@@ -87,7 +87,9 @@ def _single(scene: Scene, what: str) -> Mesh:
     if np.array_equal(inst.model, np.eye(4)):
         return mesh
     positions = mesh.positions @ inst.model[:3, :3].T + inst.model[:3, 3]
-    return Mesh(positions, mesh.faces, mesh.corner_uv, None, mesh.face_colors, mesh.texture,
+    normals = (None if mesh.corner_normals is None
+               else mesh.corner_normals @ normal_matrix(inst.model).T)  # shading normalises
+    return Mesh(positions, mesh.faces, mesh.corner_uv, normals, mesh.face_colors, mesh.texture,
                 mesh.name, mesh.corner_colors)
 
 
