@@ -252,7 +252,8 @@ def _prepare_zarr(out, stem, count, size, outputs, resume) -> list:
 
     width, height = size
     path = os.path.join(out, f"{stem}.zarr")
-    n = count  # views and os.path.isdir(path):
+    n = count  # views
+    if resume and os.path.isdir(path):
         group = zarr.open_group(path, mode="r")
         if "done" in group and group["done"].shape == (n,) \
                 and all(o in group for o in outputs):
