@@ -134,12 +134,15 @@ def test_resume_after_a_killed_run_redoes_nothing_finished(models_dir, tmp_path)
                 and (out / "stanford-bunny" / "ids" / f"{v:04d}.npy").exists()}
     assert 0 < len(finished) < 40, "the kill came too late or too early to test resume"
     stamps = {v: os.stat(color / f"{v:04d}.png").st_mtime_ns for v in finished}
+    # What a worker killed while writing leaves behind (the kill above may leave some).
+    (color / ".0000.png.0123456789abcdef.tmp").write_bytes(b"half a PNG")
     assert main(["batch", model, "--views", "orbit:40", "--size", "192x144", "--outputs",
                  "color,ids", "--out", str(out), "--workers", "2", "--resume", "--quiet"]) == 0
     rows = json.loads((out / "manifest.json").read_text())["tasks"]
     assert {r["view"] for r in rows if r["status"] == "skipped"} == finished
     assert {r["view"] for r in rows if r["status"] == "ok"} == set(range(40)) - finished
     assert all(os.stat(color / f"{v:04d}.png").st_mtime_ns == stamps[v] for v in finished)
+    assert not [n for n in os.listdir(color) if n.endswith(".tmp")]  # stale ones removed
     scene = hsr.load_scene(model)
     cams = hsr.views.orbit(scene.bounds(), 40, 20.0, 192 / 144)
     for v in (min(finished), max(set(range(40)) - finished)):

@@ -191,8 +191,24 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         busy[0] += done.get("task_ms", 0.0) / 1000.0
         bar.update(len(done["rows"]))
     bar.close()
+    if fmt == "files":
+        _remove_stale_temporaries(out, [stems[m] for m in models], outputs)
     rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
     return rows, busy[0]
+
+
+def _remove_stale_temporaries(out, stems, outputs) -> None:
+    """Every task is finished: a temporary file still in an output folder was left by a
+    worker killed while writing it (its task ran again elsewhere), so it goes."""
+    for stem in stems:
+        for name in outputs:
+            folder = os.path.dirname(output_path(out, stem, name, 0))
+            if not os.path.isdir(folder):
+                continue
+            for entry in os.scandir(folder):
+                if entry.name.startswith(".") and entry.name.endswith(".tmp") \
+                        and entry.is_file(follow_symlinks=False):
+                    os.remove(entry.path)
 
 
 def _outcome(future) -> dict:
