@@ -370,7 +370,8 @@ def _camera_from_args(args, scene, default_camera, aspect):
             return Camera.orthographic(cam.eye, cam.target, cam.up, args.ortho, near, far)
         fov = args.fov if args.fov != 45.0 else cam.fov_y
         return Camera.look_at(cam.eye, cam.target, cam.up, fov, near, far)
-    bounds = scene.bounds()
+    points = views.model_points(scene)  # one pass over the vertices: box and framing
+    bounds = np.stack([points.min(axis=0), points.max(axis=0)])
     target = np.array(_floats(args.target, 3, "--target")) if args.target else bounds.mean(axis=0)
     eye = np.array(_floats(args.eye, 3, "--eye")) if args.eye else None
     try:
@@ -381,7 +382,7 @@ def _camera_from_args(args, scene, default_camera, aspect):
                       else views.DEFAULT_VIEW)
             cam = Camera.frame(bounds, views.direction(az, el), up, args.fov,
                                ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect,
-                               fit="points", points=views.model_points(scene))
+                               fit="points", points=points)
             if args.target is None:  # the framing's own aim (the middle of the picture)
                 target = np.asarray(cam.target)
             eye = np.asarray(cam.eye) - np.asarray(cam.target) + target

@@ -26,16 +26,6 @@ DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter vi
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
 
 
-def _sphere_of(bounds) -> tuple[np.ndarray, float]:
-    try:
-        b = np.asarray(bounds, dtype=np.float64)
-    except (TypeError, ValueError):
-        b = np.zeros(0)
-    if b.shape != (2, 3) or not np.isfinite(b).all() or (b[1] < b[0]).any():
-        raise CameraError(f"bounds must be a finite (2, 3) box (min, max), got {bounds!r}")
-    return b.mean(axis=0), max(float(np.linalg.norm(b[1] - b[0])) / 2.0, 1e-9)
-
-
 def direction(azimuth: float, elevation: float) -> np.ndarray:
     """Unit vector from the model's centre towards the eye."""
     az, el = math.radians(azimuth), math.radians(elevation)
@@ -47,7 +37,6 @@ def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
     with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin).
     Raises :class:`~hsr.errors.CameraError` as the module says."""
-    _sphere_of(bounds)
     return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
 
 
@@ -59,8 +48,9 @@ def default(model, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     corners allow). ``hsr render MODEL`` uses it. Raises
     :class:`~hsr.errors.CameraError` as the module says."""
     points = model_points(model) if hasattr(model, "bounds") else None
-    bounds = model.bounds() if points is not None else model
-    _sphere_of(bounds)
+    # The model's box from the same points (what Mesh/Scene.bounds() gives, without
+    # transforming every face corner a second time).
+    bounds = model if points is None else np.stack([points.min(axis=0), points.max(axis=0)])
     return Camera.frame(bounds, direction(*DEFAULT_VIEW), (0.0, 1.0, 0.0), fov_y,
                         margin=MARGIN, aspect=aspect,
                         fit="box" if points is None else "points", points=points)
