@@ -15,6 +15,7 @@ are made unique exactly as trimesh makes them, which is how the two are matched.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import struct
@@ -23,7 +24,7 @@ import numpy as np
 
 from ..errors import MeshError
 from .files import MAX_MESH_BYTES, check_regular, read_regular
-from .mesh import Mesh, Scene, as_mesh, from_trimesh, normal_matrix
+from .mesh import Mesh, Scene, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
 from .obj import read_obj
 
 __all__ = ["load", "load_scene"]
@@ -40,7 +41,7 @@ def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
     Raises :class:`MeshError` for anything missing, unreadable, malformed, too large or
     invalid (bad indices, NaN or infinite coordinates used by a face, no faces), and for a
     source of several meshes."""
-    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+    if is_trimesh_scene(source):
         return _single(_scene_from_trimesh(source, None, "trimesh scene"), "the trimesh scene")
     if not isinstance(source, (str, os.PathLike)):
         return as_mesh(source)
@@ -48,7 +49,7 @@ def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
     if path.lower().endswith(".obj"):
         return read_obj(path, max_bytes=max_bytes)
     loaded, header = _read_with_trimesh(path, max_bytes)
-    if type(loaded).__name__ == "Scene":
+    if is_trimesh_scene(loaded):
         return _single(_scene_from_trimesh(loaded, header, os.path.basename(path)), path)
     return from_trimesh(loaded, os.path.basename(path))
 
@@ -66,13 +67,13 @@ def load_scene(source, max_bytes: int = MAX_MESH_BYTES) -> Scene:
     face colours (see :func:`hsr.scene.mesh.from_trimesh`).
 
     Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
-    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+    if is_trimesh_scene(source):
         return _scene_from_trimesh(source, None, "trimesh scene")
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):
         return Scene([load(source, max_bytes)])
     path = os.fspath(source)
     loaded, header = _read_with_trimesh(path, max_bytes)
-    if type(loaded).__name__ == "Scene":
+    if is_trimesh_scene(loaded):
         return _scene_from_trimesh(loaded, header, os.path.basename(path))
     return Scene([from_trimesh(loaded, os.path.basename(path))])
 
@@ -98,14 +99,20 @@ def _read_with_trimesh(path: str, max_bytes: int):
     import trimesh  # imported lazily: it is slow to import and OBJ does not need it
 
     check_regular(path, "mesh file", max_bytes)
-    header = None
+    header, source, kind = None, path, None
     if path.lower().endswith(_GLTF_EXTENSIONS):
-        header = _gltf_header(read_regular(path, "mesh file", max_bytes), path)
+        data = read_regular(path, "mesh file", max_bytes)
+        header = _gltf_header(data, path)
+        if path.lower().endswith(".glb"):
+            # Self-contained: trimesh reads the bytes already in memory (a GLB with its
+            # textures can be hundreds of MB). A .gltf is read from its path, for the
+            # buffers and images beside it.
+            source, kind = io.BytesIO(data), "glb"
     try:
-        loaded = trimesh.load(path, process=False)
+        loaded = trimesh.load(source, file_type=kind, process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
-    if type(loaded).__name__ not in ("Scene", "Trimesh"):
+    if not is_trimesh_scene(loaded) and type(loaded).__name__ != "Trimesh":
         raise MeshError(f"{path}: no triangles found ({type(loaded).__name__})")
     return loaded, header
 

@@ -18,7 +18,7 @@ from ..errors import MeshError
 # Coordinates (and products of two of them) must stay finite in float64.
 MAX_COORDINATE = 1e100
 
-__all__ = ["Mesh", "Scene", "Instance", "as_mesh", "as_scene", "instance_of",
+__all__ = ["Mesh", "Scene", "Instance", "as_mesh", "as_scene", "instance_of", "is_trimesh_scene",
            "degenerate_faces", "is_degenerate", "normal_matrix"]
 
 
@@ -304,10 +304,16 @@ def as_mesh(source) -> Mesh:
         return Mesh(source[0], source[1], name="arrays")
     if type(source).__name__ == "Trimesh":
         return from_trimesh(source, "trimesh")
-    if type(source).__name__ == "Scene" and hasattr(source, "graph"):
+    if is_trimesh_scene(source):
         raise MeshError("a trimesh.Scene holds nodes: make an hsr Scene with "
                         "hsr.load_scene(scene) (one instance per node)")
     raise MeshError(f"cannot make a mesh from {type(source).__name__}")
+
+
+def is_trimesh_scene(value) -> bool:
+    """True for a ``trimesh.Scene`` (told by its type's name and scene graph, so that
+    trimesh need not be imported to ask)."""
+    return type(value).__name__ == "Scene" and hasattr(value, "graph")
 
 
 def as_scene(source) -> Scene:
