@@ -127,8 +127,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         client = Client(own_cluster)
     try:
         rows, task_seconds = _run(client, models, stems, spec, (width, height), outputs, out,
-                                  format,
-                    resume, render_options, progress, 1, views_per_task)
+                                  format, resume, render_options, progress, views_per_task)
     finally:
         if own_cluster is not None:
             client.close()
@@ -140,12 +139,10 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
 
 
 def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
-         threads, views_per_task) -> list:
-    """Each render runs on ``threads`` (1) of the kernels: the parallelism is Dask's, a
-    worker thread per core (a multithreaded render in each of several worker threads
-    oversubscribed the cores and, for small views, spent more on thread hand-offs than
-    on the view). Every task is sent at once: the views still to do are known on the client (the
-    count comes from the spec, resume looks at the files), and each task places its
+         views_per_task) -> tuple:
+    """(manifest rows, seconds spent inside the tasks). Every task is sent at once: the
+    views still to do are known on the client (the count comes from the spec, resume
+    looks at the files), and each task places its
     model's cameras itself from the spec (on every worker the same function of the same
     bounds gives the same cameras), so no task waits for another and each worker loads a
     model at most once. One task per model also returns all the cameras, for the
@@ -159,7 +156,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
                            client.scheduler_info().get("workers", {}).values()))
     job_views = sum(spec.count_for(m) for m in models)
     bar = _progress_bar(progress, job_views)
-    rows, tasks, busy = [], {}, [0.0]  # task -> (model, the views it renders)
+    rows, tasks, busy = [], {}, 0.0  # tasks: task -> (model, the views it renders)
     for model in models:
         count = spec.count_for(model)
         todo = _todo(out, stems[model], count, size, outputs, fmt, resume)
@@ -177,7 +174,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
                          else ("all", list(given)) if k == 0
                          else ("these", [given[v] for v in group]))
             task = client.submit(render_task, model, stems[model], group, placement, k == 0,
-                                 size, outputs, out, fmt, options, threads, pure=False)
+                                 size, outputs, out, fmt, options, pure=False)
             tasks[task] = (model, group)
     for future in as_completed(list(tasks)):
         model, group = tasks.pop(future)
@@ -188,13 +185,14 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         if "cameras" in done:
             _describe(out, stems[model], done["cameras"], size, outputs, fmt)
         rows += done["rows"]
-        busy[0] += done.get("task_ms", 0.0) / 1000.0
+        busy += done.get("task_ms", 0.0) / 1000.0
         bar.update(len(done["rows"]))
     bar.close()
     if fmt == "files":
         _remove_stale_temporaries(out, [stems[m] for m in models], outputs)
-    rows.sort(key=lambda r: (models.index(r["model"]), r["view"]))
-    return rows, busy[0]
+    order = {model: k for k, model in enumerate(models)}
+    rows.sort(key=lambda r: (order[r["model"]], r["view"]))
+    return rows, busy
 
 
 def _remove_stale_temporaries(out, stems, outputs) -> None:

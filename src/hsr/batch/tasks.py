@@ -107,7 +107,7 @@ def place_cameras(scene, placement, size, views=None) -> list:
 
 
 def render_task(path: str, stem: str, views: list, placement, describe: bool, size,
-                outputs, out_dir: str, fmt: str, options: dict, threads) -> dict:
+                outputs, out_dir: str, fmt: str, options: dict) -> dict:
     """Load the model (once per worker), place its cameras, render ``views`` and write
     their outputs: ``{"rows": [...]}`` (one manifest row per view: status ``ok`` or
     ``failed`` with a one-line error, milliseconds), with ``"cameras"`` (all of the
@@ -124,7 +124,7 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
         return {"error": one_line(exc)}
     done = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
-                                 fmt, options, threads)}
+                                 fmt, options)}
     if describe:
         done["cameras"] = cameras
     done["task_ms"] = (time.perf_counter() - start) * 1000.0  # load, cameras, views
@@ -179,9 +179,12 @@ def _write_zarr(store, view, arrays) -> None:
 
 
 def render_group(scene, path: str, stem: str, views: list, cameras: list, size, outputs,
-                 out_dir: str, fmt: str, options: dict, threads) -> list:
+                 out_dir: str, fmt: str, options: dict) -> list:
     """Render ``views`` (indices, with their ``cameras``) of one loaded model and write the
-    outputs; one manifest row per view."""
+    outputs; one manifest row per view. Each render runs single-threaded: the parallelism
+    is Dask's, a worker thread per core (a multithreaded render in each of several worker
+    threads oversubscribed the cores and, for small views, spent more on thread hand-offs
+    than on the view)."""
     from ..render import render
 
     rows = []
@@ -193,7 +196,7 @@ def render_group(scene, path: str, stem: str, views: list, cameras: list, size, 
     for view, camera in zip(views, cameras):
         start = time.perf_counter()
         try:
-            frame = render(scene, camera, width, height, threads=threads, **options)
+            frame = render(scene, camera, width, height, threads=1, **options)
             arrays = buffers(frame, outputs)
             if store is None:
                 _write_files(out_dir, stem, view, arrays)
