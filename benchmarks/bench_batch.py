@@ -7,8 +7,10 @@ Jobs: (1) the Stanford bunny from ``orbit:N`` at SIZE x SIZE, colour PNG + face 
 ``--meshes`` small procedural meshes (perturbed icospheres, 1,280 triangles each, written
 as OBJ files) x ``--mesh-views`` views at 128 x 128, to show what a task costs when each
 view is tiny. For each job: the plain loop (load each mesh once, ``hsr.render`` with the
-default threads, the same files written), ``hsr batch`` with the default local cluster
-(one single-threaded worker per core) and with one worker of all the threads. The
+default threads, the same files written), ``hsr batch`` on three local clusters (one
+single-threaded worker process per core; one process of all the threads; one worker of
+all the threads inside this process), each warmed first as the loop's process is; and
+from cold, the ``hsr batch`` command (its default cluster) against the loop as a script. The
 overhead is the share of the workers' wall time spent outside the tasks (each task
 measures itself: its model's load, its cameras, its views' render + write). Runs on demand, never as part of the test suite.
 """
@@ -18,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -26,7 +29,7 @@ import numpy as np
 from PIL import Image
 
 import hsr
-from hsr.batch.run import render_views
+from hsr.batch.run import THREADED_PIXELS, render_views
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 
@@ -56,12 +59,20 @@ def batch(models, spec, size, out, client):
     return result
 
 
-def cluster(workers, threads):
+def cluster(workers, threads, processes=True):
     from distributed import Client, LocalCluster
 
-    c = LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True,
-                     host="127.0.0.1", dashboard_address="127.0.0.1:0", silence_logs=50)
+    where = {"host": "127.0.0.1"} if processes else {}  # in-process: no sockets at all
+    c = LocalCluster(n_workers=workers, threads_per_worker=threads, processes=processes,
+                     dashboard_address="127.0.0.1:0", silence_logs=50, **where)
     return c, Client(c)
+
+
+def warm_worker():
+    """Load Numba's cached kernels in a worker, as the loop's warm-up does in this process
+    (a built-in scene: no model of the job is cached on a worker beforehand)."""
+    scene, camera = hsr.scenes.get("cubes")
+    hsr.render(scene, camera, 64, 64, threads=1, light="studio")
 
 
 def procedural(folder, count):
@@ -90,11 +101,16 @@ def run_job(label, models, kind, n, size, scratch, rows):
     plain_loop(models, (kind, n), size, os.path.join(scratch, "loop"))
     loop_s = time.perf_counter() - start
     cores = os.cpu_count() or 1
-    for workers, threads, what in ((cores, 1, f"batch, {cores} workers x 1 thread (default)"),
-                                   (1, cores, f"batch, 1 worker x {cores} threads")):
-        c, client = cluster(workers, threads)
+    threaded = size * size >= THREADED_PIXELS  # what the local default picks
+    for workers, threads, processes, what in (
+            (cores, 1, True, f"batch, {cores} processes x 1 thread"
+             + ("" if threaded else " (default)")),
+            (1, cores, True, f"batch, 1 process x {cores} threads"),
+            (1, cores, False, f"batch, in-process, {cores} threads"
+             + (" (default)" if threaded else ""))):
+        c, client = cluster(workers, threads, processes)
         try:
-            batch(models[:1], f"{kind}:1", size, os.path.join(scratch, "warm_b"), client)
+            client.run(warm_worker)  # every worker's kernels, as the loop's process
             start = time.perf_counter()
             result = batch(models, spec, size, os.path.join(scratch, f"b{workers}"), client)
             wall = time.perf_counter() - start
@@ -108,6 +124,22 @@ def run_job(label, models, kind, n, size, scratch, rows):
                      overhead))
     rows.append((label, "plain loop over hsr.render", views, loop_s, views / loop_s, 1.0,
                  float("nan")))
+    # From cold, as a user meets it: a fresh process each (imports, Numba's cache, the
+    # local cluster's start for the batch), the loop as a script against the CLI.
+    loop_cmd = [sys.executable, "-c", "import sys; sys.path.insert(0, %r); import bench_batch as "
+                "b; b.plain_loop(%r, (%r, %d), %d, %r)" % (os.path.dirname(
+                    os.path.abspath(__file__)), models, kind, n, size,
+                    os.path.join(scratch, "cold_loop"))]
+    cli_cmd = [sys.executable, "-m", "hsr", "batch", *models, "--views", spec, "--size",
+               f"{size}x{size}", "--outputs", "color,ids", "--light", "studio", "--out",
+               os.path.join(scratch, "cold_batch")]
+    cold = {}
+    for what, cmd in (("loop", loop_cmd), ("batch", cli_cmd)):
+        start = time.perf_counter()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        cold[what] = time.perf_counter() - start
+    rows.append((label, "from cold: `hsr batch` vs a loop script", views, cold["batch"],
+                 views / cold["batch"], cold["loop"] / cold["batch"], float("nan")))
 
 
 def main():

@@ -3,6 +3,7 @@ the loopback interface, and a scheduler and a worker started as separate process
 CLI's --scheduler. Every output is compared with ``hsr.render`` run here, view by view."""
 
 import json
+import math
 import os
 import signal
 import socket
@@ -13,6 +14,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image
 
 import hsr
@@ -252,6 +255,46 @@ def test_views_per_task():
     assert [len(g) for g in group_views(range(10), 64, 64, 2, per_task=4)] == [4, 4, 2]
 
 
+def test_tasks_amortise_the_model_load(models_dir):
+    """On a large cluster a model's tasks land on different workers, each loading the
+    model: 1,000 bunny-sized OBJs x 256 views at 1024 x 1024 on 100 workers. By pixels
+    alone that is 4 views a task, 64 loads of each model (as much time as rendering);
+    amortised, the loads stay near a tenth of the model's views, and the job still has
+    four tasks per worker. A single model on the same cluster still spreads."""
+    from hsr.batch import plan
+
+    bunny = os.path.getsize(os.path.join(models_dir, "stanford-bunny.obj"))
+    groups = plan.group_views(range(256), 1024, 1024, 100, job_views=256_000,
+                              model_bytes=bunny)
+    load_s = bunny * plan.LOAD_SECONDS_PER_BYTE
+    view_s = 1024 * 1024 * plan.VIEW_SECONDS_PER_PIXEL
+    assert len(groups[0]) * view_s * 0.1 >= load_s  # a full task amortises its load
+    assert len(groups) <= 4  # against 64 by pixels alone
+    assert len(groups) * 1000 >= 4 * 100
+    assert len(plan.group_views(range(256), 1024, 1024, 100, model_bytes=bunny)) == 256
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 500), st.integers(1, 4096), st.integers(1, 4096), st.integers(1, 400),
+       st.integers(0, 10_000), st.integers(0, 50_000_000))
+def test_grouping_keeps_order_and_its_rules(count, width, height, workers, more, model_bytes):
+    """Every view once, in order, in equal groups but the last; a group is either large
+    enough to amortise the load (and covers 4 M pixels or 64 views), or as large as the
+    job's spread over the workers allows."""
+    from hsr.batch import plan
+
+    job = count + more
+    groups = plan.group_views(range(count), width, height, workers, job, None, model_bytes)
+    assert [v for g in groups for v in g] == list(range(count))
+    size = len(groups[0])
+    assert all(len(g) == size for g in groups[:-1]) and len(groups[-1]) <= size
+    if len(groups) > 1:
+        view_s = width * height * plan.VIEW_SECONDS_PER_PIXEL
+        amortised = model_bytes * plan.LOAD_SECONDS_PER_BYTE <= 0.1 * size * view_s + 1e-12
+        fills = size >= 64 or size * width * height >= (4 << 20) - width * height
+        assert (amortised and fills) or size == math.ceil(job / (4 * workers))
+
+
 def test_per_model_cameras_and_camera_lists(client, models, tmp_path):
     """per-model:FILE gives each model its own camera file; a Python list of cameras is
     used for every model."""
@@ -279,6 +322,22 @@ def test_per_model_cameras_and_camera_lists(client, models, tmp_path):
     assert result.rendered == 4
     assert np.array_equal(np.load(tmp_path / "list" / "african_head" / "ids" / "0001.npy"),
                           hsr.render(scenes[1], shared[1], *SIZE).face_id)
+
+
+def test_default_local_cluster_for_large_views(models_dir, tmp_path):
+    """Views of 512 x 512 pixels and more run on threads of one worker in this process (no
+    client given): the same bits as hsr.render, the mesh cache shared by both threads."""
+    model = os.path.join(models_dir, "spot.obj")
+    result = render_views([model], "orbit:4", (512, 512), ("ids", "eye_depth"),
+                          tmp_path / "big", workers=2)
+    assert result.rendered == 4
+    scene = hsr.load_scene(model)
+    for v, cam in enumerate(hsr.views.orbit(scene.bounds(), 4, 20.0, 1.0)):
+        frame = hsr.render(scene, cam, 512, 512)
+        assert np.array_equal(np.load(tmp_path / "big" / "spot" / "ids" / f"{v:04d}.npy"),
+                              frame.face_id)
+        assert np.array_equal(np.load(tmp_path / "big" / "spot" / "eye_depth" /
+                                      f"{v:04d}.npy"), frame.eye_depth)
 
 
 def test_a_worker_with_several_threads_shares_its_cache(models, tmp_path):

@@ -252,8 +252,9 @@ def _add_batch_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace, SHADING_M
     g = b.add_argument_group("cluster")
     g.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. "
                    "tcp://10.0.0.5:8786 (default: a local cluster on this machine)")
-    g.add_argument("--workers", type=int, help="local worker processes (default: one per "
-                   "core)")
+    g.add_argument("--workers", type=int, help="size of the local cluster (default: one per "
+                   "core): single-threaded worker processes for views under 512x512 pixels, "
+                   "threads of one worker in this process for larger ones")
     g.add_argument("--views-per-task", type=int, metavar="N", help="views in one task "
                    "(default: about 4M pixels, at least four tasks per worker)")
     g = b.add_argument_group("rendering")

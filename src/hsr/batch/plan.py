@@ -188,21 +188,38 @@ def output_path(out_dir, stem, output, view) -> str:
     return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")
 
 
-def group_views(views, width, height, workers, job_views=None, per_task=None) -> list:
-    """Views (indices) of one model in tasks: about 4 M pixels of work per task (a 512 x
-    512 view takes milliseconds; a task costs the scheduler about a millisecond), but at
-    least four tasks per worker over the whole job (``job_views``, default these views),
-    so every worker has work and a lost worker costs little. ``per_task`` overrides it
-    (large clusters: fewer, longer tasks keep the scheduler's rate and the loads of each
-    model down)."""
+# Rough costs on one core of this project's machine, for sizing tasks only (ratios matter,
+# not the values): a view costs about 30 ns a pixel (the bunny at 1024 x 1024: 21 ms to
+# render, about 9 ms to write ids and eye depth; smaller views cost more a pixel, which
+# only makes tasks larger than this rule needs, and the spread rule caps them), and an OBJ
+# loads at about 8 MB/s (the bunny's 2.4 MB in 0.31 s; binary glTF is faster).
+VIEW_SECONDS_PER_PIXEL = 3e-8
+LOAD_SECONDS_PER_BYTE = 1.25e-7
+LOAD_SHARE = 0.1  # a task renders views worth at least ten times its model's load
+
+
+def group_views(views, width, height, workers, job_views=None, per_task=None,
+                model_bytes=0) -> list:
+    """Views (indices) of one model in tasks. A task renders about 4 M pixels (a 512 x
+    512 view takes milliseconds; a task costs the scheduler about a millisecond), at most
+    64 views, and at least enough views that loading its model (``model_bytes``, once on
+    each worker that runs one of its tasks) stays under a tenth of the task: on a large
+    cluster a model's tasks land on as many workers as there are tasks, each loading it.
+    Over the whole job (``job_views``, default these views) there are still at least four
+    tasks per worker, so every worker has work and a lost worker costs little; that rule
+    wins when they disagree. ``per_task`` overrides all of it."""
     views = list(views)
     if not views:
         return []
-    by_pixels = max(1, (4 << 20) // max(1, width * height))
-    total = len(views) if job_views is None else max(job_views, len(views))
-    by_spread = max(1, math.ceil(total / (4 * max(1, workers))))
-    size = max(1, min(by_pixels, by_spread, 64)) if per_task is None else per_task
-    return [views[k:k + size] for k in range(0, len(views), size)]
+    if per_task is None:
+        pixels = max(1, width * height)
+        by_pixels = min(64, max(1, (4 << 20) // pixels))
+        view_s = pixels * VIEW_SECONDS_PER_PIXEL
+        by_load = math.ceil(model_bytes * LOAD_SECONDS_PER_BYTE / (LOAD_SHARE * view_s))
+        total = len(views) if job_views is None else max(job_views, len(views))
+        by_spread = max(1, math.ceil(total / (4 * max(1, workers))))
+        per_task = max(1, min(by_spread, max(by_pixels, by_load)))
+    return [views[k:k + per_task] for k in range(0, len(views), per_task)]
 
 
 def check_size(size) -> tuple:

@@ -55,18 +55,31 @@ class BatchResult:
         return text
 
 
-def local_cluster(workers: int | None = None):
-    """A Dask cluster on this machine, bound to 127.0.0.1 (its dashboard too, on a free
-    port): ``workers`` processes (default
-    one per core) of one thread each. Each render then runs single-threaded in its
-    process: two processes keep two cores busy on small views, where one multithreaded
-    render cannot (benchmarks/bench_batch.py measures both)."""
+# Views of at least this many pixels run on threads of one in-process worker by default;
+# smaller ones on one single-threaded worker process per core (benchmarks/bench_batch.py).
+THREADED_PIXELS = 512 * 512
+
+
+def local_cluster(workers: int | None = None, pixels: int = 0):
+    """A Dask cluster on this machine for views of ``pixels`` pixels, with ``workers``
+    (default one per core) threads or processes. Measured on 2 cores
+    (benchmarks/bench_batch.py): a small view is mostly Python (camera, buffers, file
+    creation) and holds the GIL, so one single-threaded worker process per core is 1.4 to
+    1.8x a plain loop where threads in one process are not faster than it; a large view is
+    mostly compiled kernels and PNG compression, which release the GIL, so threads of one
+    worker inside this process do as well as processes and start seconds sooner (no
+    processes to spawn, Numba's kernels and the model already at hand): the bunny at
+    512 x 512, orbit:128 from cold, 4.8 s against 8.4 s. Processes listen on 127.0.0.1
+    only; the in-process worker uses no socket; the dashboard binds 127.0.0.1."""
     from distributed import LocalCluster
 
     cores = os.cpu_count() or 1
     n = cores if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1024:
         raise BatchError(f"workers must be an integer in 1..1024, got {workers!r}")
+    if pixels >= THREADED_PIXELS:
+        return LocalCluster(n_workers=1, threads_per_worker=n, processes=False,
+                            dashboard_address="127.0.0.1:0", silence_logs=40)
     return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                         dashboard_address="127.0.0.1:0", silence_logs=40)
 
@@ -83,7 +96,8 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     folder, ``per-model:FILE``, a list of :class:`hsr.Camera` or a dict of them per
     model (see :func:`hsr.batch.plan.parse_views`). ``outputs``: names from
     :data:`hsr.batch.plan.OUTPUTS`. ``client``: any ``distributed.Client``; without one a
-    local cluster of ``workers`` processes runs the job and is closed after it.
+    local cluster of ``workers`` (default one per core) runs the job and is closed after
+    it (see :func:`local_cluster`).
     ``format``: ``files`` or ``zarr``. ``resume``: skip views whose outputs all exist.
     ``views_per_task``: views in one task (default: about 4 M pixels, at least four tasks
     per worker thread).
@@ -123,7 +137,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     if client is None:
         from distributed import Client
 
-        own_cluster = local_cluster(workers)
+        own_cluster = local_cluster(workers, width * height)
         client = Client(own_cluster)
     try:
         rows, task_seconds = _run(client, models, stems, spec, (width, height), outputs, out,
@@ -166,8 +180,9 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         bar.update(len(skipped))
         given = (spec.per_model[model] if spec.kind == "per-model"
                  else spec.cameras if spec.kind == "cameras" else None)
-        for k, group in enumerate(group_views(todo, size[0], size[1], n_workers, job_views,
-                                              views_per_task) or [[]]):
+        groups = group_views(todo, size[0], size[1], n_workers, job_views, views_per_task,
+                             _size_of(model))
+        for k, group in enumerate(groups or [[]]):
             # Given cameras travel with their views only (the describing task: all of
             # them), never the whole job's.
             placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
@@ -193,6 +208,14 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
     order = {model: k for k, model in enumerate(models)}
     rows.sort(key=lambda r: (order[r["model"]], r["view"]))
     return rows, busy
+
+
+def _size_of(model) -> int:
+    """The model file's size, or 0 where the client cannot see it (the workers can)."""
+    try:
+        return os.path.getsize(model)
+    except OSError:
+        return 0
 
 
 def _remove_stale_temporaries(out, stems, outputs) -> None:
