@@ -29,6 +29,9 @@ from .scene.camera import Camera
 from .scene.camera_files import read_colmap, read_transforms, write_transforms
 from .scene.load import load, load_scene
 from .scene.mesh import Instance, Mesh, Scene
+from .scene.write import write_mesh
+from . import visibility
+from .visibility import prune
 
 __version__ = "0.1.0"
 
@@ -36,6 +39,7 @@ __all__ = [
     "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "batch", "bsp",
-    "hidden_lines", "load", "load_scene", "raycast", "read_colmap", "read_transforms",
-    "render", "scenes", "views", "write_lines_svg", "write_transforms",
+    "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
+    "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
+    "write_mesh", "write_transforms",
 ]

@@ -221,7 +221,110 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--algorithms", default=",".join(ALGORITHMS),
                     help="algorithms to compare (default: all)")
     _add_batch_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace, SHADING_MODES)
+    _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace)
     return parser
+
+
+def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
+    from .scene.write import MESH_FORMATS
+    from .visibility.prune import LEVELS
+
+    p = sub.add_parser("prune", help="remove the geometry no viewpoint can see",
+                       description="Render MODEL from many viewpoints, count the pixels where "
+                       "each face is visible and write the model without the faces (or "
+                       "objects) no view shows, face order kept.")
+    p.add_argument("model", metavar="MODEL", help="mesh file (OBJ, PLY, STL, OFF, glTF/GLB)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="the pruned model: " + ", ".join(MESH_FORMATS))
+    g = p.add_argument_group("decision")
+    g.add_argument("--views", action="append", metavar="SPEC",
+                   help="sphere:N, hemisphere:N, orbit:N[:ELEVATION] (outside the bounding "
+                   "sphere), or a transforms.json / COLMAP folder (e.g. interior cameras); "
+                   "repeat to use several (default: sphere:256)")
+    g.add_argument("--size", type=int, default=512, metavar="R",
+                   help="R x R pixels per view")
+    g.add_argument("--level", default="faces", choices=list(LEVELS),
+                   help="remove single faces, or whole objects (glTF nodes)")
+    g.add_argument("--min-pixels", type=int, default=1, metavar="P",
+                   help="keep a face seen on at least P pixels over all views")
+    g.add_argument("--keep-neighbors", type=int, default=0, metavar="K",
+                   help="also keep faces within K edge-rings of a kept face")
+    g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
+                   help="visibility algorithm whose face ids decide")
+    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
+                   help="face culling while deciding (none: a face seen from behind counts)")
+    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
+    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help="depth test: with less an earlier coplanar face keeps its pixels")
+    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
+    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    g = p.add_argument_group("check and run")
+    g.add_argument("--verify", type=int, default=0, metavar="K",
+                   help="render K random outside viewpoints not used for the decision, of "
+                   "the original and the pruned model, and report the pixels that changed")
+    g.add_argument("--seed", type=int, default=0, help="seed of the --verify viewpoints")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler to "
+                   "spread the views over (default: this process, all cores)")
+    g.add_argument("--threads", type=int, help="kernel threads in this process (default: "
+                   "numba's)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+
+
+def _cmd_prune(args) -> int:
+    import time
+
+    from .scene.load import load_scene
+    from .scene.write import write_mesh
+    from .visibility.prune import prune, verify
+
+    start = time.perf_counter()
+    scene = load_scene(args.model)
+    client = _client(args.scheduler, "prune") if args.scheduler else None
+    options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
+                   depth_func=args.depth_func)
+    try:
+        pruned, kept = prune(scene, args.views or ["sphere:256"], args.size, level=args.level,
+                             keep_neighbors=args.keep_neighbors, min_pixels=args.min_pixels,
+                             client=client, threads=args.threads, near=args.near,
+                             far=args.far, progress=not args.quiet and sys.stderr.isatty(),
+                             **options)
+    finally:
+        if client is not None:
+            client.close()
+    written = write_mesh(pruned, args.output)
+    seconds = time.perf_counter() - start
+    if not args.quiet:
+        before, after = scene.n_faces, pruned.n_faces
+        views = _count_views(scene, args)
+        print(f"faces {before:,} -> {after:,} ({100.0 * (before - after) / before:.2f}% "
+              f"removed); objects {len(scene):,} -> {len(pruned):,}; {views:,} views at "
+              f"{args.size}x{args.size}; {seconds:.1f} s; wrote {', '.join(written)}")
+    if args.verify:
+        report = verify(scene, pruned, kept, args.verify, args.size, seed=args.seed,
+                        threads=args.threads, **options)
+        print(f"verify: {report['changed']:,} of {report['covered']:,} covered pixels "
+              f"changed ({report['percent']:.4f}%) over {report['views']} random outside "
+              f"views at {args.size}x{args.size}")
+    return 0
+
+
+def _count_views(scene, args) -> int:
+    from .visibility.count import cameras_for
+
+    return len(cameras_for(scene, args.views or ["sphere:256"], 1.0, args.near, args.far))
+
+
+def _client(address: str, command: str):
+    """A ``distributed.Client`` connected to ``address``, or a one-line error."""
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise CliError(f"hsr {command} needs dask.distributed ({exc}); pip install "
+                       f"'hsr[dask]'") from None
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise CliError(f"--scheduler {address}: cannot connect ({exc})") from None
 
 
 def _add_batch_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace, SHADING_MODES):
@@ -281,17 +384,7 @@ def _cmd_batch(args) -> int:
     if args.scheduler and args.workers is not None:
         raise CliError("--workers sizes the local cluster: it does not combine with "
                        "--scheduler")
-    client = None
-    if args.scheduler:
-        try:
-            from distributed import Client
-        except ImportError as exc:
-            raise CliError(f"hsr batch needs dask.distributed ({exc}); pip install "
-                           f"'hsr[dask]'") from None
-        try:
-            client = Client(args.scheduler, timeout="10s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise CliError(f"--scheduler {args.scheduler}: cannot connect ({exc})") from None
+    client = _client(args.scheduler, "batch") if args.scheduler else None
     try:
         result = render_views(
             args.models, args.views, _size(args.size), args.outputs, args.out, client,
@@ -803,6 +896,8 @@ def main(argv=None) -> int:
             return _cmd_report(args)
         if args.command == "batch":
             return _cmd_batch(args)
+        if args.command == "prune":
+            return _cmd_prune(args)
         raise CliError(f"unknown command {args.command!r}")
     except HsrError as exc:
         if debug:
