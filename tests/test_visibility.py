@@ -218,7 +218,7 @@ def test_keep_neighbors_keeps_faces_next_to_visible_ones():
     assert np.array_equal(grown, plain)
 
 
-def test_dask_client_gives_the_same_counts():
+def test_dask_client_gives_the_same_counts(tmp_path):
     distributed = pytest.importorskip("distributed")
     scene = box_with_parts()
     local = face_visibility(scene, "sphere:12", 64)
@@ -227,8 +227,17 @@ def test_dask_client_gives_the_same_counts():
                                        silence_logs=50)
     with distributed.Client(cluster) as client:
         remote = face_visibility(scene, "sphere:12", 64, client=client)
+        # The command, connected to the same scheduler by its address.
+        src, out = tmp_path / "assembly.glb", tmp_path / "pruned.glb"
+        hsr.write_mesh(scene, src)
+        assert main(["prune", str(src), "-o", str(out), "--views", "sphere:12", "--size",
+                     "64", "--scheduler", cluster.scheduler_address, "--quiet"]) == 0
     cluster.close()
     assert np.array_equal(local, remote)
+    pruned, _ = prune(scene, "sphere:12", 64, counts=local)
+    back = hsr.load_scene(out)
+    assert [i.name for i in back.instances] == [i.name for i in pruned.instances]
+    assert back.n_faces == pruned.n_faces
 
 
 @pytest.mark.parametrize("views, message", [
