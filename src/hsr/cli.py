@@ -222,6 +222,17 @@ def build_parser() -> argparse.ArgumentParser:
                     help="algorithms to compare (default: all)")
     _add_batch_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace, SHADING_MODES)
     _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace)
+    v = sub.add_parser("view", help="an interactive page in the browser: every algorithm and "
+                       "switch, live", description="Serve a local page that renders MODEL "
+                       "(or the built-in scenes) with hsr as you drag, with every control.")
+    v.add_argument("models", nargs="*", metavar="MODEL", help="mesh files to show (the "
+                   "built-in scenes are always there)")
+    v.add_argument("--scene", choices=list(SCENES), help="built-in scene shown first "
+                   "(default: the first MODEL, else cubes)")
+    v.add_argument("--host", default="127.0.0.1", help="address to listen on; anything but "
+                   "127.0.0.1 / localhost lets other machines in")
+    v.add_argument("--port", type=int, default=8765, help="port to listen on")
+    v.add_argument("--no-browser", action="store_true", help="do not open the browser")
     return parser
 
 
@@ -305,6 +316,30 @@ def _cmd_prune(args) -> int:
         print(f"verify: {report['changed']:,} of {report['covered']:,} covered pixels "
               f"changed ({report['percent']:.4f}%) over {report['views']} random outside "
               f"views at {args.size}x{args.size}")
+    return 0
+
+
+def _cmd_view(args) -> int:
+    import socket
+
+    from .viewer import serve
+
+    if not 1 <= args.port <= 65535:
+        raise CliError(f"--port must be in 1..65535, got {args.port}")
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"hsr: warning: listening on {args.host}: other machines can reach this "
+              f"viewer", file=sys.stderr)
+    try:  # a clear error now rather than a server that fails to start
+        with socket.create_server((args.host, args.port)):
+            pass
+    except OSError as exc:
+        raise CliError(f"cannot listen on {args.host}:{args.port} ({exc.strerror or exc})") \
+            from None
+    first = args.scene if args.scene else (None if args.models else "cubes")
+    try:
+        serve(args.models, args.host, args.port, not args.no_browser, first=first)
+    except KeyboardInterrupt:
+        pass
     return 0
 
 
@@ -898,6 +933,8 @@ def main(argv=None) -> int:
             return _cmd_batch(args)
         if args.command == "prune":
             return _cmd_prune(args)
+        if args.command == "view":
+            return _cmd_view(args)
         raise CliError(f"unknown command {args.command!r}")
     except HsrError as exc:
         if debug:

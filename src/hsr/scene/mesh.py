@@ -99,11 +99,15 @@ class Mesh:
         """
         return degenerate_faces(self.positions, self.faces)
 
-    def bounds(self) -> np.ndarray:
-        """(2, 3) array: min and max corner of the vertices that faces use."""
+    def used_positions(self) -> np.ndarray:
+        """(N, 3) positions of the vertices that faces use, in vertex order."""
         used = np.zeros(len(self.positions), dtype=bool)
         used[self.faces.ravel()] = True
-        pos = self.positions if used.all() else self.positions[used]
+        return self.positions if used.all() else self.positions[used]
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) array: min and max corner of the vertices that faces use."""
+        pos = self.used_positions()
         return np.stack([pos.min(axis=0), pos.max(axis=0)])
 
 
@@ -284,10 +288,17 @@ class Scene:
             parts.append(tri @ inst.model[:3, :3].T + inst.model[:3, 3])
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
+    def world_points(self) -> np.ndarray:
+        """(N, 3) world-space positions of the vertices that faces use, instance by
+        instance (each vertex once, where the face corners repeat it about six times)."""
+        parts = [inst.mesh.used_positions() @ inst.model[:3, :3].T + inst.model[:3, 3]
+                 for inst in self.instances]
+        return np.concatenate(parts) if parts else np.zeros((0, 3))
+
     def bounds(self) -> np.ndarray:
         """(2, 3) world-space bounding box of all instances."""
-        tri = self.world_triangles().reshape(-1, 3)
-        return np.stack([tri.min(axis=0), tri.max(axis=0)])
+        points = self.world_points()
+        return np.stack([points.min(axis=0), points.max(axis=0)])
 
 
 def instance_of(face_offsets: np.ndarray, face_id) -> np.ndarray:

@@ -59,13 +59,7 @@ def default(model, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
 def model_points(model) -> np.ndarray:
     """(N, 3) world-space positions of the vertices that faces use, of a Mesh or of every
     instance of a Scene."""
-    instances = getattr(model, "instances", None)
-    parts = []
-    for mesh, matrix in ([(i.mesh, i.model) for i in instances] if instances is not None
-                         else [(model, np.eye(4))]):
-        used = mesh.positions[np.unique(mesh.faces)]
-        parts.append(used @ matrix[:3, :3].T + matrix[:3, 3])
-    return np.concatenate(parts)
+    return model.world_points() if hasattr(model, "instances") else model.used_positions()
 
 
 def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0) -> list:
