@@ -5,8 +5,9 @@ namespace (a later block uses the ``mesh`` or ``scene`` of an earlier one, as in
 notebook). Only installing (``pip``), the test suite itself and the on-demand benchmarks
 are not run; anything else that is not an ``hsr`` command fails the test, so a new kind
 of example has to be added here on purpose. ``sh`` blocks are commands for a cluster
-(``dask scheduler`` on another machine); tests/test_batch.py runs ``hsr batch
---scheduler`` against a scheduler and a worker it starts."""
+(``dask scheduler`` on another machine) or that keep running (``hsr view``'s server, and
+``curl`` calls against it); tests/test_batch.py runs ``hsr batch --scheduler`` against a
+scheduler and a worker it starts, tests/test_viewer.py the viewer's API and page."""
 
 import os
 import re
