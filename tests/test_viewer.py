@@ -261,6 +261,11 @@ def test_options_and_explain(server):
     options = json.loads(body)
     assert options["scenes"] == library.names and "painter_error" in options["buffers"]
     assert {d["name"] for d in options["demos"]} >= {"depth test off", "painter's cycle"}
+    status, headers, body = get(base, "/api/render", scene="cubes", w=W, h=H,
+                                format="jpeg", quality=90)
+    assert status == 200 and headers["content-type"] == "image/jpeg"
+    lossy = np.asarray(Image.open(io.BytesIO(body)).convert("RGB")).astype(int)
+    assert np.abs(lossy - direct(library, scene="cubes", w=W, h=H).color).mean() < 4
     status, headers, body = get(base, "/api/explain", view="depth", scene="cubes", w=W, h=H)
     assert status == 200 and headers["content-type"] == "image/png"
     assert png(body).shape[1] > W
