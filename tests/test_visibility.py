@@ -208,6 +208,57 @@ def test_rings_reach_faces_sharing_an_edge():
     assert np.array_equal(np.flatnonzero(two), ring2)
 
 
+@pytest.mark.parametrize("depth_func", ["less", "lequal"])
+def test_skipping_hidden_objects_changes_no_count(depth_func):
+    """Objects a view cannot show are skipped (the ones earlier views saw are drawn
+    first; an unseen object whose box lies behind them wherever it could show is left
+    out): the counts equal the full draws', on the box of parts and on the touching,
+    coplanar slot parts (ties)."""
+    from hsr.visibility.count import count_view, count_view_culled
+
+    for scene in (box_with_parts(), slotted_block()):
+        full = face_visibility(scene, "sphere:24", 96, cull_objects=False,
+                               depth_func=depth_func)
+        culled = face_visibility(scene, "sphere:24", 96, depth_func=depth_func,
+                                 cull_objects="always")
+        assert np.array_equal(full, culled)
+    # The skipping happens: from outside, the three parts inside the housing.
+    scene = box_with_parts()
+    boxes = [i.mesh.bounds() for i in scene.instances]
+    options = {"algorithm": "zbuffer", "depth_func": depth_func}
+    seen = np.array([True, False, False, False])
+    for cam in hsr.views.sphere(scene.bounds(), 4):
+        a, b = np.zeros(scene.n_faces, np.int64), np.zeros(scene.n_faces, np.int64)
+        assert count_view_culled(scene, cam, 96, 96, None, options, a, seen, boxes,
+                                 always=True) == 3
+        count_view(scene, cam, 96, 96, None, options, b)
+        assert np.array_equal(a, b)
+
+
+@settings(max_examples=12, deadline=None)
+@given(st.integers(0, 100_000))
+def test_skipping_hidden_objects_on_random_assemblies(seed):
+    """Random assemblies: boxes and balls inside, across and outside a housing, some
+    touching, one an exact duplicate of another (ties): the same counts with and without
+    skipping hidden objects, for less and lequal."""
+    rng = np.random.default_rng(seed)
+    scene = hsr.Scene()
+    scene.add(_box((0, 0, 0), (3, 3, 3), 1), name="housing")
+    parts = []
+    for k in range(int(rng.integers(3, 9))):
+        centre = rng.uniform(-2.2, 2.2, 3).round(1)
+        size = rng.uniform(0.2, 1.2, 3).round(1)
+        mesh = _box(centre, size, name=f"b{k}") if rng.random() < 0.6 else _ball(
+            centre, float(size[0]), 1, f"s{k}")
+        parts.append(mesh)
+        scene.add(mesh, name=mesh.name)
+    scene.add(parts[0], name="duplicate")
+    for func in ("less", "lequal"):
+        full = face_visibility(scene, "sphere:6", 64, cull_objects=False, depth_func=func)
+        assert np.array_equal(full, face_visibility(scene, "sphere:6", 64, depth_func=func,
+                                                    cull_objects="always"))
+
+
 def test_keep_neighbors_keeps_faces_next_to_visible_ones():
     scene = box_with_parts()
     counts = face_visibility(scene, "sphere:32", 64)
@@ -259,6 +310,8 @@ def test_bad_arguments_are_refused():
         prune(scene, "sphere:4", 32, counts=np.zeros(scene.n_faces, np.int64))
     with pytest.raises(VisibilityError, match="size"):
         face_visibility(scene, "sphere:4", "big")
+    with pytest.raises(VisibilityError, match="cull_objects"):
+        face_visibility(scene, "sphere:4", 32, cull_objects="sometimes")
     see_through = hsr.Scene([hsr.Instance(_box((0, 0, 0), (1, 1, 1)), opacity=0.5)])
     with pytest.raises(VisibilityError, match="opacity"):
         face_visibility(see_through, "sphere:4", 32)
