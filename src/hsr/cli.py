@@ -286,19 +286,21 @@ def _cmd_prune(args) -> int:
 
     from .scene.load import load_scene
     from .scene.write import write_mesh
+    from .visibility.count import cameras_for
     from .visibility.prune import prune, verify
 
     start = time.perf_counter()
     scene = load_scene(args.model)
+    # The cameras once, before any connection: a bad --views fails at once.
+    cameras = cameras_for(scene, args.views or ["sphere:256"], 1.0, args.near, args.far)
     client = _client(args.scheduler, "prune") if args.scheduler else None
     options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
                    depth_func=args.depth_func)
     try:
-        pruned, kept = prune(scene, args.views or ["sphere:256"], args.size, level=args.level,
+        pruned, kept = prune(scene, cameras, args.size, level=args.level,
                              keep_neighbors=args.keep_neighbors, min_pixels=args.min_pixels,
-                             client=client, threads=args.threads, near=args.near,
-                             far=args.far, progress=not args.quiet and sys.stderr.isatty(),
-                             **options)
+                             client=client, threads=args.threads,
+                             progress=not args.quiet and sys.stderr.isatty(), **options)
     finally:
         if client is not None:
             client.close()
@@ -306,9 +308,8 @@ def _cmd_prune(args) -> int:
     seconds = time.perf_counter() - start
     if not args.quiet:
         before, after = scene.n_faces, pruned.n_faces
-        views = _count_views(scene, args)
         print(f"faces {before:,} -> {after:,} ({100.0 * (before - after) / before:.2f}% "
-              f"removed); objects {len(scene):,} -> {len(pruned):,}; {views:,} views at "
+              f"removed); objects {len(scene):,} -> {len(pruned):,}; {len(cameras):,} views at "
               f"{args.size}x{args.size}; {seconds:.1f} s; wrote {', '.join(written)}")
     if args.verify:
         report = verify(scene, pruned, kept, args.verify, args.size, seed=args.seed,
@@ -341,12 +342,6 @@ def _cmd_view(args) -> int:
     except KeyboardInterrupt:
         pass
     return 0
-
-
-def _count_views(scene, args) -> int:
-    from .visibility.count import cameras_for
-
-    return len(cameras_for(scene, args.views or ["sphere:256"], 1.0, args.near, args.far))
 
 
 def _client(address: str, command: str):
