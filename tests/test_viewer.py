@@ -75,14 +75,49 @@ def png(body):
 
 
 def direct(library, **params):
-    """What hsr.render draws for these view parameters, called directly."""
+    """What hsr.render draws for these view parameters, called directly: the render
+    options are spelled out here from the controls' meaning, not taken from the viewer."""
     q = {k: str(v) for k, v in params.items()}
     view = parse(q, library.names)
     scene = library.get(view.scene)
-    camera = orbit_camera(scene.bounds(), view)
-    from hsr.viewer.frames import _options
+    lo, hi = scene.bounds()
+    camera = orbit_camera((lo, hi), view)
+    # Fog over the model's depth from the eye (linear), or a density per model radius.
+    radius = np.linalg.norm(hi - lo) / 2
+    to_centre = np.linalg.norm(np.asarray(camera.eye) - (lo + hi) / 2)
+    fog = (None if view.fog == "none" else
+           hsr.Fog("linear", start=max(to_centre - radius, 0.0), end=to_centre + radius)
+           if view.fog == "linear" else hsr.Fog(view.fog, density=view.fog_density / radius))
+    return hsr.render(
+        scene, camera, view.w, view.h, algorithm=view.algorithm, shading=view.shading,
+        light=view.light, fog=fog, hidden_line=True if view.hidden_lines else None,
+        occlusion_cull=view.occlusion_cull, transparency=view.transparency,
+        depth_test=view.depth_test, depth_mask=view.depth_write, depth_func=view.depth_func,
+        clear_depth=view.clear_depth, depth_range=(view.depth_near, view.depth_far),
+        cull=view.cull, front_face=view.front_face, polygon_mode=view.polygon_mode,
+        polygon_offset=(view.offset_factor, view.offset_units))
 
-    return hsr.render(scene, camera, view.w, view.h, **_options(scene.bounds(), camera, view))
+
+def test_the_orbit_camera_follows_its_controls(server):
+    """az/el put the eye on hsr.views.direction from the target, dist scales the
+    distance, tx/ty move the target along the image's right and up axes."""
+    base, library = server
+    bounds = library.get("spot.obj").bounds()
+    centre, radius = bounds.mean(axis=0), np.linalg.norm(bounds[1] - bounds[0]) / 2
+    one = orbit_camera(bounds, parse({"az": "60", "el": "20"}, library.names))
+    eye, target = np.asarray(one.eye), np.asarray(one.target)
+    assert np.allclose(target, centre)
+    toward = (eye - target) / np.linalg.norm(eye - target)
+    assert np.allclose(toward, hsr.views.direction(60, 20))
+    two = orbit_camera(bounds, parse({"az": "60", "el": "20", "dist": "2"}, library.names))
+    assert np.isclose(np.linalg.norm(np.asarray(two.eye) - centre),
+                      2 * np.linalg.norm(eye - centre))
+    pan = orbit_camera(bounds, parse({"az": "0", "el": "0", "tx": "0.5", "ty": "-0.25"},
+                                     library.names))
+    assert np.allclose(np.asarray(pan.target) - centre, radius * np.array([0.5, -0.25, 0]))
+    # The whole bounding sphere is inside the view, between near and far.
+    d = np.linalg.norm(eye - centre)
+    assert one.near <= d - radius and one.far >= d + radius
 
 
 # Every value of every control that changes the image (the others: numbers below).
