@@ -14,7 +14,16 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-__all__ = ["Workers", "split_range"]
+__all__ = ["Workers", "split_range", "progress_bar"]
+
+
+def progress_bar(enabled: bool, total: int, desc: str, unit: str = "view"):
+    """A tqdm bar over ``total`` items, drawn only when ``enabled`` (on a terminal, not
+    when piped), cleared when done."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit=unit, desc=desc, disable=not enabled, leave=False,
+                dynamic_ncols=True)
 
 
 def split_range(n: int, parts: int) -> np.ndarray:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["ObjectBounds", "object_bounds", "BLOCK"]
+__all__ = ["ObjectBounds", "object_bounds", "box_corners", "BLOCK"]
 
 BLOCK = 16  # pixels per hierarchical-z block side
 
@@ -34,6 +34,12 @@ class ObjectBounds:
     corners_clip: np.ndarray
 
 
+def box_corners(lo, hi) -> np.ndarray:
+    """(8, 4) homogeneous corners of the axis-aligned box [lo, hi]."""
+    return np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                     for z in (lo[2], hi[2])])
+
+
 def object_bounds(scene, view_proj) -> ObjectBounds:
     corners = []
     bounds = {}  # instances often share a mesh
@@ -42,9 +48,7 @@ def object_bounds(scene, view_proj) -> ObjectBounds:
         if key not in bounds:
             bounds[key] = inst.mesh.bounds()
         lo, hi = bounds[key]
-        box = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                        for z in (lo[2], hi[2])])
-        corners.append(box @ (view_proj @ inst.model).T)
+        corners.append(box_corners(lo, hi) @ (view_proj @ inst.model).T)
     return ObjectBounds(scene.face_offsets(), np.array(corners))
 
 

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import OutputError
+from ..parallel import progress_bar
 from .plan import (FORMATS, BatchError, check_outputs, check_size, group_views, model_stems,
                    output_path, parse_views, probe_options)
 
@@ -169,7 +170,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
     n_workers = max(1, sum(w.get("nthreads", 1) for w in
                            client.scheduler_info().get("workers", {}).values()))
     job_views = sum(spec.count_for(m) for m in models)
-    bar = _progress_bar(progress, job_views)
+    bar = progress_bar(progress, job_views, "hsr batch")
     rows, tasks, busy = [], {}, 0.0  # tasks: task -> (model, the views it renders)
     for model in models:
         count = spec.count_for(model)
@@ -307,13 +308,6 @@ def _prepare_zarr(out, stem, count, size, outputs, resume) -> list:
     group.create_array("done", shape=(n,), chunks=(1,), dtype="uint8", fill_value=0)
     group.attrs["size"] = [width, height]
     return list(range(n))
-
-
-def _progress_bar(enabled: bool, total: int):
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="view", desc="hsr batch", disable=not enabled,
-                leave=False, dynamic_ncols=True)
 
 
 def _write_manifest(result, spec, size, outputs, fmt, options) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import HsrError
+from ..parallel import progress_bar
 from ..scene.camera import Camera
 from ..scene.mesh import Scene, as_scene
 
@@ -62,7 +63,7 @@ def cameras_for(scene: Scene, views, aspect: float, near: float = 0.1,
     items = list(views) if isinstance(views, (list, tuple)) else [views]
     if not items:
         raise VisibilityError("no views given")
-    cameras = []
+    cameras, bounds = [], None
     for item in items:
         if isinstance(item, Camera):
             item.validate()
@@ -80,7 +81,7 @@ def cameras_for(scene: Scene, views, aspect: float, near: float = 0.1,
         if spec.kind == "cameras":
             cameras += list(spec.cameras)
         else:
-            bounds = scene.bounds()
+            bounds = scene.bounds() if bounds is None else bounds
             dirs = view_sets.directions(spec.kind, spec.count, spec.elevation)
             cameras += [view_sets.framed(bounds, d, aspect) for d in dirs]
     return cameras
@@ -124,12 +125,11 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
         return _on_dask(client, scene, cameras, width, height, options, progress)
     total = np.zeros(scene.n_faces, dtype=np.int64)
     cull = bool(cull_objects) and len(scene) > 1 and can_cull_objects(options)
-    offsets = scene.face_offsets()
     boxes = [inst.mesh.bounds() for inst in scene.instances] if cull else None
-    with _bar(progress, len(cameras)) as bar:
+    with progress_bar(progress, len(cameras), "visibility") as bar:
         for camera in cameras:
             if cull:
-                seen = np.add.reduceat(total, offsets[:-1]) > 0
+                seen = per_object(scene, total) > 0
                 count_view_culled(scene, camera, width, height, threads, options, total,
                                   seen, boxes, always=cull_objects == "always")
             else:
@@ -249,7 +249,7 @@ def hidden_instances(scene, candidates, camera, width, height, depth, depth_rang
     """The instances among ``candidates`` that cannot show a pixel over ``depth`` (a
     depth buffer of this view, less / lequal test): see :func:`box_hidden`. ``boxes``:
     each instance's model-space bounds."""
-    from ..algorithms.hiz import screen_box
+    from ..algorithms.hiz import box_corners, screen_box
 
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     low, high = depth_range
@@ -262,9 +262,7 @@ def hidden_instances(scene, candidates, camera, width, height, depth, depth_rang
         inst = scene.instances[k]
         lo, hi = boxes[k]
         model_to_clip = view_proj @ inst.model
-        corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                            for z in (lo[2], hi[2])])
-        world = corners @ inst.model.T
+        world = box_corners(lo, hi) @ inst.model.T
         if pixel is None:  # orthographic or from intrinsics: a generous fixed growth
             grow_world = 1e-3 * float(np.linalg.norm(world[:, :3].max(0) - world[:, :3].min(0)))
         else:
@@ -274,10 +272,8 @@ def hidden_instances(scene, candidates, camera, width, height, depth, depth_rang
         smallest = float(np.linalg.svd(inst.model[:3, :3], compute_uv=False).min())
         grow = grow_world / max(smallest, 1e-300) + 1e-9 * float(np.abs(hi - lo).max())
         lo_g, hi_g = lo - grow, hi + grow
-        grown = np.array([[x, y, z, 1.0] for x in (lo_g[0], hi_g[0])
-                          for y in (lo_g[1], hi_g[1]) for z in (lo_g[2], hi_g[2])])
-        x0, x1, r0, r1, _, ok = screen_box(grown @ model_to_clip.T, width, height, scale,
-                                           offset)
+        x0, x1, r0, r1, _, ok = screen_box(box_corners(lo_g, hi_g) @ model_to_clip.T, width,
+                                           height, scale, offset)
         if not ok:
             continue  # reaches the near plane: treated as visible
         if x0 > x1 or r0 > r1 or box_hidden(depth, x0, x1, r0, r1,
@@ -367,7 +363,7 @@ def _on_dask(client, scene, cameras, width, height, options, progress) -> np.nda
                              options, pure=False): len(cameras[k:k + per_task])
                for k in range(0, len(cameras), per_task)}
     total = np.zeros(scene.n_faces, dtype=np.int64)
-    with _bar(progress, len(cameras)) as bar:
+    with progress_bar(progress, len(cameras), "visibility") as bar:
         for future in as_completed(list(futures)):
             total += future.result()
             bar.update(futures.pop(future))
@@ -382,10 +378,4 @@ def _check_opaque(scene: Scene) -> None:
                 f"instance {inst.name!r} has opacity {inst.opacity}: visibility counts the "
                 f"opaque surface at each pixel; make every instance opaque first")
 
-
-def _bar(enabled: bool, total: int):
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="view", desc="visibility", disable=not enabled,
-                leave=False, dynamic_ncols=True)
 
