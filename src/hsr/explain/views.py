@@ -151,7 +151,7 @@ def legend(vmax: int, width: int, label: str) -> np.ndarray:
     return np.asarray(sheet)
 
 
-def _gray(values, covered, lo=None, hi=None, near_bright=True):
+def gray(values, covered, lo=None, hi=None, near_bright=True):
     """Values on covered pixels mapped to 255..40 (near = bright), background black."""
     out = np.zeros(values.shape + (3,), dtype=np.uint8)
     if not covered.any():
@@ -206,8 +206,8 @@ def depth_view(scene, camera, width, height, state):
     image = row([
         panel(frame.color, "the image"),
         panel(raw, "window depth as stored\n(255 * (1 - z_w))", 2),
-        panel(_gray(depth, covered), "window depth, stretched\nover the visible range", 2),
-        panel(_gray(eye, covered), "linear eye depth, stretched\n(near bright, far dark)", 2)])
+        panel(gray(depth, covered), "window depth, stretched\nover the visible range", 2),
+        panel(gray(eye, covered), "linear eye depth, stretched\n(near bright, far dark)", 2)])
     text = ("The depth buffer holds window depth, which is 1/z-like: most of its range is "
             "spent near the camera, so on a perspective view the stored values crowd "
             "towards 1 and look flat; the linear eye depth shows the distances evenly.")

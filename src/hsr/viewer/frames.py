@@ -133,18 +133,6 @@ def render_request(scene, request: ViewRequest, bounds=None) -> tuple:
     return frame, image, stats
 
 
-def _stretch(values, covered, near_bright=True) -> np.ndarray:
-    out = np.zeros(values.shape + (3,), np.uint8)
-    if covered.any():
-        v = values[covered].astype(np.float64)
-        lo, hi = float(v.min()), float(v.max())
-        t = (v - lo) / (hi - lo) if hi > lo else np.zeros_like(v)
-        if near_bright:
-            t = 1.0 - t
-        out[covered] = np.round(40 + 215 * t)[:, None].astype(np.uint8)
-    return out
-
-
 def id_colors(ids: np.ndarray) -> np.ndarray:
     """A distinct colour per id (a multiplicative hash), black for -1."""
     x = (ids.astype(np.int64) + 1) * 2654435761 % (1 << 32)
@@ -155,13 +143,15 @@ def id_colors(ids: np.ndarray) -> np.ndarray:
 
 
 def _buffer_image(frame, buffer: str) -> np.ndarray:
+    from ..explain.views import gray
+
     covered = frame.face_id >= 0
     if buffer == "color":
         return frame.color
     if buffer == "window_depth":
-        return _stretch(frame.depth, covered)
+        return gray(frame.depth, covered)
     if buffer == "eye_depth":
-        return _stretch(frame.eye_depth, covered)
+        return gray(frame.eye_depth, covered)
     if buffer == "face_ids":
         return id_colors(frame.face_id)
     normals = frame.normals
