@@ -102,12 +102,12 @@ class ViewRequest:
                 "polygon_offset": (self.offset_factor, self.offset_units)}
 
 
-def parse(query, scenes, allowed=None, views=()) -> ViewRequest:
+def parse(query, scenes, extra=(), views=()) -> ViewRequest:
     """A :class:`ViewRequest` from a query mapping (strings), for the scene names
-    ``scenes`` (the first is the default). ``allowed``: the parameter names this
-    endpoint takes (default all but pick's and explain's). ``views``: explanation views.
-    Raises :class:`ViewerError` for an unknown parameter or a bad value."""
-    allowed = set(allowed or (set(CONTROLS) - {"x", "y", "view"}))
+    ``scenes`` (the first is the default). Every endpoint takes the view's controls;
+    ``extra`` adds pick's (``x``, ``y``) or explain's (``view``). ``views``: explanation
+    views. Raises :class:`ViewerError` for an unknown parameter or a bad value."""
+    allowed = (set(CONTROLS) - {"x", "y", "view"}) | set(extra)
     unknown = sorted(set(query) - allowed)
     if unknown:
         raise ViewerError(f"unknown parameter {unknown[0]!r} (this endpoint takes: "

@@ -90,8 +90,7 @@ def make_app(library: Library):
         query = dict(request.query_params)
         if len(request.query_params.multi_items()) != len(query):
             raise ViewerError("a parameter is given twice")
-        allowed = (set(CONTROLS) - {"x", "y", "view"}) | set(extra)
-        return parse(query, library.names, allowed, views)
+        return parse(query, library.names, extra, views)
 
     def do_render(request):
         view = _request(request)
@@ -135,6 +134,8 @@ def make_app(library: Library):
                               "values" if kind in ("choice", "scene") else "range":
                               list(allowed) if allowed is not None else None}
         demos = [d for d in DEMOS if d["set"].get("scene", library.names[0]) in library.names]
+        # A scene's opening view needs the scene built; the million-triangle terrain is
+        # built when first shown instead (it then opens with the default view).
         initial = await run_in_threadpool(
             lambda: {name: library.initial(name) for name in library.names
                      if name != "terrain" or name == library.names[0]})
