@@ -136,7 +136,6 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     depth, face, clear, count_tested, count_written = fill_targets(
         width, height, state, depth_buffer, counts)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
-    gx, gy = geometry.guard_band
     keep_ccw, keep_cw = geometry.keep_by_facing()
     factor, units = (float(v) for v in state.polygon_offset)
     status = np.empty(n_faces, dtype=np.int8)
@@ -150,7 +149,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         # One per-row work array per part: the parts run at once.
         delta = np.zeros((len(bounds) - 1, height + 1))
         widest = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
-                             geometry.pos_clip, geometry.faces, gx, gy, width, height,
+                             geometry.pos_clip, geometry.codes, geometry.faces, width, height,
                              geometry.depth_scale, geometry.depth_offset, keep_ccw, keep_cw,
                              factor, units, status, *chunk, each=delta)
         work = estimate_row_work(delta, widest)

@@ -40,6 +40,7 @@ class Geometry:
 
     pos_model : (V, 3) model-space vertices (degeneracy is judged there).
     pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into both.
+    codes : (V,) uint8 outcodes of the clip-space vertices (:func:`vertex_codes`).
     planes : the clipping planes (:func:`hsr.geometry.clip.clip_planes`).
     depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
     stats : the dict that receives the triangle counts once faces are classified.
@@ -47,6 +48,7 @@ class Geometry:
 
     pos_model: np.ndarray
     pos_clip: np.ndarray
+    codes: np.ndarray
     faces: np.ndarray
     width: int
     height: int
@@ -127,23 +129,35 @@ def _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset):
             z * inv_w * depth_scale + depth_offset)
 
 
-def classify_faces(workers, pos_model, pos_clip, faces, planes, width, height, depth_scale,
-                   depth_offset):
+def classify_faces(workers, geometry: Geometry):
     """Per face: status (SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP) and, for SIMPLE faces,
-    window coordinates, depth and twice the signed window area (y up). ``planes`` are
-    :func:`hsr.geometry.clip.clip_planes`' (near, far, guard band); the kernel tests them directly."""
-    gx, gy = float(planes[2, 3]), float(planes[4, 3])
-    n = faces.shape[0]
+    window coordinates, depth and twice the signed window area (y up)."""
+    n = geometry.faces.shape[0]
     status = np.empty(n, dtype=np.int8)
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
     area = np.zeros(n)
-    workers.run_range(_classify_range, n, pos_model, pos_clip, faces, gx, gy, width, height,
-                      depth_scale, depth_offset, status, xy, depth, area)
+    workers.run_range(_classify_range, n, geometry.pos_model, geometry.pos_clip,
+                      geometry.codes, geometry.faces, geometry.width, geometry.height,
+                      geometry.depth_scale, geometry.depth_offset, status, xy, depth, area)
     return status, xy, depth, area
 
 
+def vertex_codes(workers, pos_clip, gx, gy) -> np.ndarray:
+    """(V,) uint8 outcodes of the clip-space vertices (see :func:`_codes`), computed once
+    per vertex: a vertex is shared by about six faces, which then only combine bits."""
+    codes = np.empty(len(pos_clip), dtype=np.uint8)
+    workers.run_range(_codes_range, len(pos_clip), pos_clip, gx, gy, codes, min_chunk=65536)
+    return codes
+
+
 @njit(cache=True, nogil=True)
+def _codes_range(lo, hi, pos_clip, gx, gy, codes):
+    for v in range(lo, hi):
+        codes[v] = _codes(pos_clip, v, gx, gy)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _codes(pos_clip, v, gx, gy):
     """Outcode of vertex ``v`` against the six frustum planes |x|, |y|, |z| <= w (bits
     0-5) and whether it lies outside a clipping plane: near z >= -w, far z <= w, or the
@@ -170,12 +184,12 @@ def _codes(pos_clip, v, gx, gy):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _classify_one(pos_model, pos_clip, a, b, c, gx, gy):
-    """Status of the face with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE."""
+def _classify_one(pos_model, codes, a, b, c):
+    """Status of the face with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE
+    (``codes``: the vertices' outcodes)."""
     if is_degenerate(pos_model, a, b, c):
         return DEGENERATE
-    code_a, code_b, code_c = _codes(pos_clip, a, gx, gy), _codes(pos_clip, b, gx, gy), \
-        _codes(pos_clip, c, gx, gy)
+    code_a, code_b, code_c = codes[a], codes[b], codes[c]
     # Trivial reject: all corners outside one frustum plane.
     if code_a & code_b & code_c & 63:
         return OUTSIDE
@@ -185,12 +199,11 @@ def _classify_one(pos_model, pos_clip, a, b, c, gx, gy):
 
 
 @njit(cache=True, nogil=True)
-def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, depth_scale,
+def _classify_range(lo, hi, pos_model, pos_clip, codes, faces, width, height, depth_scale,
                     depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     for f in range(lo, hi):
-        status[f] = _classify_one(pos_model, pos_clip, faces[f, 0], faces[f, 1], faces[f, 2],
-                                  gx, gy)
+        status[f] = _classify_one(pos_model, codes, faces[f, 0], faces[f, 1], faces[f, 2])
         if status[f] != SIMPLE:
             continue
         for k in range(3):
@@ -203,7 +216,7 @@ def _classify_range(lo, hi, pos_model, pos_clip, faces, gx, gy, width, height, d
 
 
 @njit(cache=True, nogil=True)
-def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width, height,
+def classify_setup_range(lo, hi, base, pos_model, pos_clip, codes, faces, width, height,
                          depth_scale, depth_offset, keep_ccw, keep_cw, offset_factor,
                          offset_units, status, vert_fixed, edge_bias, bbox, zplane, delta):
     """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
@@ -220,7 +233,7 @@ def classify_setup_range(lo, hi, base, pos_model, pos_clip, faces, gx, gy, width
         r = f - base
         bbox[r, 0], bbox[r, 1], bbox[r, 2], bbox[r, 3] = 0, -1, 0, -1
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        status[f] = _classify_one(pos_model, pos_clip, a, b, c, gx, gy)
+        status[f] = _classify_one(pos_model, codes, a, b, c)
         if status[f] != SIMPLE:
             continue
         x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2], pos_clip[a, 3],
@@ -318,9 +331,10 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     workers = workers or Workers()
     pos_model, pos_clip, faces = scene_clip_vertices(scene, view_proj, workers)
     near, far = state.depth_range
-    geometry = Geometry(pos_model, pos_clip, faces, width, height, state,
-                        clip_planes(width, height, GUARD_BAND_PIXELS), 0.5 * (far - near),
-                        0.5 * (far + near), stats, workers.threads)
+    planes = clip_planes(width, height, GUARD_BAND_PIXELS)
+    codes = vertex_codes(workers, pos_clip, float(planes[2, 3]), float(planes[4, 3]))
+    geometry = Geometry(pos_model, pos_clip, codes, faces, width, height, state, planes,
+                        0.5 * (far - near), 0.5 * (far + near), stats, workers.threads)
     if deferred:
         return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,
                                geometry)
@@ -349,9 +363,7 @@ def screen_arrays(geometry: Geometry, workers):
     """Classify, clip, cull and project ``geometry``'s faces: (xy_window, depth_window,
     face_id, front) in submission order; the counts go to ``geometry.stats``."""
     state, faces, stats = geometry.state, geometry.faces, geometry.stats
-    status, xy, depth, area = classify_faces(
-        workers, geometry.pos_model, geometry.pos_clip, faces, geometry.planes,
-        geometry.width, geometry.height, geometry.depth_scale, geometry.depth_offset)
+    status, xy, depth, area = classify_faces(workers, geometry)
     counts = np.bincount(status, minlength=4)
     simple = status == SIMPLE
     front, keep = _keep_mask(area > 0, state)
