@@ -243,3 +243,51 @@ def test_perspective_correct_barycentrics(view):
     assert np.abs(bary[same] - ref_bary[same]).max() < 1e-6
     if view == "inside":
         assert frame.stats["clipped"] > 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_long_thin_slivers(seed):
+    """Needles across the whole image: their boxes are wide and mostly empty, so the fill
+    takes each row's span from the edge functions instead of testing every pixel."""
+    rng = np.random.default_rng(seed)
+    n = 30
+    start = rng.uniform([-3, -2, -9], [-2, 2, -4], size=(n, 3))
+    end = rng.uniform([2, -2, -9], [3, 2, -4], size=(n, 3))
+    side = start + rng.normal(scale=0.05, size=(n, 3))
+    verts = np.stack([start, end, side], axis=1).reshape(-1, 3)
+    mesh = hsr.Mesh(verts, np.arange(3 * n).reshape(-1, 3))
+    cam = hsr.Camera.look_at((0, 0, 1), (0, 0, -6), fov_y=60, near=0.5, far=20)
+    frame, _ = check(mesh, cam, max_ambiguous=0.06)
+    assert (frame.face_id >= 0).mean() > 0.02  # the needles do cover pixels
+
+
+def test_row_span_is_the_per_pixel_edge_test():
+    """``row_span`` (a division per edge) against the rule it replaces: pixel k is inside
+    when e + k * step >= 0 for all three edges; exact crossings included, and values past
+    2**53 where the float64 estimate of the crossing is off and must be corrected."""
+    from hypothesis import example, given, settings
+    from hypothesis import strategies as st
+
+    from hsr.raster.fill import row_span
+
+    step = st.one_of(st.sampled_from([0, 1, -1, 256, -256]),
+                     st.integers(-(1 << 36), 1 << 36), st.integers(-(1 << 55), 1 << 55))
+    # An edge value near an exact crossing at pixel k0, or anywhere.
+    edge = st.one_of(st.tuples(step, st.integers(-3, 40), st.integers(-2, 2)).map(
+        lambda t: (-t[0] * t[1] + t[2], t[0])),
+        st.tuples(st.integers(-(1 << 50), 1 << 50), step))
+
+    row_span(0, 1, 0, 1, 0, 1, 1)  # compiled before the timed examples
+
+    # Exact crossings (at pixels 25 and 15) whose float64 estimate lands past them.
+    @example([(-878844378623478725, 35153775144939149), (0, 0), (0, 0)], 40)
+    @example([(251932595178902565, -16795506345260171), (0, 0), (0, 0)], 40)
+    @settings(max_examples=300, deadline=None)
+    @given(st.lists(edge, min_size=3, max_size=3), st.integers(1, 40))
+    def check_span(edges, n):
+        first, last = row_span(edges[0][0], edges[0][1], edges[1][0], edges[1][1],
+                               edges[2][0], edges[2][1], n)
+        inside = [k for k in range(n) if all(e + k * s >= 0 for e, s in edges)]
+        assert list(range(first, last + 1)) == inside
+
+    check_span()

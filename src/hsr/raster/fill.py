@@ -15,6 +15,8 @@ meshes of small triangles: the binning and per-tile set-up cost more than they s
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -92,6 +94,53 @@ def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, wi
     return tuple(sum(c[k] for c in counts) for k in range(3))
 
 
+# Boxes at least this many pixels wide are filled by row spans (:func:`row_span`).
+SPAN_MIN_WIDTH = 8
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _edge_span(e, step, n):
+    """(first, last) of the pixels k in [0, n) with ``e + k * step >= 0`` (exact int64
+    edge function ``e`` at k = 0 and its step per pixel); first > last when none. The
+    quotient is estimated in float64 and corrected exactly in integers."""
+    if step == 0:
+        return (0, n - 1) if e >= 0 else (0, -1)
+    q = -e / step  # e + q * step = 0
+    if step > 0:  # inside from the crossing on
+        if e >= 0:
+            return 0, n - 1
+        if q >= n + 1.0:
+            return 0, -1
+        k = np.int64(math.ceil(q))
+        while e + k * step < 0:
+            k += 1
+        while k > 0 and e + (k - 1) * step >= 0:
+            k -= 1
+        return k, n - 1
+    if e < 0:  # inside up to the crossing
+        return 0, -1
+    if q >= n + 1.0:
+        return 0, n - 1
+    k = np.int64(math.floor(q))
+    while e + k * step < 0:
+        k -= 1
+    while e + (k + 1) * step >= 0:
+        k += 1
+    return 0, min(k, n - 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def row_span(e0, s0, e1, s1, e2, s2, n):
+    """(first, last) of the pixels k in [0, n) of a row where all three edge functions
+    (values e at k = 0, steps s per pixel) are >= 0: exactly the pixels the per-pixel test
+    ``(e0 | e1 | e2) >= 0`` accepts, found with a division per edge instead of a test per
+    pixel (a row of a triangle is one interval: the edges are linear)."""
+    f0, l0 = _edge_span(e0, s0, n)
+    f1, l1 = _edge_span(e1, s1, n)
+    f2, l2 = _edge_span(e2, s2, n)
+    return max(f0, f1, f2), min(l0, l1, l2)
+
+
 _NO_CLIP = np.zeros(0, dtype=np.int64)
 _NO_PIECES = np.zeros(1, dtype=np.int64)
 
@@ -166,12 +215,17 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
             step_x2, step_y2 = -(Y0 - Y2) * ONE, (X0 - X2) * ONE
             zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
             dzdx, dzdy = zplane[t, 3], zplane[t, 4]
+            # Wide boxes (long thin triangles) scan only each row's span inside all three
+            # edges; narrow ones test every pixel of the box, which is cheaper than the
+            # divisions that find a span.
+            wide = x1 - x0 >= SPAN_MIN_WIDTH
             for j in range(y0, y1 + 1):
-                e0, e1, e2 = e0_row, e1_row, e2_row
                 row = height - 1 - j
                 z_row = zz0 + dzdy * (j + 0.5 - zy0)
-                for i in range(x0, x1 + 1):
-                    if (e0 | e1 | e2) >= 0:
+                if wide:
+                    first, last = row_span(e0_row, step_x0, e1_row, step_x1, e2_row, step_x2,
+                                           x1 - x0 + 1)
+                    for i in range(x0 + first, x0 + last + 1):
                         z = z_row + dzdx * (i + 0.5 - zx0)
                         z = min(max(z, z_lo), z_hi)
                         zf = np.float32(z)
@@ -195,9 +249,36 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
                             n_written += 1
                             if want_counts:
                                 count_written[row, i] += 1
-                    e0 += step_x0
-                    e1 += step_x1
-                    e2 += step_x2
+                else:
+                    e0, e1, e2 = e0_row, e1_row, e2_row
+                    for i in range(x0, x1 + 1):
+                        if (e0 | e1 | e2) >= 0:
+                            z = z_row + dzdx * (i + 0.5 - zx0)
+                            z = min(max(z, z_lo), z_hi)
+                            zf = np.float32(z)
+                            n_tested += 1
+                            if want_counts:
+                                count_tested[row, i] += 1
+                            if depth_func == FIRST_WINS:
+                                passed = face_buf[row, i] < 0
+                            elif tie_by_face:
+                                stored = depth_buf[row, i]
+                                passed = zf < stored or (zf == stored and (
+                                    face < face_buf[row, i] if depth_func == 1 else
+                                    face > face_buf[row, i]))
+                            else:
+                                passed = (not depth_test) or depth_passes(
+                                    depth_func, zf, depth_buf[row, i])
+                            if passed:
+                                face_buf[row, i] = face
+                                if write_depth:
+                                    depth_buf[row, i] = zf
+                                n_written += 1
+                                if want_counts:
+                                    count_written[row, i] += 1
+                        e0 += step_x0
+                        e1 += step_x1
+                        e2 += step_x2
                 e0_row += step_y0
                 e1_row += step_y1
                 e2_row += step_y2
