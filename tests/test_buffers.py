@@ -76,3 +76,24 @@ def test_frame_repr_is_short_and_notebooks_get_a_png():
     assert repr(frame).startswith("Frame(64x48, zbuffer, 48 triangles, ") and len(repr(frame)) < 100
     assert repr(scene) == "<hsr.Scene: 4 instances of 1 mesh, 48 faces>"
     assert frame._repr_png_()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_color_false_keeps_every_buffer_and_paints_the_background():
+    """``color=False`` skips shading only: the ids and depth (checked against OpenGL and
+    the ray reference elsewhere) are those of the shaded render, bit for bit."""
+    scene, cam = hsr.scenes.get("cubes")
+    shaded = hsr.render(scene, cam, 160, 120, shading="gouraud")
+    plain = hsr.render(scene, cam, 160, 120, color=False, background=(1, 2, 3))
+    assert np.array_equal(plain.face_id, shaded.face_id)
+    assert np.array_equal(plain.depth, shaded.depth)
+    assert np.array_equal(plain.eye_depth, shaded.eye_depth)
+    assert (plain.color == np.array([1, 2, 3], np.uint8)).all()
+    assert plain.stats["pixels_covered"] == int((shaded.face_id >= 0).sum())
+
+
+@pytest.mark.parametrize("extra", [{"hidden_line": True}, {"color": "no"}])
+def test_color_false_refuses_what_needs_colour(extra):
+    scene, cam = hsr.scenes.get("cubes")
+    kwargs = {"color": False, **extra}
+    with pytest.raises(hsr.RenderError, match="color"):
+        hsr.render(scene, cam, 32, 24, **kwargs)

@@ -16,7 +16,8 @@ from .algorithms.fragments import Fragments
 from .algorithms.hiz import object_bounds
 from .appearance import buffers
 from .appearance.fog import Fog
-from .appearance.shading import Look, ShadeContext, as_look, check_background, shade_visible
+from .appearance.shading import (Look, ShadeContext, as_look, check_background, paint_faces,
+                                 shade_visible)
 from .appearance.transparency import check_order, transparent_mask, transparent_pass
 from .errors import RenderError
 from .geometry.stage import prepare
@@ -31,6 +32,8 @@ from .scene.mesh import as_scene, instance_of
 from .scene.views import default as default_view
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
+
+NO_COLORS = np.zeros((0, 3), dtype=np.uint8)  # paint_faces: the background only
 
 @dataclass
 class View:
@@ -188,7 +191,7 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
            texture_filter: str = "bilinear", texture_wrap: str = "repeat",
            light: str | None = None,
            hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
-           **state_fields) -> Frame:
+           color: bool = True, **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame. Without a camera: the first look of
     ``hsr render MODEL`` (:func:`hsr.views.default`: a three-quarter view framed tight,
@@ -215,6 +218,9 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
     :class:`hsr.HiddenLine`) draws only the visible edges over the filled depth buffer.
     Instances with ``opacity < 1`` are blended after the opaque ones, sorted back to front
     per object (``transparency="object"``) or per fragment (``"exact"``).
+    ``color=False`` skips the appearance stage when only the buffers are wanted (face ids,
+    depth, the derived eye depth and normals; e.g. visibility counts over many views):
+    ``Frame.color`` is the background everywhere.
 
     Raises :class:`~hsr.errors.MeshError` for a scene that is not a valid mesh or scene,
     :class:`~hsr.errors.CameraError` for an invalid camera and
@@ -249,7 +255,7 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
     check_order(transparency)
     hidden_line = as_hidden_line(hidden_line)
     for name, value in (("counts", counts), ("occlusion_cull", occlusion_cull),
-                        ("textures", textures)):
+                        ("textures", textures), ("color", color)):
         if not isinstance(value, (bool, np.bool_)):
             raise RenderError(f"{name} must be True or False, got {value!r}")
     if threads is not None and (isinstance(threads, bool) or not isinstance(
@@ -264,6 +270,9 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
         raise RenderError(f"options must be a dict, got {type(options).__name__}")
     options = dict(options or {})
     transparent = transparent_mask(scene)
+    if not color and (into is not None or hidden_line is not None or transparent.any()):
+        raise RenderError("color=False draws no colour: it does not combine with into=, "
+                          "hidden lines or transparent instances")
     # Each stage states what it cannot combine: the line stage (polygon modes), then the
     # algorithm, asked for exactly what this render needs of it.
     check_lines(state, hidden_line, algorithm, transparent=bool(transparent.any()),
@@ -277,12 +286,12 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
     with Workers(threads) as workers:
         return _render(scene, camera, width, height, algorithm, state, look, background,
                        counts, into, stats, t_start, view_proj, workers, occlusion_cull,
-                       options, hidden_line, transparency, transparent)
+                       options, hidden_line, transparency, transparent, color)
 
 
 def _render(scene, camera, width, height, algorithm, state, look, background, counts,
             into, stats, t_start, view_proj, workers, occlusion_cull, options, hidden_line,
-            transparency, transparent):
+            transparency, transparent, shade=True):
     # 1. Geometry: world -> clip -> window space. The plain z-buffer streams faces from
     # clip space into its fill (classification and set-up then count as visibility time);
     # everything else works on the stored screen triangles.
@@ -299,8 +308,12 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
     t_visibility = time.perf_counter()
 
     # 3. Appearance: colour from the visible face of each pixel.
-    ctx = ShadeContext(scene, camera, screen, look, workers)
-    color, covered = shade_visible(ctx, fragments, state, background)
+    if shade:
+        ctx = ShadeContext(scene, camera, screen, look, workers)
+        color, covered = shade_visible(ctx, fragments, state, background)
+    else:  # the background, and the count of covered pixels
+        color = np.empty((height, width, 3), dtype=np.uint8)
+        covered = paint_faces(workers, fragments.face_id, NO_COLORS, background, color)
     face_id = fragments.face_id
     # 4. Optional passes, each a call into its stage.
     if into is not None:

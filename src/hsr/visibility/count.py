@@ -112,7 +112,7 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     if not (isinstance(cull_objects, (bool, np.bool_)) or cull_objects == "always"):
         raise VisibilityError(f"cull_objects must be True, False or 'always', got "
                               f"{cull_objects!r}")
-    for name in ("into", "counts", "hidden_line"):
+    for name in ("into", "counts", "hidden_line", "color"):
         if name in options:
             raise VisibilityError(f"{name} is not an option of face_visibility")
     # Refuse bad options before the work is spread out: one 1 x 1 render.
@@ -123,19 +123,55 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
         progress = sys.stderr.isatty()
     if client is not None:
         return _on_dask(client, scene, cameras, width, height, options, progress)
-    total = np.zeros(scene.n_faces, dtype=np.int64)
     cull = bool(cull_objects) and len(scene) > 1 and can_cull_objects(options)
     boxes = [inst.mesh.bounds() for inst in scene.instances] if cull else None
     with progress_bar(progress, len(cameras), "visibility") as bar:
+        return _count_here(scene, cameras, width, height, threads, options, bar,
+                           boxes if cull else None, cull_objects == "always")
+
+
+def _count_here(scene, cameras, width, height, threads, options, bar, boxes, always):
+    """The views rendered in this process: one view per thread at a time, each drawn on
+    one thread into its thread's own counts (a view's set-up and Python glue then overlap
+    another view's fill, instead of every view being cut into bands), summed at the end.
+    ``boxes``: per-instance bounds to skip hidden objects (:func:`count_view_culled`),
+    or None."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ..parallel import Workers
+
+    lanes = min(Workers(threads).threads, len(cameras))
+    totals = np.zeros((lanes, scene.n_faces), dtype=np.int64)
+    local = threading.local()
+    lock = threading.Lock()
+    taken = []
+
+    def one(camera):
+        if not hasattr(local, "total"):
+            with lock:
+                local.total = totals[len(taken)]
+                taken.append(True)
+        view_threads = 1 if lanes > 1 else threads
+        if boxes is not None:
+            # Which objects earlier views saw only steers the speed (any set gives the
+            # same counts), so a slightly stale sum over the lanes is fine.
+            seen = per_object(scene, totals.sum(axis=0)) > 0
+            count_view_culled(scene, camera, width, height, view_threads, options,
+                              local.total, seen, boxes, always=always)
+        else:
+            count_view(scene, camera, width, height, view_threads, options, local.total)
+
+    if lanes == 1:
         for camera in cameras:
-            if cull:
-                seen = per_object(scene, total) > 0
-                count_view_culled(scene, camera, width, height, threads, options, total,
-                                  seen, boxes, always=cull_objects == "always")
-            else:
-                count_view(scene, camera, width, height, threads, options, total)
+            one(camera)
             bar.update(1)
-    return total
+        return totals[0]
+    with ThreadPoolExecutor(lanes) as pool:
+        for future in [pool.submit(one, camera) for camera in cameras]:
+            future.result()
+            bar.update(1)
+    return totals.sum(axis=0)
 
 
 def object_visibility(scene, views, size=512, **options) -> np.ndarray:
@@ -177,7 +213,8 @@ def count_view(scene, camera, width, height, threads, options, total) -> None:
     """Add one view's visible pixels per face to ``total``."""
     from ..render import render
 
-    face_id = render(scene, camera, width, height, threads=threads, **options).face_id
+    face_id = render(scene, camera, width, height, threads=threads, color=False,
+                     **options).face_id
     add_pixels(np.ascontiguousarray(face_id), total)
 
 
@@ -327,7 +364,7 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
         return 0
     drawn = np.flatnonzero(seen)
     frame = render(Scene([scene.instances[k] for k in drawn]), camera, width, height,
-                   threads=threads, **options)
+                   threads=threads, color=False, **options)
     unseen = np.flatnonzero(~seen)
     hidden = hidden_instances(scene, unseen, camera, width, height, frame.depth,
                               options.get("depth_range", (0.0, 1.0)), boxes)
@@ -335,7 +372,7 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
     if len(hidden) < len(unseen):  # some may show: draw all but the hidden, in order
         drawn = np.setdiff1d(np.arange(len(scene)), hidden)
         face_id = render(Scene([scene.instances[k] for k in drawn]), camera, width, height,
-                         threads=threads, **options).face_id
+                         threads=threads, color=False, **options).face_id
     global_id = np.concatenate([np.arange(offsets[k], offsets[k + 1]) for k in drawn])
     add_pixels_through(np.ascontiguousarray(face_id), global_id, total)
     return len(hidden)

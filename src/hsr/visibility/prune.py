@@ -149,9 +149,9 @@ def verify(original, pruned, kept, count: int = 100, size=512, *, seed: int = 0,
     for direction in directions:
         camera = view_sets.framed(bounds, direction, width / height)
         before = render(original, camera, width, height, algorithm=algorithm,
-                        threads=threads, **options).face_id
+                        threads=threads, color=False, **options).face_id
         after = render(pruned, camera, width, height, algorithm=algorithm, threads=threads,
-                       **options).face_id
+                       color=False, **options).face_id
         after = np.where(after >= 0, kept[np.maximum(after, 0)], -1)
         changed += int(np.count_nonzero(before != after))
         covered += int(np.count_nonzero((before >= 0) | (after >= 0)))
