@@ -83,12 +83,13 @@ def test_color_false_keeps_every_buffer_and_paints_the_background():
     the ray reference elsewhere) are those of the shaded render, bit for bit."""
     scene, cam = hsr.scenes.get("cubes")
     shaded = hsr.render(scene, cam, 160, 120, shading="gouraud")
-    plain = hsr.render(scene, cam, 160, 120, color=False, background=(1, 2, 3))
-    assert np.array_equal(plain.face_id, shaded.face_id)
-    assert np.array_equal(plain.depth, shaded.depth)
-    assert np.array_equal(plain.eye_depth, shaded.eye_depth)
-    assert (plain.color == np.array([1, 2, 3], np.uint8)).all()
-    assert plain.stats["pixels_covered"] == int((shaded.face_id >= 0).sum())
+    for background in ((1, 2, 3), (0, 0, 0)):
+        plain = hsr.render(scene, cam, 160, 120, color=False, background=background)
+        assert np.array_equal(plain.face_id, shaded.face_id)
+        assert np.array_equal(plain.depth, shaded.depth)
+        assert np.array_equal(plain.eye_depth, shaded.eye_depth)
+        assert (plain.color == np.array(background, np.uint8)).all()
+        assert plain.stats["pixels_covered"] == int((shaded.face_id >= 0).sum())
 
 
 @pytest.mark.parametrize("extra", [{"hidden_line": True}, {"color": "no"}])

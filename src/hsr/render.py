@@ -311,7 +311,10 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
     if shade:
         ctx = ShadeContext(scene, camera, screen, look, workers)
         color, covered = shade_visible(ctx, fragments, state, background)
-    else:  # the background, and the count of covered pixels
+    elif not background.any():  # black: zeroed pages from the system cost nothing here
+        color = np.zeros((height, width, 3), dtype=np.uint8)
+        covered = int(np.count_nonzero(fragments.face_id >= 0))
+    else:
         color = np.empty((height, width, 3), dtype=np.uint8)
         covered = paint_faces(workers, fragments.face_id, NO_COLORS, background, color)
     face_id = fragments.face_id
