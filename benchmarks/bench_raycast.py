@@ -1,24 +1,32 @@
-"""Time hsr's ray caster against Embree (embreex) for primary visibility, same run.
+"""Time hsr's ray caster against Embree (embreex) and Open3D's RaycastingScene for
+primary visibility, measured in the same run.
 
-    pip install embreex
-    python benchmarks/bench_raycast.py [MODEL ...] [--size 1024x1024] [--repeat 5]
+    pip install embreex open3d-cpu
+    python benchmarks/bench_raycast.py [MODEL ...] [--sizes 1024x1024,1920x1080]
+                                       [--repeat 5] [--rounds 3]
 
-hsr: ``hsr.render(..., algorithm="raycast", options={"bvh": tree})`` with the BVH built
-beforehand (ray generation, traversal, depth/face/distance buffers). Embree: one
-``EmbreeScene.run`` of the same rays (origins and directions prepared outside the timer).
-Prints the median times, the ratio, BVH build times and the share of pixels on which the
-two agree about the visible face.
+MODEL is a mesh file or ``terrain:N`` (the generated grid of N triangles, framed by
+``Camera.frame``). hsr: ``hsr.render(..., algorithm="raycast", options={"bvh": tree})``
+with the BVH built beforehand (ray generation, traversal, depth/face/distance buffers).
+Embree and Open3D: one call on the same rays (origins and directions prepared outside
+the timer); their acceleration structures are built on first use, which is timed as
+their build. Casts run in blocks of ``--repeat`` that alternate over ``--rounds``, so
+all three see the same machine load; min and median per cast are printed, the ratios
+hsr / peer of both, the build times (hsr's second build: the first compiles) and the
+share of covered pixels on which each peer agrees with hsr about the visible face.
+Runs on demand, never in the test suite. A peer that is not installed is left out.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 
 import numpy as np
-from common import agreement_percent, median_ms
+from common import agreement_percent
 
 import hsr
 import hsr.algorithms.bvh as rc
@@ -27,6 +35,8 @@ MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 
 
 def rays(camera, width, height):
+    """(origins, directions) of the pixel-centre rays from the near to the far plane,
+    row 0 at the top, as hsr casts them."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     inv = np.linalg.inv(view_proj)
     xs = (np.arange(width) + 0.5) / width * 2 - 1
@@ -40,46 +50,112 @@ def rays(camera, width, height):
     return origin, far[:, :3] / far[:, 3:] - origin
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("models", nargs="*",
-                        default=[os.path.join(MODELS, "stanford-bunny.obj")])
-    parser.add_argument("--size", default="1024x1024")
-    parser.add_argument("--repeat", type=int, default=5)
-    args = parser.parse_args(argv)
-    width, height = (int(v) for v in args.size.split("x"))
+def load(spec):
+    """(mesh, label)."""
+    kind, _, count = spec.partition(":")
+    if kind == "terrain" and count:
+        scene, _ = hsr.scenes.terrain(int(float(count)))
+        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
+    return hsr.load(spec), os.path.basename(spec)
+
+
+def embree_peer(tris, origin, direction):
+    """(build ms, cast function, face ids of one cast) or None without embreex."""
     try:
         from embreex import rtcore_scene as rtcs
         from embreex.mesh_construction import TriangleMesh
     except ImportError:
-        print("embreex is not installed: pip install embreex", file=sys.stderr)
-        return 1
-    print(f"{'model':22} {'tris':>7} {'size':>10} {'hsr ms':>8} {'embree ms':>9} {'ratio':>6} "
-          f"{'hsr build':>9} {'emb build':>9} {'agree':>8}")
-    for path in args.models:
-        mesh = hsr.load(path)
+        return None
+    t0 = time.perf_counter()
+    scene = rtcs.EmbreeScene()
+    TriangleMesh(scene, tris)
+    scene.run(origin[:1], direction[:1])  # Embree builds its BVH lazily on first use
+    build = 1e3 * (time.perf_counter() - t0)
+    res = scene.run(origin, direction, output=1)
+    face = np.where(res["geomID"] >= 0, res["primID"], -1)
+    return build, lambda: scene.run(origin, direction, output=1), face
+
+
+def open3d_peer(tris, origin, direction):
+    """(build ms, cast function, face ids of one cast) or None without open3d."""
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
+    vertices = np.ascontiguousarray(tris.reshape(-1, 3), dtype=np.float32)
+    triangles = np.arange(len(vertices), dtype=np.uint32).reshape(-1, 3)
+    ray_tensor = o3d.core.Tensor(np.ascontiguousarray(
+        np.concatenate([origin, direction], axis=1), dtype=np.float32))
+    t0 = time.perf_counter()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(triangles))
+    scene.cast_rays(ray_tensor[:1])  # the structure is built on first use
+    build = 1e3 * (time.perf_counter() - t0)
+    res = scene.cast_rays(ray_tensor)
+    t_hit = res["t_hit"].numpy()
+    ids = res["primitive_ids"].numpy().astype(np.int64)
+    face = np.where(np.isfinite(t_hit) & (t_hit <= 1.0), ids, -1)
+    return build, lambda: scene.cast_rays(ray_tensor), face
+
+
+def timings(fns, repeat, rounds):
+    """(min, median) ms of each function over alternating blocks of ``repeat`` calls."""
+    times = [[] for _ in fns]
+    for _ in range(rounds):
+        for fn, bucket in zip(fns, times):
+            fn()  # warm
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                fn()
+                bucket.append(1e3 * (time.perf_counter() - t0))
+    return [(min(t), statistics.median(t)) for t in times]
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("models", nargs="*",
+                        default=[os.path.join(MODELS, "stanford-bunny.obj")])
+    parser.add_argument("--sizes", default="1024x1024")
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args(argv)
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    print("| model | triangles | size | hsr ms (min / median) | Embree ms | hsr / Embree | "
+          "Open3D ms | hsr / Open3D | builds ms: hsr / Embree / Open3D | agree % "
+          "Embree / Open3D |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for spec in args.models:
+        mesh, label = load(spec)
         cam = hsr.Camera.frame(mesh.bounds())
+        rc.build(mesh)  # compiles
         tree = rc.build(mesh)
-        tree = rc.build(mesh)  # second build: compiled
-        hsr_ms, = median_ms([lambda: hsr.render(mesh, cam, width, height, algorithm="raycast",
-                                                options={"bvh": tree})], args.repeat)
         tris = hsr.Scene([mesh]).world_triangles().astype(np.float32)
-        t0 = time.perf_counter()
-        scene = rtcs.EmbreeScene()
-        TriangleMesh(scene, tris)
-        origin, direction = rays(cam, width, height)
-        origin, direction = origin.astype(np.float32), direction.astype(np.float32)
-        scene.run(origin[:1], direction[:1])  # Embree builds its BVH lazily on first use
-        emb_build = 1e3 * (time.perf_counter() - t0)
-        emb_ms, = median_ms([lambda: scene.run(origin, direction, output=1)], args.repeat)
-        res = scene.run(origin, direction, output=1)
-        prim = np.where(res["geomID"] >= 0, res["primID"], -1).reshape(height, width)
-        mine = hsr.render(mesh, cam, width, height, algorithm="raycast",
-                          options={"bvh": tree}).face_id
-        agree = agreement_percent(prim, mine)
-        print(f"{os.path.basename(path):22} {mesh.n_faces:7d} {width:>4}x{height:<5} "
-              f"{hsr_ms:8.1f} {emb_ms:9.1f} {hsr_ms / emb_ms:6.2f} {tree.build_ms:9.1f} "
-              f"{emb_build:9.1f} {agree:7.3f}%", flush=True)
+        for width, height in sizes:
+            origin, direction = (a.astype(np.float32) for a in rays(cam, width, height))
+            peers = [embree_peer(tris, origin, direction),
+                     open3d_peer(tris, origin, direction)]
+            fns = [lambda: hsr.render(mesh, cam, width, height, algorithm="raycast",
+                                      options={"bvh": tree})]
+            fns += [p[1] for p in peers if p is not None]
+            measured = iter(timings(fns, args.repeat, args.rounds))
+            mine_ms = next(measured)
+            mine = hsr.render(mesh, cam, width, height, algorithm="raycast",
+                              options={"bvh": tree}).face_id.ravel()
+            cells, builds, agree = [], [f"{tree.build_ms:.0f}"], []
+            for peer in peers:
+                if peer is None:
+                    cells += ["-", "-"]
+                    builds.append("-")
+                    agree.append("-")
+                    continue
+                lo, med = next(measured)
+                cells += [f"{lo:.1f} / {med:.1f}",
+                          f"{mine_ms[0] / lo:.2f} / {mine_ms[1] / med:.2f}"]
+                builds.append(f"{peer[0]:.0f}")
+                agree.append(f"{agreement_percent(peer[2], mine):.3f}")
+            print(f"| {label} | {mesh.n_faces:,} | {width}x{height} | "
+                  f"{mine_ms[0]:.1f} / {mine_ms[1]:.1f} | {' | '.join(cells)} | "
+                  f"{' / '.join(builds)} | {' / '.join(agree)} |", flush=True)
     return 0
 
 
