@@ -240,7 +240,7 @@ def test_skipping_hidden_objects_changes_no_count(depth_func):
 def test_skipping_hidden_objects_on_random_assemblies(seed):
     """Random assemblies: boxes and balls inside, across and outside a housing, some
     touching, one an exact duplicate of another (ties): the same counts with and without
-    skipping hidden objects, for less and lequal."""
+    skipping hidden objects, for less and lequal, one view at a time or two at once."""
     rng = np.random.default_rng(seed)
     scene = hsr.Scene()
     scene.add(_box((0, 0, 0), (3, 3, 3), 1), name="housing")
@@ -254,9 +254,12 @@ def test_skipping_hidden_objects_on_random_assemblies(seed):
         scene.add(mesh, name=mesh.name)
     scene.add(parts[0], name="duplicate")
     for func in ("less", "lequal"):
-        full = face_visibility(scene, "sphere:6", 64, cull_objects=False, depth_func=func)
+        # One view at a time against two at once (each lane its own counts, the objects
+        # seen so far read across lanes while they change).
+        full = face_visibility(scene, "sphere:6", 64, cull_objects=False, depth_func=func,
+                               threads=1)
         assert np.array_equal(full, face_visibility(scene, "sphere:6", 64, depth_func=func,
-                                                    cull_objects="always"))
+                                                    cull_objects="always", threads=2))
 
 
 def test_keep_neighbors_keeps_faces_next_to_visible_ones():

@@ -51,7 +51,7 @@ class View:
 class Frame:
     """The result of a render. Row 0 of every array is the top of the image.
 
-    color : (H, W, 3) uint8.
+    color : (H, W, 3) uint8 (the background everywhere after ``render(..., color=False)``).
     depth : (H, W) float32 window depth (the state's clear depth where nothing was drawn).
     face_id : (H, W) int32 index of the visible triangle in the scene's global face list,
         -1 for background.

@@ -96,7 +96,7 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     :func:`cameras_for`) rendered at ``size`` (``R`` or ``(W, H)``) with ``algorithm``
     and ``render_options`` (:func:`hsr.render`'s: cull, depth_func, ...). ``client``: a
     ``distributed.Client`` to spread the views over its workers; without one the views
-    render here on ``threads`` threads. A progress bar shows on a terminal.
+    render here, ``threads`` at a time (one view per thread). A progress bar shows on a terminal.
     ``cull_objects``: with the z-buffer and a depth test where the nearest surface wins,
     skip the objects a view cannot show where that pays (``"always"``: wherever it can;
     :func:`count_view_culled`: the counts are the same, faster when parts are hidden).
@@ -167,10 +167,13 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
             one(camera)
             bar.update(1)
         return totals[0]
-    with ThreadPoolExecutor(lanes) as pool:
+    pool = ThreadPoolExecutor(lanes)
+    try:
         for future in [pool.submit(one, camera) for camera in cameras]:
             future.result()
             bar.update(1)
+    finally:  # after an error (or Ctrl-C) the views not started are dropped
+        pool.shutdown(cancel_futures=True)
     return totals.sum(axis=0)
 
 
