@@ -216,16 +216,24 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
             zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
             dzdx, dzdy = zplane[t, 3], zplane[t, 4]
             # Wide boxes (long thin triangles) scan only each row's span inside all three
-            # edges; narrow ones test every pixel of the box, which is cheaper than the
-            # divisions that find a span.
+            # edges, where the edge test always passes (its steps are zeroed); narrow ones
+            # test every pixel of the box, which is cheaper than the divisions that find
+            # a span.
             wide = x1 - x0 >= SPAN_MIN_WIDTH
+            scan_x0, scan_x1, scan_x2 = (0, 0, 0) if wide else (step_x0, step_x1, step_x2)
             for j in range(y0, y1 + 1):
                 row = height - 1 - j
                 z_row = zz0 + dzdy * (j + 0.5 - zy0)
                 if wide:
                     first, last = row_span(e0_row, step_x0, e1_row, step_x1, e2_row, step_x2,
                                            x1 - x0 + 1)
-                    for i in range(x0 + first, x0 + last + 1):
+                    i_lo, i_hi = x0 + first, x0 + last
+                    e0 = e1 = e2 = np.int64(0)
+                else:
+                    i_lo, i_hi = x0, x1
+                    e0, e1, e2 = e0_row, e1_row, e2_row
+                for i in range(i_lo, i_hi + 1):
+                    if (e0 | e1 | e2) >= 0:
                         z = z_row + dzdx * (i + 0.5 - zx0)
                         z = min(max(z, z_lo), z_hi)
                         zf = np.float32(z)
@@ -249,36 +257,9 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
                             n_written += 1
                             if want_counts:
                                 count_written[row, i] += 1
-                else:
-                    e0, e1, e2 = e0_row, e1_row, e2_row
-                    for i in range(x0, x1 + 1):
-                        if (e0 | e1 | e2) >= 0:
-                            z = z_row + dzdx * (i + 0.5 - zx0)
-                            z = min(max(z, z_lo), z_hi)
-                            zf = np.float32(z)
-                            n_tested += 1
-                            if want_counts:
-                                count_tested[row, i] += 1
-                            if depth_func == FIRST_WINS:
-                                passed = face_buf[row, i] < 0
-                            elif tie_by_face:
-                                stored = depth_buf[row, i]
-                                passed = zf < stored or (zf == stored and (
-                                    face < face_buf[row, i] if depth_func == 1 else
-                                    face > face_buf[row, i]))
-                            else:
-                                passed = (not depth_test) or depth_passes(
-                                    depth_func, zf, depth_buf[row, i])
-                            if passed:
-                                face_buf[row, i] = face
-                                if write_depth:
-                                    depth_buf[row, i] = zf
-                                n_written += 1
-                                if want_counts:
-                                    count_written[row, i] += 1
-                        e0 += step_x0
-                        e1 += step_x1
-                        e2 += step_x2
+                    e0 += scan_x0
+                    e1 += scan_x1
+                    e2 += scan_x2
                 e0_row += step_y0
                 e1_row += step_y1
                 e2_row += step_y2
