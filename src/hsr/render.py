@@ -35,6 +35,7 @@ __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
 NO_COLORS = np.zeros((0, 3), dtype=np.uint8)  # paint_faces: the background only
 
+
 @dataclass
 class View:
     """What an algorithm that works in world space (ray casting, BSP) needs besides the

@@ -96,7 +96,8 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     :func:`cameras_for`) rendered at ``size`` (``R`` or ``(W, H)``) with ``algorithm``
     and ``render_options`` (:func:`hsr.render`'s: cull, depth_func, ...). ``client``: a
     ``distributed.Client`` to spread the views over its workers; without one the views
-    render here, ``threads`` at a time (one view per thread). A progress bar shows on a terminal.
+    render here, ``threads`` at a time (one view per thread). A progress bar shows on a
+    terminal.
     ``cull_objects``: with the z-buffer and a depth test where the nearest surface wins,
     skip the objects a view cannot show where that pays (``"always"``: wherever it can;
     :func:`count_view_culled`: the counts are the same, faster when parts are hidden).
@@ -142,6 +143,7 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
     from ..parallel import Workers
 
     lanes = min(Workers(threads).threads, len(cameras))
+    view_threads = 1 if lanes > 1 else threads
     totals = np.zeros((lanes, scene.n_faces), dtype=np.int64)
     local = threading.local()
     lock = threading.Lock()
@@ -152,7 +154,6 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
             with lock:
                 local.total = totals[len(taken)]
                 taken.append(True)
-        view_threads = 1 if lanes > 1 else threads
         if boxes is not None:
             # Which objects earlier views saw only steers the speed (any set gives the
             # same counts), so a slightly stale sum over the lanes is fine.
