@@ -127,8 +127,8 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     cull = bool(cull_objects) and len(scene) > 1 and can_cull_objects(options)
     boxes = [inst.mesh.bounds() for inst in scene.instances] if cull else None
     with progress_bar(progress, len(cameras), "visibility") as bar:
-        return _count_here(scene, cameras, width, height, threads, options, bar,
-                           boxes if cull else None, cull_objects == "always")
+        return _count_here(scene, cameras, width, height, threads, options, bar, boxes,
+                           cull_objects == "always")
 
 
 def _count_here(scene, cameras, width, height, threads, options, bar, boxes, always):
