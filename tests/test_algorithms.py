@@ -156,8 +156,9 @@ def test_bvh_invariants(models_dir):
             assert (bvh.node_min[child] >= bvh.node_min[node]).all()
             assert (bvh.node_max[child] <= bvh.node_max[node]).all()
     for node in np.flatnonzero(leaves):
-        tris = bvh.triangles[bvh.tri_index[bvh.node_start[node]:bvh.node_start[node]
-                                           + bvh.node_count[node]]]
+        slots = slice(bvh.node_start[node], bvh.node_start[node] + bvh.node_count[node])
+        tris = bvh.corners[slots]
+        assert np.array_equal(tris, mesh.positions[mesh.faces[bvh.tri_index[slots]]])
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
 
 
@@ -180,3 +181,26 @@ def test_lequal_state(algorithm):
     ref_face, ref_depth = reference_render(scene, cam, W, H, depth_func="lequal")
     amb = ambiguous_pixels(scene, cam, W, H)
     assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+
+
+def test_deep_unbalanced_bvh_walks_like_the_naive_loop():
+    """Triangles at x = 2^k: the binned SAH peels a few off per level, so the tree is far
+    deeper than a balanced one (its depth sizes the walk's stack)."""
+    n = 320
+    x = 2.0 ** (np.arange(n) - 200.0)
+    z = -1.0 - 0.001 * np.arange(n)
+    one = np.ones(n)
+    corners = np.stack([np.stack([x, -one, z], 1), np.stack([1.5 * x, -one, z], 1),
+                        np.stack([x, one, z], 1)], 1)
+    mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    bvh = rc.build(mesh)
+    assert bvh.depth > 3 * np.log2(n)
+    seen = set()
+    for eye_x in (1e-3, 0.3, 40.0, 300.0):
+        cam = hsr.Camera(eye=(eye_x, 0, 2), target=(eye_x, 0, -1), up=(0, 1, 0), fov_y=60,
+                         near=0.1, far=100)
+        a = hsr.render(mesh, cam, 64, 48, algorithm="raycast", options={"bvh": bvh})
+        b = hsr.render(mesh, cam, 64, 48, algorithm="raycast", options={"accel": "none"})
+        assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
+        seen |= set(np.unique(a.face_id).tolist())
+    assert len(seen) > 4

@@ -37,10 +37,20 @@ def world_triangles(scene: Scene) -> np.ndarray:
 class BVH:
     """A bounding volume hierarchy over a scene's world-space triangles.
 
-    node_min, node_max : (N, 3) boxes; node_left : (N,) first child (the second is
-    ``node_left + 1``) or -1 for a leaf; node_start, node_count : (N,) a leaf's range in
-    ``tri_index``; tri_index : (T,) face ids (degenerate faces are left out);
-    triangles : (F, 3, 3) the world-space corners, indexed by face id.
+    As built (binary, binned SAH): node_min, node_max : (N, 3) boxes; node_left : (N,)
+    first child (the second is ``node_left + 1``) or -1 for a leaf; node_start,
+    node_count : (N,) a leaf's range of slots; tri_index : (T,) the face id in each slot
+    (degenerate faces are left out); corners : (T, 3, 3) float64 world-space corners of
+    each slot's face (stored in leaf order, so a leaf's triangles are read in one run of
+    memory); n_faces : the scene's face count.
+
+    As walked (:func:`_flatten`): each inner node holds both children's boxes, so a
+    step reads one record and tests both children without touching them
+    (child_box : (I, 12) float32, each box rounded outwards so it still holds what it
+    bounds; child_ref : (I, 4) int64 [left ref, left count, right ref, right count],
+    count > 0 a leaf's first slot and size, count 0 an inner node's index); root_box
+    (6,) and root_ref (2,) the root the same way; depth : the longest path from the
+    root to a leaf (it sizes the walk's stack).
     """
 
     node_min: np.ndarray
@@ -49,7 +59,13 @@ class BVH:
     node_start: np.ndarray
     node_count: np.ndarray
     tri_index: np.ndarray
-    triangles: np.ndarray
+    corners: np.ndarray
+    n_faces: int
+    child_box: np.ndarray
+    child_ref: np.ndarray
+    root_box: np.ndarray
+    root_ref: np.ndarray
+    depth: int
     build_ms: float = 0.0
 
     @property
@@ -71,7 +87,81 @@ def build(scene) -> BVH:
     area = np.linalg.norm(np.cross(e1, e2), axis=1)
     keep = np.flatnonzero(area > 0)
     arrays = _build(np.ascontiguousarray(tris), keep.astype(np.int64))
-    return BVH(*arrays, triangles=tris, build_ms=1e3 * (time.perf_counter() - t0))
+    node_min, node_max, node_left, node_start, node_count, tri_index = arrays
+    corners = tris[tri_index]
+    walked = _flatten(node_min, node_max, node_left, node_start, node_count)
+    return BVH(*arrays, corners=corners, n_faces=len(tris), child_box=walked[0],
+               child_ref=walked[1], root_box=walked[2], root_ref=walked[3], depth=walked[4],
+               build_ms=1e3 * (time.perf_counter() - t0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _down32(x):
+    """The largest float32 <= x."""
+    f = np.float32(x)
+    if np.float64(f) > x:
+        f = np.nextafter(f, np.float32(-np.inf))
+    return f
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _up32(x):
+    """The smallest float32 >= x."""
+    f = np.float32(x)
+    if np.float64(f) < x:
+        f = np.nextafter(f, np.float32(np.inf))
+    return f
+
+
+@njit(cache=True, nogil=True)
+def _flatten(node_min, node_max, node_left, node_start, node_count):
+    """The walked layout of :class:`BVH`: inner nodes renumbered depth first (a node's
+    nearer subtree tends to follow it in memory), each holding its children's boxes in
+    float32 rounded outwards (half the bytes; a box only ever grows, so no ray that
+    meets a triangle misses its box) and their references."""
+    n = node_left.shape[0]
+    inner = np.full(n, -1, dtype=np.int64)
+    n_inner = 0
+    stack = np.empty(n + 1, dtype=np.int64)
+    level = np.empty(n + 1, dtype=np.int64)
+    stack[0], level[0] = 0, 0
+    top = 1
+    depth = 0
+    while top > 0:
+        top -= 1
+        node, here = stack[top], level[top]
+        depth = max(depth, here)
+        if node_left[node] < 0:
+            continue
+        inner[node] = n_inner
+        n_inner += 1
+        stack[top], level[top] = node_left[node] + 1, here + 1
+        stack[top + 1], level[top + 1] = node_left[node], here + 1
+        top += 2
+    child_box = np.empty((max(n_inner, 1), 12), dtype=np.float32)
+    child_ref = np.zeros((max(n_inner, 1), 4), dtype=np.int64)
+    for node in range(n):
+        i = inner[node]
+        if i < 0:
+            continue
+        for side in range(2):
+            child = node_left[node] + side
+            for a in range(3):
+                child_box[i, 6 * side + a] = _down32(node_min[child, a])
+                child_box[i, 6 * side + 3 + a] = _up32(node_max[child, a])
+            if node_left[child] < 0:
+                child_ref[i, 2 * side] = node_start[child]
+                child_ref[i, 2 * side + 1] = node_count[child]
+            else:
+                child_ref[i, 2 * side] = inner[child]
+    root_box = np.empty(6)
+    root_ref = np.zeros(2, dtype=np.int64)
+    for a in range(3):
+        root_box[a] = node_min[0, a]
+        root_box[3 + a] = node_max[0, a]
+    if node_left[0] < 0:
+        root_ref[0], root_ref[1] = node_start[0], node_count[0]
+    return child_box, child_ref, root_box, root_ref, depth
 
 
 @njit(cache=True, nogil=True)
@@ -231,10 +321,17 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
 @njit(cache=True, nogil=True)
 def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_scale,
                depth_offset, cull_code, front_ccw, lequal, eye, ortho, forward, use_bvh,
-               node_min, node_max, node_left, node_start, node_count, leaf_tris, face_buf,
-               depth_buf, dist_buf, bary_buf, clear_depth, extras):
+               child_box, child_ref, root_box, root_ref, leaf_face, depth, face_buf, depth_buf,
+               dist_buf, bary_buf, clear_depth, extras):
+    """Rows r_lo .. r_hi - 1. With ``use_bvh``, ``tris`` holds the BVH's corners in leaf
+    order and ``leaf_face`` each slot's face id; without, the faces in order."""
     n_tris = tris.shape[0]
-    stack = np.empty(128, dtype=np.int64)
+    # Each inner node popped leaves at most one sibling behind, so depth + 1 entries
+    # suffice. Sized once: an array re-bound inside the loop (grown on demand) costs
+    # reference counting at every step, more than doubling the walk's time.
+    stack_ref = np.empty(depth + 2, dtype=np.int64)
+    stack_count = np.empty(depth + 2, dtype=np.int64)
+    stack_t = np.empty(depth + 2)
     tests = 0
     for r in range(r_lo, r_hi):
         y_ndc = 1.0 - (r + 0.5) * 2.0 / height
@@ -271,25 +368,27 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
             best_f = -1
             t_bound = 1.0  # no box entered beyond this can hold a hit at least as good
             bu = bv = bw = 0.0
-            if use_bvh:
+            if use_bvh and leaf_face.shape[0] > 0:
                 inv_dx = 1.0 / dx if dx != 0.0 else np.inf
                 inv_dy = 1.0 / dy if dy != 0.0 else np.inf
                 inv_dz = 1.0 / dz if dz != 0.0 else np.inf
+                # The stack holds (reference, count, entry t) of boxes the ray enters;
+                # an entry is dropped when a hit nearer than its box is found meanwhile.
+                stack_ref[0], stack_count[0] = root_ref[0], root_ref[1]
+                stack_t[0] = _box_entry(root_box[0], root_box[1], root_box[2], root_box[3],
+                                        root_box[4], root_box[5], ox, oy, oz, inv_dx,
+                                        inv_dy, inv_dz)
                 top = 1
-                stack[0] = 0
                 while top > 0:
                     top -= 1
-                    node = stack[top]
-                    t_near = _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz)
-                    if t_near > t_bound:
+                    if stack_t[top] > t_bound:
                         continue
-                    left = node_left[node]
-                    if left < 0:
-                        for k in range(node_start[node], node_start[node] + node_count[node]):
-                            f = leaf_tris[k]
+                    ref, count = stack_ref[top], stack_count[top]
+                    if count > 0:  # a leaf: its slots ref .. ref + count - 1
+                        for k in range(ref, ref + count):
+                            f = leaf_face[k]
                             tests += 1
-                            t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx,
+                            t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx,
                                                     sy, sz, cull_code, front_ccw, dx, dy, dz)
                             if 0.0 <= t <= 1.0:
                                 z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
@@ -298,21 +397,25 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                                     best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
                                     t_bound = _t_bound(z, zc0, zc1, wc0, wc1, depth_scale,
                                                        depth_offset)
-                    else:
-                        tl = _box_entry(node_min, node_max, left, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz)
-                        tr = _box_entry(node_min, node_max, left + 1, ox, oy, oz, inv_dx,
-                                        inv_dy, inv_dz)
-                        if top + 2 > stack.shape[0]:
-                            bigger = np.empty(2 * stack.shape[0], dtype=np.int64)
-                            bigger[:top] = stack[:top]
-                            stack = bigger
-                        if tl < tr:  # nearer child on top of the stack
-                            stack[top], stack[top + 1] = left + 1, left
-                        else:
-                            stack[top], stack[top + 1] = left, left + 1
-                        top += 2
-            else:
+                        continue
+                    # An inner node: both children's boxes are in its record.
+                    tl = _box_entry(child_box[ref, 0], child_box[ref, 1], child_box[ref, 2],
+                                    child_box[ref, 3], child_box[ref, 4], child_box[ref, 5],
+                                    ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                    tr = _box_entry(child_box[ref, 6], child_box[ref, 7], child_box[ref, 8],
+                                    child_box[ref, 9], child_box[ref, 10], child_box[ref, 11],
+                                    ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                    # Both children go on the stack, the nearer last (walked first); a
+                    # missed one (t = inf) is dropped when popped.
+                    near = 0 if tl <= tr else 2
+                    far = 2 - near
+                    stack_ref[top], stack_count[top] = child_ref[ref, far], child_ref[ref, far + 1]
+                    stack_t[top] = max(tl, tr)
+                    stack_ref[top + 1] = child_ref[ref, near]
+                    stack_count[top + 1] = child_ref[ref, near + 1]
+                    stack_t[top + 1] = min(tl, tr)
+                    top += 2
+            elif not use_bvh:
                 for f in range(n_tris):
                     tests += 1
                     t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
@@ -378,11 +481,12 @@ def _unproject(m, x, y, z):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy, inv_dz):
-    """Ray parameter where the ray enters the node's box (inf when it misses)."""
-    t0x, t1x = (node_min[node, 0] - ox) * inv_dx, (node_max[node, 0] - ox) * inv_dx
-    t0y, t1y = (node_min[node, 1] - oy) * inv_dy, (node_max[node, 1] - oy) * inv_dy
-    t0z, t1z = (node_min[node, 2] - oz) * inv_dz, (node_max[node, 2] - oz) * inv_dz
+def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz):
+    """Ray parameter where the ray enters the box [x0, x1] x [y0, y1] x [z0, z1] (inf
+    when it misses): the slab test (Kay and Kajiya 1986)."""
+    t0x, t1x = (x0 - ox) * inv_dx, (x1 - ox) * inv_dx
+    t0y, t1y = (y0 - oy) * inv_dy, (y1 - oy) * inv_dy
+    t0z, t1z = (z0 - oz) * inv_dz, (z1 - oz) * inv_dz
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
     # NaN from 0 * inf (origin on a slab plane, ray parallel) must not reject the box.
@@ -396,7 +500,9 @@ def _box_entry(node_min, node_max, node, ox, oy, oz, inv_dx, inv_dy, inv_dz):
 def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None,
          extras: bool = True):
     """Cast one ray per pixel. Returns (face_id, depth, distance, barycentrics, tests);
-    without ``extras`` distance and barycentrics are None (less memory traffic)."""
+    without ``extras`` distance and barycentrics are None (less memory traffic).
+    ``triangles``: (F, 3, 3) world-space corners in face order, tested one by one when
+    there is no ``bvh`` (with one, the BVH's own copy in leaf order is used)."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     inv = np.linalg.inv(view_proj)
     near, far = state.depth_range
@@ -407,11 +513,12 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     distance = np.empty(shape, dtype=np.float64)
     bary = np.empty(shape + (3,), dtype=np.float64)
     if bvh is None:
-        nodes = (np.zeros((1, 3)), np.zeros((1, 3)), np.full(1, -1), np.zeros(1, np.int64),
-                 np.zeros(1, np.int64), np.zeros(0, np.int64))
+        nodes = (np.zeros((1, 12), np.float32), np.zeros((1, 4), np.int64), np.zeros(6),
+                 np.zeros(2, np.int64), np.zeros(0, np.int64), 0)
     else:
-        nodes = (bvh.node_min, bvh.node_max, bvh.node_left, bvh.node_start, bvh.node_count,
-                 bvh.tri_index)
+        triangles = bvh.corners
+        nodes = (bvh.child_box, bvh.child_ref, bvh.root_box, bvh.root_ref, bvh.tri_index,
+                 bvh.depth)
     # Many row chunks, handed out as threads free up: rays cost unevenly across the image.
     tests = workers.run(
         _cast_rows, split_range(height, 8 * workers.threads), triangles, inv, view_proj, width, height, 0.5 * (far - near),

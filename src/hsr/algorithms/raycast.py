@@ -52,9 +52,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         elif not isinstance(bvh, BVH):
             raise RenderError(f"raycast option bvh must be an hsr.raycast.BVH (from "
                               f"hsr.raycast.build), got {type(bvh).__name__}")
-        elif len(bvh.triangles) != view.scene.n_faces:
+        elif bvh.n_faces != view.scene.n_faces:
             raise RenderError("the BVH was built for another scene")
-        triangles = bvh.triangles
+        triangles = None
         used = bvh
         stats.update(bvh_nodes=bvh.n_nodes, bvh_build_ms=bvh.build_ms)
     face, depth, distance, bary, tests = cast(triangles, view.camera, width, height, state,
