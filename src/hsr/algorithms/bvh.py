@@ -81,18 +81,32 @@ def build(scene) -> BVH:
     import time
 
     t0 = time.perf_counter()
-    tris = world_triangles(scene)
-    e1 = tris[:, 1] - tris[:, 0]
-    e2 = tris[:, 2] - tris[:, 0]
-    area = np.linalg.norm(np.cross(e1, e2), axis=1)
-    keep = np.flatnonzero(area > 0)
-    arrays = _build(np.ascontiguousarray(tris), keep.astype(np.int64))
+    tris = np.ascontiguousarray(world_triangles(scene))
+    arrays = _build(tris, _with_area(tris))
     node_min, node_max, node_left, node_start, node_count, tri_index = arrays
     corners = tris[tri_index]
     walked = _flatten(node_min, node_max, node_left, node_start, node_count)
     return BVH(*arrays, corners=corners, n_faces=len(tris), child_box=walked[0],
                child_ref=walked[1], root_box=walked[2], root_ref=walked[3], depth=walked[4],
                build_ms=1e3 * (time.perf_counter() - t0))
+
+
+@njit(cache=True, nogil=True)
+def _with_area(tris):
+    """The faces whose corners span a non-zero area (the cross product of two edges is
+    not the zero vector): the others cannot be hit."""
+    keep = np.empty(tris.shape[0], dtype=np.int64)
+    n = 0
+    for f in range(tris.shape[0]):
+        e1x, e1y, e1z = (tris[f, 1, 0] - tris[f, 0, 0], tris[f, 1, 1] - tris[f, 0, 1],
+                         tris[f, 1, 2] - tris[f, 0, 2])
+        e2x, e2y, e2z = (tris[f, 2, 0] - tris[f, 0, 0], tris[f, 2, 1] - tris[f, 0, 1],
+                         tris[f, 2, 2] - tris[f, 0, 2])
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        if nx * nx + ny * ny + nz * nz > 0.0:
+            keep[n] = f
+            n += 1
+    return keep[:n].copy()
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -191,6 +205,7 @@ def _build(tris, tri_index):
     bin_lo = np.empty((N_BINS, 3))
     bin_hi = np.empty((N_BINS, 3))
     bin_n = np.empty(N_BINS, dtype=np.int64)
+    right_cost = np.empty(N_BINS + 1)
     while top > 0:
         top -= 1
         node = stack[top]
@@ -209,7 +224,9 @@ def _build(tris, tri_index):
                 c_hi[a] = max(c_hi[a], centroid[i, a])
         if c <= LEAF_SIZE:
             continue
-        # Binned SAH over all three axes: cost = area(L) n(L) + area(R) n(R).
+        # Binned SAH over all three axes (Wald 2007): cost = area(L) n(L) + area(R) n(R),
+        # the right sides' areas summed in one sweep from the right, the left in one
+        # from the left.
         best_axis, best_split, best_cost = -1, -1, np.inf
         for a in range(3):
             extent = c_hi[a] - c_lo[a]
@@ -220,14 +237,26 @@ def _build(tris, tri_index):
             bin_hi[:] = -np.inf
             for k in range(s, s + c):
                 i = order[k]
-                b = min(int((centroid[i, a] - c_lo[a]) / extent * N_BINS), N_BINS - 1)
+                b = _bin_of(centroid[i, a], c_lo[a], extent)
                 bin_n[b] += 1
                 for d in range(3):
                     bin_lo[b, d] = min(bin_lo[b, d], lo[i, d])
                     bin_hi[b, d] = max(bin_hi[b, d], hi[i, d])
+            _sweep_costs(bin_lo, bin_hi, bin_n, right_cost)
+            count = 0
+            lx = ly = lz = np.inf
+            hx = hy = hz = -np.inf
             for split in range(1, N_BINS):
-                cost = _side_cost(bin_lo, bin_hi, bin_n, 0, split) + _side_cost(
-                    bin_lo, bin_hi, bin_n, split, N_BINS)
+                b = split - 1
+                if bin_n[b] > 0:
+                    count += bin_n[b]
+                    lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
+                    hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
+                left_cost = 0.0
+                if count > 0:
+                    dx, dy, dz = hx - lx, hy - ly, hz - lz
+                    left_cost = (dx * dy + dy * dz + dz * dx) * count
+                cost = left_cost + right_cost[split]
                 if cost < best_cost:
                     best_axis, best_split, best_cost = a, split, cost
         mid = s
@@ -237,7 +266,7 @@ def _build(tris, tri_index):
             j = s + c - 1
             while mid <= j:
                 i = order[mid]
-                b = min(int((centroid[i, a] - c_lo[a]) / extent * N_BINS), N_BINS - 1)
+                b = _bin_of(centroid[i, a], c_lo[a], extent)
                 if b < best_split:
                     mid += 1
                 else:
@@ -261,20 +290,29 @@ def _build(tris, tri_index):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _side_cost(bin_lo, bin_hi, bin_n, b0, b1):
+def _bin_of(centroid, c_lo, extent):
+    """The SAH bin of a centroid (the same expression wherever a bin is assigned, so the
+    partition puts each triangle on the side its bin was counted on)."""
+    return min(int((centroid - c_lo) / extent * N_BINS), N_BINS - 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sweep_costs(bin_lo, bin_hi, bin_n, right_cost):
+    """right_cost[split] = area x count of the union of bins split .. N_BINS - 1."""
     count = 0
     lx = ly = lz = np.inf
     hx = hy = hz = -np.inf
-    for b in range(b0, b1):
-        if bin_n[b] == 0:
-            continue
-        count += bin_n[b]
-        lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
-        hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
-    if count == 0:
-        return 0.0
-    dx, dy, dz = hx - lx, hy - ly, hz - lz
-    return (dx * dy + dy * dz + dz * dx) * count
+    right_cost[N_BINS] = 0.0
+    for b in range(N_BINS - 1, 0, -1):
+        if bin_n[b] > 0:
+            count += bin_n[b]
+            lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
+            hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
+        cost = 0.0
+        if count > 0:
+            dx, dy, dz = hx - lx, hy - ly, hz - lz
+            cost = (dx * dy + dy * dz + dz * dx) * count
+        right_cost[b] = cost
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -281,11 +281,17 @@ class Scene:
         return instance_of(self.face_offsets(), face_id)
 
     def world_triangles(self) -> np.ndarray:
-        """(F, 3, 3) world-space corners of every face, in submission order."""
+        """(F, 3, 3) world-space corners of every face, in submission order. Vertices
+        are moved to world space once and then gathered, so the faces sharing a vertex
+        get exactly the same coordinates for it (six times less arithmetic, too)."""
         parts = []
         for inst in self.instances:
-            tri = inst.mesh.positions[inst.mesh.faces]
-            parts.append(tri @ inst.model[:3, :3].T + inst.model[:3, 3])
+            positions = inst.mesh.positions
+            if not np.array_equal(inst.model, np.eye(4)):
+                positions = positions @ inst.model[:3, :3].T + inst.model[:3, 3]
+            parts.append(positions[inst.mesh.faces])
+        if len(parts) == 1:
+            return parts[0]
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
     def world_points(self) -> np.ndarray:
