@@ -3,7 +3,9 @@
 - ``cast(..., bvh=None)``: the literal O(pixels x triangles) method.
 - :func:`build` makes a bounding volume hierarchy (binned surface-area heuristic, flat
   arrays, built once per scene and reused across views); traversal is a stack walk,
-  nearer child first, pruned by the best hit so far.
+  nearer child first, pruned by the best hit so far. For the walk each inner node holds
+  both children's boxes (so one record is read per step) and the triangles are stored
+  in leaf order (a leaf's corners are one run of memory).
 
 Intersection is the watertight test of Woop, Benthin & Wald (2013): the ray is made the
 +z axis by a permutation and a shear, and the three 2-D edge functions are evaluated so
