@@ -276,17 +276,24 @@ def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, workers=None):
     into them: ``(pos_model (V, 3), pos_clip (V, 4), faces (F, 3))``, submission order.
     (Degeneracy is judged in model space, where a model matrix cannot hide it.)"""
     workers = workers or Workers()
-    model, clip, faces = [], [], []
-    base = 0
-    for inst in scene.instances:
-        mesh = inst.mesh
-        model.append(mesh.positions)
-        clip.append(transform_points(workers, mesh.positions, view_proj @ inst.model))
-        faces.append(mesh.faces + base if base else mesh.faces)
-        base += len(mesh.positions)
-    if len(clip) == 1:
-        return model[0], clip[0], faces[0]
-    return np.concatenate(model), np.concatenate(clip), np.concatenate(faces)
+    instances = scene.instances
+    if len(instances) == 1:
+        mesh = instances[0].mesh
+        return (mesh.positions, transform_points(workers, mesh.positions,
+                                                 view_proj @ instances[0].model), mesh.faces)
+    # All instances in one compiled call (a scene of many small parts would otherwise
+    # pay a thread hand-off per part, every view).
+    sizes = np.array([len(inst.mesh.positions) for inst in instances], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    pos_model = np.concatenate([inst.mesh.positions for inst in instances])
+    matrices = np.stack([view_proj @ inst.model for inst in instances])
+    faces = np.concatenate([inst.mesh.faces + starts[k] if starts[k] else inst.mesh.faces
+                            for k, inst in enumerate(instances)])
+    pos_clip = np.empty((len(pos_model), 4))
+    owner = np.repeat(np.arange(len(instances), dtype=np.int64), sizes)
+    workers.run_range(_transform_range, len(pos_model), pos_model, owner, matrices, pos_clip,
+                      min_chunk=65536)
+    return pos_model, pos_clip, faces
 
 
 def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -297,17 +304,26 @@ def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndar
     few cores, take the CPU from the kernels that run next (measured: the 1M-triangle
     terrain's set-up ran at half speed behind it)."""
     out = np.empty((len(points), 4))
-    workers.run_range(_transform_range, len(points), np.ascontiguousarray(points),
-                      np.ascontiguousarray(matrix, dtype=np.float64), out, min_chunk=65536)
+    workers.run_range(_transform_range, len(points), np.ascontiguousarray(points), _ONE_OWNER,
+                      np.ascontiguousarray(matrix, dtype=np.float64).reshape(1, 4, 4), out,
+                      min_chunk=65536)
     return out
 
 
+_ONE_OWNER = np.zeros(0, dtype=np.int64)
+
+
 @njit(cache=True, nogil=True)
-def _transform_range(lo, hi, points, matrix, out):
+def _transform_range(lo, hi, points, owner, matrices, out):
+    """Points ``lo .. hi`` each through its instance's matrix ``matrices[owner[i]]``
+    (``owner`` empty: all through ``matrices[0]``)."""
+    one = owner.shape[0] == 0
     for i in range(lo, hi):
+        k = 0 if one else owner[i]
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         for r in range(4):
-            out[i, r] = matrix[r, 0] * x + matrix[r, 1] * y + matrix[r, 2] * z + matrix[r, 3]
+            out[i, r] = (matrices[k, r, 0] * x + matrices[k, r, 1] * y + matrices[k, r, 2] * z
+                         + matrices[k, r, 3])
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
