@@ -167,7 +167,10 @@ def _scan_rows(b_lo, b_end, edge_table, vert_fixed, edge_bias, bbox, zplane, tri
                 best_z = np.float32(0.0)
                 for s in range(n_in):
                     t = inside[s]
-                    zf = np.float32(min(max(z_cur[s], z_lo), z_hi))
+                    # Clamped as fill_band clamps: the triangle's own depth range
+                    # within the depth range.
+                    zf = np.float32(min(max(z_cur[s], max(z_lo, zplane[t, 5])),
+                                        min(z_hi, zplane[t, 6])))
                     z_cur[s] += zplane[t, 3]
                     # Submission order decides ties: LESS keeps the lowest index,
                     # LEQUAL the highest; the clear depth acts as the first "surface".

@@ -53,6 +53,7 @@ def _stream(vert_fixed, edge_bias, bbox, zplane, tri_face, width, height, depth_
         X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
         X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
         X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
+        z_min, z_max = max(z_lo, zplane[t, 5]), min(z_hi, zplane[t, 6])  # as fill_band
         for j in range(y0, y1 + 1):
             py = np.int64(j) * _ONE + _HALF
             row = height - 1 - j
@@ -64,8 +65,8 @@ def _stream(vert_fixed, edge_bias, bbox, zplane, tri_face, width, height, depth_
                 e2 = (X0 - X2) * (py - Y2) - (Y0 - Y2) * (px - X2) + edge_bias[t, 2]
                 if (e0 | e1 | e2) < 0:
                     continue
-                z = np.float32(min(max(z_row + zplane[t, 3] * (i + 0.5 - zplane[t, 0]), z_lo),
-                                   z_hi))
+                z = np.float32(min(max(z_row + zplane[t, 3] * (i + 0.5 - zplane[t, 0]),
+                                       z_min), z_max))
                 if depth_test and not depth_passes(depth_func, z, depth_buf[row, i]):
                     continue
                 if not count_only:

@@ -38,7 +38,10 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
         bottom edge in y-up window space), -1 where it is not.
     bbox : (N, 4) int32, inclusive pixel ranges (x_min, x_max, y_min, y_max), clamped to
         the viewport, y counted from the bottom; empty when min > max.
-    zplane : (N, 5) float64, (x0, y0, z0, dz/dx, dz/dy) of the unsnapped depth plane.
+    zplane : (N, 7) float64, (x0, y0, z0, dz/dx, dz/dy) of the unsnapped depth plane and
+        (z_min, z_max) the range a fragment's depth is clamped to besides the depth
+        range: the corners' depths for slivers, (-inf, inf) otherwise (polygon offset
+        included; see :func:`setup_one`).
     row_work : (H,) float64, estimated fill work per window row (for :func:`band_split`),
         gathered during the same pass.
     """
@@ -58,7 +61,7 @@ def setup_records(n: int):
     # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
     # memory traffic, not arithmetic, is what set-up costs on large meshes.
     return (np.empty((n, 6), dtype=np.int32), np.empty((n, 3), dtype=np.int8),
-            np.empty((n, 4), dtype=np.int32), np.empty((n, 5)))
+            np.empty((n, 4), dtype=np.int32), np.empty((n, 7)))
 
 
 def estimate_row_work(delta: np.ndarray, widest) -> np.ndarray:
@@ -112,6 +115,7 @@ def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, ver
     edge_bias[t, 2] = _bias(x0 - x2, y0 - y2)
     zplane[t, 0], zplane[t, 1], zplane[t, 2], zplane[t, 3], zplane[t, 4] = \
         fx0, fy0, fz0, 0.0, 0.0
+    zplane[t, 5], zplane[t, 6] = -np.inf, np.inf
     # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
     bx0 = max(-((-(min(x0, x1, x2) - HALF)) // ONE), 0)
     bx1 = min((max(x0, x1, x2) - HALF) // ONE, width - 1)
@@ -131,9 +135,25 @@ def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, ver
     if det != 0.0:
         zplane[t, 3] = (az * by - bz * ay) / det
         zplane[t, 4] = (ax * bz - bx * az) / det
+    # Coverage is decided on the snapped corners, depth on the unsnapped plane, which is
+    # extrapolated at a covered centre just outside the unsnapped triangle (OpenGL does
+    # the same; at edge pixels the difference is a float32 step or so). But a sliver
+    # narrower than the snapping step (1/256 pixel) has a plane whose slope across it
+    # is meaningless, and snapping can make it cover centres far from it in that
+    # direction: the extrapolated depth is then anything (a face inside a closed box
+    # won a pixel with depth 0). Such a triangle's depth is clamped to its corners'
+    # range, which holds any weighted mean of them (OpenGL 4.6, 14.6.1).
+    cx, cy = fx2 - fx1, fy2 - fy1
+    longest = max(ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy)
+    if det * det * (ONE * ONE) < longest:  # height |det| / edge below 1/256 pixel
+        zplane[t, 5] = min(fz0, fz1, fz2)
+        zplane[t, 6] = max(fz0, fz1, fz2)
     if offset_factor != 0.0 or offset_units != 0.0:
-        zplane[t, 2] += polygon_offset(zplane[t, 3], zplane[t, 4], fz0, fz1, fz2,
-                                       offset_factor, offset_units)
+        offset = polygon_offset(zplane[t, 3], zplane[t, 4], fz0, fz1, fz2, offset_factor,
+                                offset_units)
+        zplane[t, 2] += offset
+        zplane[t, 5] += offset
+        zplane[t, 6] += offset
     return bx1 + 1
 
 

@@ -3,8 +3,10 @@ painter's, Newell, BSP, transparency, the scan-line's coverage) fills through th
 
 Coverage comes from the set-up records of :mod:`hsr.geometry.setup` (snapped corners,
 exact int64 edge functions, top-left rule). Depth: the triangle's plane evaluated at the
-pixel centre in float64, clamped to the depth range and rounded to float32 (the buffer
-format), then glDepthFunc / glDepthMask as OpenGL applies them.
+pixel centre in float64, clamped to the depth range (and, for a sliver thinner than the
+snapping step, to its corners' depths: see :func:`hsr.geometry.setup.setup_one`) and
+rounded to float32 (the buffer format), then glDepthFunc / glDepthMask as OpenGL applies
+them.
 
 Parallelism: the viewport is cut into horizontal bands of about equal work; bands are
 filled in parallel (:mod:`hsr.parallel`), each thread owning whole bands and walking the
@@ -215,6 +217,8 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
             step_x2, step_y2 = -(Y0 - Y2) * ONE, (X0 - X2) * ONE
             zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
             dzdx, dzdy = zplane[t, 3], zplane[t, 4]
+            # The depth range, narrowed to a sliver's corners' depths (see setup_one).
+            z_min, z_max = max(z_lo, zplane[t, 5]), min(z_hi, zplane[t, 6])
             # Wide boxes (long thin triangles) scan only each row's span inside all three
             # edges, where the edge test always passes (its steps are zeroed); narrow ones
             # test every pixel of the box, which is cheaper than the divisions that find
@@ -235,7 +239,7 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
                 for i in range(i_lo, i_hi + 1):
                     if (e0 | e1 | e2) >= 0:
                         z = z_row + dzdx * (i + 0.5 - zx0)
-                        z = min(max(z, z_lo), z_hi)
+                        z = min(max(z, z_min), z_max)
                         zf = np.float32(z)
                         n_tested += 1
                         if want_counts:
