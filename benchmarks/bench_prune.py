@@ -1,12 +1,17 @@
 """Removing hidden geometry: ``hsr.prune`` against pymeshlab's ambient-occlusion route, in
 the same run, on the same meshes.
 
-    python benchmarks/bench_prune.py [--views 256] [--size 1024] [--verify 100] [--rays 256]
-                                     [--skip-million] [--picture FILE.png]
+    python benchmarks/bench_prune.py [--views 256] [--size 1024] [--keep-neighbors 0]
+                                     [--also VIEWS@SIZE+RINGS ...] [--verify 100]
+                                     [--verify-size SIZE] [--rays 256] [--skip-million]
+                                     [--picture FILE.png]
 
 For each model: faces, views, seconds, faces removed and the verify error (changed
 pixels of covered pixels over ``--verify`` random outside viewpoints not used for the
-decision, at the decision resolution) for hsr; for pymeshlab
+decision, at ``--verify-size``, by default the decision resolution) for hsr, at the
+setting of ``--views``, ``--size`` and ``--keep-neighbors`` and at each ``--also``
+setting (e.g. ``48@512+1``: ``sphere:48`` at 512 x 512, one ring of neighbours kept),
+all verified the same way; for pymeshlab
 (``compute_scalar_ambient_occlusion(rays=N)`` gives each vertex the share of rays that
 escape; the faces whose three corners have none are deleted) the same, its deletion
 applied with hsr's ``subset_scene`` so both are verified the same way. Models: the
@@ -98,6 +103,16 @@ def cad_assembly():
     return scene
 
 
+def setting(text):
+    """``VIEWS@SIZE+RINGS`` (``+RINGS`` optional) -> (views, size, rings)."""
+    try:
+        views, rest = text.split("@")
+        size, _, rings = rest.partition("+")
+        return int(views), int(size), int(rings or 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected VIEWS@SIZE+RINGS, got {text!r}") from None
+
+
 def pymeshlab_keep(scene, rays):
     """pymeshlab's route: per-vertex ambient occlusion on the scene as one mesh; keep the
     faces with a corner that some ray escapes from. (keep, seconds)"""
@@ -121,7 +136,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--views", type=int, default=256)
     parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--keep-neighbors", type=int, default=0)
+    parser.add_argument("--also", action="append", default=[], type=setting,
+                        metavar="VIEWS@SIZE+RINGS", help="another hsr setting to run")
     parser.add_argument("--verify", type=int, default=100)
+    parser.add_argument("--verify-size", type=int, help="default: --size")
     parser.add_argument("--rays", type=int, default=256)
     parser.add_argument("--skip-million", action="store_true")
     parser.add_argument("--picture", help="write the before/after picture of the CAD "
@@ -139,31 +158,36 @@ def main():
         models.append(("box + 15 bunnies, 1.04M", box_of_bunnies(10, 5)))
     # Warm the kernels (their compile is not what is measured).
     face_visibility(models[-1][1], "sphere:1", 64)
-    spec = f"sphere:{args.views}"
+    settings = [(args.views, args.size, args.keep_neighbors)] + args.also
+    verify_size = args.verify_size or args.size
     rows = []
     for name, scene in models:
-        start = time.perf_counter()
-        counts = face_visibility(scene, spec, args.size, progress=False)
-        keep = keep_faces(scene, counts)
-        seconds = time.perf_counter() - start
-        pruned = subset_scene(scene, keep)
-        report = verify(scene, pruned, np.flatnonzero(keep), args.verify, args.size, seed=7)
-        rows.append((name, "hsr", scene.n_faces, seconds, int((~keep).sum()), report))
+        for k, (views, size, rings) in enumerate(settings):
+            start = time.perf_counter()
+            counts = face_visibility(scene, f"sphere:{views}", size, progress=False)
+            keep = keep_faces(scene, counts, keep_neighbors=rings)
+            seconds = time.perf_counter() - start
+            pruned = subset_scene(scene, keep)
+            report = verify(scene, pruned, np.flatnonzero(keep), args.verify, verify_size,
+                            seed=7)
+            rows.append((name, f"hsr sphere:{views} at {size}" + (
+                f", {rings} ring{'s' if rings > 1 else ''} kept" if rings else ""),
+                scene.n_faces, seconds, int((~keep).sum()), report))
+            if args.picture and name == "CAD-like assembly" and k == 0:
+                picture(scene, keep, args.picture)
+            print(rows[-1], file=sys.stderr)
         if have_meshlab:
             keep_ml, ml_seconds = pymeshlab_keep(scene, args.rays)
             report_ml = verify(scene, subset_scene(scene, keep_ml), np.flatnonzero(keep_ml),
-                               args.verify, args.size, seed=7)
+                               args.verify, verify_size, seed=7)
             rows.append((name, f"pymeshlab AO rays={args.rays}", scene.n_faces, ml_seconds,
                          int((~keep_ml).sum()), report_ml))
-        if args.picture and name == "CAD-like assembly":
-            picture(scene, keep, args.picture)
-        print(rows[-1] if not have_meshlab else rows[-2:], file=sys.stderr)
-    print(f"\n{spec} at {args.size}x{args.size}; verify: {args.verify} random outside views "
-          f"at the same size\n")
+            print(rows[-1], file=sys.stderr)
+    print(f"\nverify: {args.verify} random outside views at {verify_size}x{verify_size}\n")
     print("| model | route | faces | seconds | faces removed | verify: changed / covered px |")
     print("|---|---|---|---|---|---|")
     for name, route, faces, seconds, removed, report in rows:
-        print(f"| {name} | {route} | {faces:,} | {seconds:.1f} | {removed:,} "
+        print(f"| {name} | {route} | {faces:,} | {seconds:.2f} | {removed:,} "
               f"({100.0 * removed / faces:.2f}%) | {report['changed']:,} / "
               f"{report['covered']:,} ({report['percent']:.4f}%) |")
 

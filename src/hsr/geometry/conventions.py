@@ -63,8 +63,10 @@ barycentrics ``l_i`` are turned into ``b_i = (l_i / w_i) / sum_j (l_j / w_j)``.
 Depth values and ties
 ---------------------
 The window depth at a pixel centre is evaluated from the *unsnapped* vertex positions
-(as llvmpipe sets up its depth plane), clamped to the depth range and rounded to float32,
-then compared with the float32 buffer value using the current depth function. Triangles
+(as llvmpipe sets up its depth plane), clamped to the depth range (and, for a sliver
+under 1/256 pixel high, to its corners' depths: snapping can make it cover a centre
+where its plane, extrapolated across it, means nothing) and rounded to float32, then
+compared with the float32 buffer value using the current depth function. Triangles
 are processed in submission order, so ties are decided exactly as OpenGL decides them:
 with ``less`` the first triangle drawn at a depth keeps the pixel, with ``lequal`` the
 last one does. With the depth test disabled the last triangle drawn wins and the depth
