@@ -207,7 +207,8 @@ def _build(tris, tri_index):
     bin_lo = np.empty((N_BINS, 3))
     bin_hi = np.empty((N_BINS, 3))
     bin_n = np.empty(N_BINS, dtype=np.int64)
-    right_cost = np.empty(N_BINS + 1)
+    left_cost = np.empty(N_BINS)
+    right_cost = np.empty(N_BINS)
     while top > 0:
         top -= 1
         node = stack[top]
@@ -244,21 +245,10 @@ def _build(tris, tri_index):
                 for d in range(3):
                     bin_lo[b, d] = min(bin_lo[b, d], lo[i, d])
                     bin_hi[b, d] = max(bin_hi[b, d], hi[i, d])
-            _sweep_costs(bin_lo, bin_hi, bin_n, right_cost)
-            count = 0
-            lx = ly = lz = np.inf
-            hx = hy = hz = -np.inf
+            _sweep(bin_lo, bin_hi, bin_n, 0, 1, left_cost, 1)  # bins 0 .. split - 1
+            _sweep(bin_lo, bin_hi, bin_n, N_BINS - 1, -1, right_cost, 0)  # split .. last
             for split in range(1, N_BINS):
-                b = split - 1
-                if bin_n[b] > 0:
-                    count += bin_n[b]
-                    lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
-                    hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
-                left_cost = 0.0
-                if count > 0:
-                    dx, dy, dz = hx - lx, hy - ly, hz - lz
-                    left_cost = (dx * dy + dy * dz + dz * dx) * count
-                cost = left_cost + right_cost[split]
+                cost = left_cost[split] + right_cost[split]
                 if cost < best_cost:
                     best_axis, best_split, best_cost = a, split, cost
         mid = s
@@ -299,22 +289,26 @@ def _bin_of(centroid, c_lo, extent):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _sweep_costs(bin_lo, bin_hi, bin_n, right_cost):
-    """right_cost[split] = area x count of the union of bins split .. N_BINS - 1."""
+def _sweep(bin_lo, bin_hi, bin_n, first, step, cost, shift):
+    """One sweep of the SAH over the bins from ``first`` by ``step`` (N_BINS - 1 of
+    them): after bin b, ``cost[b + shift]`` = area x count of the union so far. From
+    the left (0, 1, shift 1) that is each split's left side, from the right
+    (N_BINS - 1, -1, shift 0) its right side: O(bins) per axis, not O(bins^2)."""
     count = 0
     lx = ly = lz = np.inf
     hx = hy = hz = -np.inf
-    right_cost[N_BINS] = 0.0
-    for b in range(N_BINS - 1, 0, -1):
+    b = first
+    for _ in range(N_BINS - 1):
         if bin_n[b] > 0:
             count += bin_n[b]
             lx, ly, lz = min(lx, bin_lo[b, 0]), min(ly, bin_lo[b, 1]), min(lz, bin_lo[b, 2])
             hx, hy, hz = max(hx, bin_hi[b, 0]), max(hy, bin_hi[b, 1]), max(hz, bin_hi[b, 2])
-        cost = 0.0
+        area = 0.0
         if count > 0:
             dx, dy, dz = hx - lx, hy - ly, hz - lz
-            cost = (dx * dy + dy * dz + dz * dx) * count
-        right_cost[b] = cost
+            area = (dx * dy + dy * dz + dz * dx) * count
+        cost[b + shift] = area
+        b += step
 
 
 @njit(cache=True, nogil=True, inline="always")
