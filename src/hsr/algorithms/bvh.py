@@ -131,8 +131,8 @@ def _up32(x):
 
 @njit(cache=True, nogil=True)
 def _flatten(node_min, node_max, node_left, node_start, node_count):
-    """The walked layout of :class:`BVH`: inner nodes renumbered depth first (a node's
-    nearer subtree tends to follow it in memory), each holding its children's boxes in
+    """The walked layout of :class:`BVH`: inner nodes renumbered depth first (a left
+    child's record follows its parent's), each holding its children's boxes in
     float32 rounded outwards (half the bytes; a box only ever grows, so no ray that
     meets a triangle misses its box) and their references."""
     n = node_left.shape[0]
@@ -355,17 +355,17 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
 @njit(cache=True, nogil=True)
 def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_scale,
                depth_offset, cull_code, front_ccw, lequal, eye, ortho, forward, use_bvh,
-               child_box, child_ref, root_box, root_ref, leaf_face, depth, face_buf, depth_buf,
-               dist_buf, bary_buf, clear_depth, extras):
+               child_box, child_ref, root_box, root_ref, leaf_face, tree_depth, face_buf,
+               depth_buf, dist_buf, bary_buf, clear_depth, extras):
     """Rows r_lo .. r_hi - 1. With ``use_bvh``, ``tris`` holds the BVH's corners in leaf
     order and ``leaf_face`` each slot's face id; without, the faces in order."""
     n_tris = tris.shape[0]
     # Each inner node popped leaves at most one sibling behind, so depth + 1 entries
     # suffice. Sized once: an array re-bound inside the loop (grown on demand) costs
     # reference counting at every step, more than doubling the walk's time.
-    stack_ref = np.empty(depth + 2, dtype=np.int64)
-    stack_count = np.empty(depth + 2, dtype=np.int64)
-    stack_t = np.empty(depth + 2)
+    stack_ref = np.empty(tree_depth + 2, dtype=np.int64)
+    stack_count = np.empty(tree_depth + 2, dtype=np.int64)
+    stack_t = np.empty(tree_depth + 2)
     tests = 0
     for r in range(r_lo, r_hi):
         y_ndc = 1.0 - (r + 0.5) * 2.0 / height
