@@ -21,7 +21,7 @@ from numba import njit
 from ..errors import RenderError
 from ..geometry.setup import HALF as _HALF
 from ..geometry.setup import ONE as _ONE
-from ..geometry.setup import covers_pixels, setup_triangles
+from ..geometry.setup import covers_pixels, depth_bounds, setup_triangles
 from ..geometry.stage import ScreenTriangles
 from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
@@ -167,10 +167,8 @@ def _scan_rows(b_lo, b_end, edge_table, vert_fixed, edge_bias, bbox, zplane, tri
                 best_z = np.float32(0.0)
                 for s in range(n_in):
                     t = inside[s]
-                    # Clamped as fill_band clamps: the triangle's own depth range
-                    # within the depth range.
-                    zf = np.float32(min(max(z_cur[s], max(z_lo, zplane[t, 5])),
-                                        min(z_hi, zplane[t, 6])))
+                    z_min, z_max = depth_bounds(zplane, t, z_lo, z_hi)
+                    zf = np.float32(min(max(z_cur[s], z_min), z_max))
                     z_cur[s] += zplane[t, 3]
                     # Submission order decides ties: LESS keeps the lowest index,
                     # LEQUAL the highest; the clear depth acts as the first "surface".

@@ -21,7 +21,7 @@ from numba import njit
 from ..errors import check_choice
 from ..geometry.setup import HALF as _HALF
 from ..geometry.setup import ONE as _ONE
-from ..geometry.setup import setup_triangles
+from ..geometry.setup import depth_bounds, setup_triangles
 from ..raster.fill import depth_passes
 
 __all__ = ["ORDERS", "check_order", "transparent_mask", "fragment_stream", "blend_in_order",
@@ -53,7 +53,7 @@ def _stream(vert_fixed, edge_bias, bbox, zplane, tri_face, width, height, depth_
         X0, Y0 = np.int64(vert_fixed[t, 0]), np.int64(vert_fixed[t, 1])
         X1, Y1 = np.int64(vert_fixed[t, 2]), np.int64(vert_fixed[t, 3])
         X2, Y2 = np.int64(vert_fixed[t, 4]), np.int64(vert_fixed[t, 5])
-        z_min, z_max = max(z_lo, zplane[t, 5]), min(z_hi, zplane[t, 6])  # as fill_band
+        z_min, z_max = depth_bounds(zplane, t, z_lo, z_hi)
         for j in range(y0, y1 + 1):
             py = np.int64(j) * _ONE + _HALF
             row = height - 1 - j

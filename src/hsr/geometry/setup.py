@@ -18,7 +18,7 @@ from numba import njit
 from .conventions import SUBPIXEL_BITS
 
 __all__ = ["setup_triangles", "setup_one", "setup_records", "estimate_row_work",
-           "covers_pixels", "polygon_offset", "ONE", "HALF"]
+           "covers_pixels", "polygon_offset", "depth_bounds", "ONE", "HALF"]
 
 ONE = 1 << SUBPIXEL_BITS  # one pixel in snapped window units
 HALF = ONE >> 1
@@ -155,6 +155,14 @@ def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, ver
         zplane[t, 5] += offset
         zplane[t, 6] += offset
     return bx1 + 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def depth_bounds(zplane, t, z_lo, z_hi):
+    """(low, high): what record ``t``'s fragment depths are clamped to, the depth range
+    [z_lo, z_hi] narrowed to a sliver's corners' depths (see :func:`setup_one`). Every
+    fill clamps through this, so all draw a sliver at the same depths."""
+    return max(z_lo, zplane[t, 5]), min(z_hi, zplane[t, 6])
 
 
 @njit(cache=True, nogil=True)

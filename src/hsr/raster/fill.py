@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..geometry.setup import HALF, ONE, setup_triangles
+from ..geometry.setup import HALF, ONE, depth_bounds, setup_triangles
 
 __all__ = ["band_split", "fill_bands", "fill_band", "fill_targets", "depth_passes",
            "FIRST_WINS", "rasterize"]
@@ -217,8 +217,7 @@ def fill_band(b_lo, b_end, vert_fixed, edge_bias, bbox, zplane, tri_face, face_b
             step_x2, step_y2 = -(Y0 - Y2) * ONE, (X0 - X2) * ONE
             zx0, zy0, zz0 = zplane[t, 0], zplane[t, 1], zplane[t, 2]
             dzdx, dzdy = zplane[t, 3], zplane[t, 4]
-            # The depth range, narrowed to a sliver's corners' depths (see setup_one).
-            z_min, z_max = max(z_lo, zplane[t, 5]), min(z_hi, zplane[t, 6])
+            z_min, z_max = depth_bounds(zplane, t, z_lo, z_hi)
             # Wide boxes (long thin triangles) scan only each row's span inside all three
             # edges, where the edge test always passes (its steps are zeroed); narrow ones
             # test every pixel of the box, which is cheaper than the divisions that find
