@@ -8,6 +8,7 @@ import trimesh
 
 import hsr
 from hsr.errors import MeshError
+from reference import ambiguous_pixels, compare, reference_render
 
 
 def write(tmp_path, name, text):
@@ -135,3 +136,28 @@ def test_unused_nan_vertex_is_allowed_used_one_is_not():
     hsr.Mesh(v, np.array([[0, 1, 2]]))
     with pytest.raises(MeshError, match="vertex 3"):
         hsr.Mesh(v, np.array([[0, 1, 3]]))
+
+
+def test_unused_nan_and_huge_vertices_render_like_the_reference():
+    # Unused vertices may hold anything (Mesh accepts them); placing the mesh in a scene
+    # once measured its reach over every vertex, NaN included, and refused to render.
+    v = np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0], [np.nan, 0, 0], [1e300, 0, 0],
+                  [-1, 1, -0.5], [0.5, -1, 0.5], [1, 1, -0.5]], float)
+    mesh = hsr.Mesh(v, np.array([[0, 1, 2], [5, 6, 7]]))
+    camera = hsr.Camera(eye=(0.3, 0.2, 4.0), target=(0, 0, 0), up=(0, 1, 0), fov_y=45)
+    frame = hsr.render(mesh, camera, 48, 40)
+    ref_face, ref_depth = reference_render(mesh, camera, 48, 40)
+    amb = ambiguous_pixels(mesh, camera, 48, 40)
+    face_bad, depth_bad, compared = compare(frame.face_id, frame.depth, ref_face, ref_depth,
+                                            amb)
+    assert (face_bad, depth_bad) == (0, 0) and compared > 1500
+    assert set(np.unique(frame.face_id)) == {-1, 0, 1}
+    assert mesh.extent() == 1.0
+
+
+def test_extent_follows_replaced_positions():
+    mesh = hsr.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [9, 9, 9]], float),
+                    np.array([[0, 1, 2]]))
+    assert mesh.extent() == 2.0
+    mesh.positions = mesh.positions * 3
+    assert mesh.extent() == 6.0

@@ -54,7 +54,9 @@ class Mesh:
     corner_colors: np.ndarray | None = None
 
     def __post_init__(self):
-        self.positions, self.faces = _validate_arrays(self.positions, self.faces, self.name)
+        self.positions, self.faces, extent = _validate_arrays(self.positions, self.faces,
+                                                              self.name)
+        self._extent = (self.positions, extent)
         n_faces = len(self.faces)
         self.corner_uv = _validate_corner(self.corner_uv, (n_faces, 3, 2), "corner_uv", self.name)
         self.corner_normals = _validate_corner(
@@ -91,6 +93,17 @@ class Mesh:
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(normal, axis=1, keepdims=True)
         return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+
+    def extent(self) -> float:
+        """Largest absolute coordinate of the vertices that faces use (unused vertices
+        may hold anything, NaN included). Kept from the validation while ``positions`` is
+        the same array: every render places the mesh again, and a scan of a million
+        vertices per view is not free."""
+        positions, extent = getattr(self, "_extent", (None, 0.0))
+        if positions is not self.positions:
+            extent = float(np.abs(self.used_positions()).max())
+            self._extent = (self.positions, extent)
+        return extent
 
     def degenerate_mask(self) -> np.ndarray:
         """(F,) bool: faces with a repeated vertex index or zero area (collinear corners).
@@ -144,13 +157,16 @@ def _validate_arrays(positions, faces, name):
     if not finite[used].all():
         v = int(np.argwhere(~finite & used)[0][0])
         raise MeshError(f"{name}: vertex {v} has a NaN or infinite coordinate")
-    huge = used & (np.abs(positions) > MAX_COORDINATE).any(axis=1)
+    with np.errstate(invalid="ignore"):  # unused vertices may be NaN
+        magnitude = np.abs(positions).max(axis=1)
+    huge = used & (magnitude > MAX_COORDINATE)
     if huge.any():
         v = int(np.argmax(huge))
         raise MeshError(f"{name}: vertex {v} has a coordinate beyond +-{MAX_COORDINATE:g} "
                         f"({np.abs(positions[v]).max():g}); products of coordinates must stay "
                         f"finite in float64")
-    return np.ascontiguousarray(positions), np.ascontiguousarray(faces)
+    extent = float(magnitude[used].max())
+    return np.ascontiguousarray(positions), np.ascontiguousarray(faces), extent
 
 
 def _colors(values, name, what) -> np.ndarray:
@@ -204,8 +220,8 @@ class Instance:
             # what a placement means; every stage applies the affine part.
             raise MeshError(f"{self.mesh.name}: model matrix must be affine (last row "
                             f"0, 0, 0, 1), got last row {model[3].tolist()}")
-        reach = np.abs(model[:3, :3]).sum(axis=1).max() * float(
-            np.abs(self.mesh.positions).max()) + np.abs(model[:3, 3]).max()
+        reach = np.abs(model[:3, :3]).sum(axis=1).max() * self.mesh.extent() + \
+            np.abs(model[:3, 3]).max()
         if not reach <= MAX_COORDINATE:
             raise MeshError(f"{self.mesh.name}: the model matrix places vertices beyond "
                             f"+-{MAX_COORDINATE:g}")
