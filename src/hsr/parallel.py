@@ -9,7 +9,7 @@ user pays on the first run, and its OpenMP workers spin between calls.)
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
 import numpy as np
@@ -47,7 +47,8 @@ class Workers:
 
     def __exit__(self, *exc):
         if self._pool is not None:
-            self._pool.shutdown()
+            # Idle threads exit on their own; joining them costs a render milliseconds.
+            self._pool.shutdown(wait=False)
             self._pool = None
 
     def run(self, kernel, bounds, *args, each=None, on_done=None) -> list:
@@ -58,19 +59,25 @@ class Workers:
         chunks = [(int(bounds[i]), int(bounds[i + 1])) for i in range(len(bounds) - 1)]
         extra = [args + (each[k],) for k in range(len(chunks))] if each is not None else \
             [args] * len(chunks)
-        if self.threads == 1 or len(chunks) == 1:
-            futures = None
-        else:
+        futures = []
+        if self.threads > 1 and len(chunks) > 1:
             if self._pool is None:
-                self._pool = ThreadPoolExecutor(self.threads)
+                self._pool = ThreadPoolExecutor(self.threads - 1)
+            # The calling thread runs the first chunk itself: one hand-off fewer, and it
+            # is busy at once instead of waiting for a pool thread to wake.
             futures = [self._pool.submit(kernel, lo, hi, *extra[k])
-                       for k, (lo, hi) in enumerate(chunks)]
+                       for k, (lo, hi) in enumerate(chunks) if k > 0]
         results = []
-        for k, (lo, hi) in enumerate(chunks):
-            results.append(kernel(lo, hi, *extra[k]) if futures is None
-                           else futures[k].result())
-            if on_done is not None:
-                on_done(lo, hi)
+        try:
+            for k, (lo, hi) in enumerate(chunks):
+                results.append(kernel(lo, hi, *extra[k]) if k == 0 or not futures
+                               else futures[k - 1].result())
+                if on_done is not None:
+                    on_done(lo, hi)
+        except BaseException:
+            # No chunk may still be writing into the caller's arrays once this returns.
+            wait(futures)
+            raise
         return results
 
     def split(self, n: int, min_chunk: int = 4096) -> np.ndarray:

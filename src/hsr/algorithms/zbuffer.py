@@ -16,6 +16,7 @@ from ..geometry.stage import (
     classify_setup_range,
     clip_and_project,
     geometry_counts,
+    status_counts,
 )
 from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers
@@ -29,8 +30,8 @@ OPTIONS: dict = {}  # accepted keys of render(..., options=...): none
 DESCRIPTION = "depth buffer with OpenGL depth state (test, func, mask, clear, range)"
 _NO_COUNTS = np.zeros((1, 1), dtype=np.int32)
 _BY_FACE = np.zeros(0, dtype=np.int64)  # fill_band: records laid out by face
-# Faces per streamed chunk: its set-up records (83 bytes a face) stay in the L3 cache
-# between the set-up and the fill, and no per-face array of the whole mesh is written.
+# Faces per streamed chunk (about): its set-up records (99 bytes a face) stay in the L3
+# cache between the set-up and the fill, and no per-face array of the whole mesh is written.
 STREAM_CHUNK = 1 << 16
 
 
@@ -139,7 +140,10 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     keep_ccw, keep_cw = geometry.keep_by_facing()
     factor, units = (float(v) for v in state.polygon_offset)
     status = np.empty(n_faces, dtype=np.int8)
-    size = min(STREAM_CHUNK, n_faces)
+    # Chunks of about STREAM_CHUNK faces, none much smaller: a small last chunk (the
+    # bunny's 69k faces made one of 4k) costs its own hand-offs and walks.
+    n_chunks = max(1, round(n_faces / STREAM_CHUNK))
+    size = -(-n_faces // n_chunks)
     records = setup_records(size)
     tested = written = binned = rasterized = pieces_kept = clip_culled = 0
     for c0 in range(0, n_faces, size):
@@ -148,11 +152,12 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         bounds = c0 + workers.split(c1 - c0)
         # One per-row work array per part: the parts run at once.
         delta = np.zeros((len(bounds) - 1, height + 1))
-        widest = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
+        parts = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
                              geometry.pos_clip, geometry.codes, geometry.faces, width, height,
                              geometry.depth_scale, geometry.depth_offset, keep_ccw, keep_cw,
                              factor, units, status, *chunk, each=delta)
-        work = estimate_row_work(delta, widest)
+        work = estimate_row_work(delta, [widest for widest, _ in parts])
+        rasterized += sum(covering for _, covering in parts)
         clip_at, piece_off = _BY_FACE, np.zeros(1, dtype=np.int64)
         clip_local = np.flatnonzero(status[c0:c1] == NEEDS_CLIP)
         if len(clip_local):
@@ -166,19 +171,19 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                 clip_at, n_pieces = np.unique(p_face - c0, return_counts=True)
                 piece_off = np.concatenate([[0], np.cumsum(n_pieces)]).astype(np.int64)
                 pieces_kept += len(p_face)
+                rasterized += int(np.count_nonzero(covers_pixels(p_records[2])))
         bands = band_split(work, workers.threads)
         t, w, b = fill_bands(workers, bands, *chunk, _BY_FACE,
                           width, height, state.depth_test, state.depth_func.code,
                           state.depth_mask, z_lo, z_hi, clear, depth, face, count_tested,
                           count_written, counts, pieces=(c0, clip_at, piece_off))
         tested, written, binned, clear = tested + t, written + w, binned + b, np.nan
-        rasterized += int(np.count_nonzero(covers_pixels(chunk[2])))
-    status_counts = np.bincount(status, minlength=CULLED + 1)
-    stats = geometry_counts(n_faces, status_counts, status_counts[CULLED] + clip_culled,
-                            status_counts[SIMPLE] + pieces_kept)
+    by_status = status_counts(status)
+    stats = geometry_counts(n_faces, by_status, by_status[CULLED] + clip_culled,
+                            by_status[SIMPLE] + pieces_kept)
     geometry.stats.update(stats)
     stats.update({"triangles_rasterized": rasterized, "fragments_tested": int(tested),
-                  "fragments_written": int(written), "chunks": -(-n_faces // size),
+                  "fragments_written": int(written), "chunks": n_chunks,
                   "bands": len(bands) - 1, "band_triangles": int(binned)})
     return Fragments(face, depth, screen, stats, count_tested if counts else None,
                      count_written if counts else None)

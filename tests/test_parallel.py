@@ -1,0 +1,71 @@
+"""hsr.parallel.Workers: chunks run once each, results in order, the caller's thread
+works too, and a failing chunk never leaves another still writing."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from hsr.parallel import Workers, split_range
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_every_chunk_runs_once_and_results_come_in_order(threads):
+    n = 1000
+    out = np.zeros(n, dtype=np.int64)
+
+    def kernel(lo, hi, values, mark):
+        values[lo:hi] += np.arange(lo, hi) ** 2
+        return (lo, hi, mark)
+
+    with Workers(threads) as workers:
+        bounds = split_range(n, 5)
+        results = workers.run(kernel, bounds, out, "m")
+    assert out.tolist() == [i * i for i in range(n)]
+    assert results == [(int(bounds[k]), int(bounds[k + 1]), "m") for k in range(5)]
+
+
+def test_each_gives_every_chunk_its_own_argument():
+    rows = np.zeros((3, 4))
+    with Workers(2) as workers:
+        workers.run(lambda lo, hi, row: row.fill(hi - lo), np.array([0, 2, 5, 9]), each=rows)
+    assert rows[:, 0].tolist() == [2, 3, 4]
+
+
+def test_the_calling_thread_runs_the_first_chunk():
+    seen = {}
+
+    def kernel(lo, hi):
+        seen[lo] = threading.get_ident()
+
+    with Workers(2) as workers:
+        workers.run(kernel, np.array([0, 1, 2, 3]))
+    assert seen[0] == threading.get_ident()
+    assert seen[1] != threading.get_ident() and seen[2] != threading.get_ident()
+
+
+def test_a_failing_chunk_waits_for_the_others_before_raising():
+    finished = []
+
+    def kernel(lo, hi):
+        if lo == 0:
+            raise ValueError("chunk 0 failed")
+        time.sleep(0.2)
+        finished.append(lo)
+
+    with Workers(2) as workers:
+        with pytest.raises(ValueError, match="chunk 0"):
+            workers.run(kernel, np.array([0, 1, 2, 3]))
+        # Both other chunks finished before the error reached the caller.
+        assert sorted(finished) == [1, 2]
+
+
+def test_split_range_covers_the_range_in_near_equal_parts():
+    for n in (0, 1, 7, 100, 10_001):
+        for parts in (1, 2, 3, 8):
+            b = split_range(n, parts)
+            assert b[0] == 0 and b[-1] == n and np.all(np.diff(b) >= 0)
+            if n >= parts:
+                sizes = np.diff(b)
+                assert len(sizes) == parts and sizes.max() - sizes.min() <= 1
