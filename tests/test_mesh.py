@@ -161,3 +161,22 @@ def test_extent_follows_replaced_positions():
     assert mesh.extent() == 2.0
     mesh.positions = mesh.positions * 3
     assert mesh.extent() == 6.0
+
+
+def test_degenerate_mask_follows_replaced_arrays_and_the_render_with_it():
+    # The mask is judged once per positions/faces array (a render asks every view); a
+    # mesh given new positions must not keep skipping a face that is no longer flat.
+    flat = np.array([[-1, -1, 0], [1, -1, 0], [0, -1, 0], [-1, 1, 0]], float)
+    mesh = hsr.Mesh(flat, np.array([[0, 1, 2], [0, 1, 3]]))
+    camera = hsr.Camera(eye=(0, 0, 4.0), target=(0, 0, 0), up=(0, 1, 0), fov_y=45)
+    assert mesh.degenerate_mask().tolist() == [True, False]
+    assert set(np.unique(hsr.render(mesh, camera, 40, 40).face_id)) == {-1, 1}
+    mesh.positions = np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0.5], [-1, 1, 0]], float)
+    assert mesh.degenerate_mask().tolist() == [False, False]
+    frame = hsr.render(mesh, camera, 40, 40)
+    ref_face, ref_depth = reference_render(mesh, camera, 40, 40)
+    amb = ambiguous_pixels(mesh, camera, 40, 40)
+    assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+    assert 0 in frame.face_id
+    with pytest.raises(ValueError):
+        mesh.degenerate_mask()[0] = True  # read-only: callers cannot corrupt it

@@ -152,7 +152,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         bounds = c0 + workers.split(c1 - c0)
         # One per-row work array per part: the parts run at once.
         delta = np.zeros((len(bounds) - 1, height + 1))
-        parts = workers.run(classify_setup_range, bounds, c0, geometry.pos_model,
+        parts = workers.run(classify_setup_range, bounds, c0, geometry.degenerate,
                              geometry.pos_clip, geometry.codes, geometry.faces, width, height,
                              geometry.depth_scale, geometry.depth_offset, keep_ccw, keep_cw,
                              factor, units, status, *chunk, each=delta)

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ..parallel import Workers
-from ..scene.mesh import Scene, is_degenerate
+from ..scene.mesh import Scene
 from .clip import clip_planes, clip_triangles
 from .conventions import GUARD_BAND_PIXELS
 from .setup import setup_one
@@ -38,15 +38,16 @@ SIMPLE, DEGENERATE, OUTSIDE, NEEDS_CLIP, CULLED = 0, 1, 2, 3, 4
 class Geometry:
     """The scene in clip space, before classification: what :func:`prepare` starts from.
 
-    pos_model : (V, 3) model-space vertices (degeneracy is judged there).
-    pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into both.
+    pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into them.
+    degenerate : (F,) bool, faces of zero area in model space (where a model matrix cannot
+        hide it; :meth:`hsr.scene.mesh.Mesh.degenerate_mask`).
     codes : (V,) uint8 outcodes of the clip-space vertices (:func:`vertex_codes`).
     planes : the clipping planes (:func:`hsr.geometry.clip.clip_planes`).
     depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
     stats : the dict that receives the triangle counts once faces are classified.
     """
 
-    pos_model: np.ndarray
+    degenerate: np.ndarray
     pos_clip: np.ndarray
     codes: np.ndarray
     faces: np.ndarray
@@ -137,7 +138,7 @@ def classify_faces(workers, geometry: Geometry):
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
     area = np.zeros(n)
-    workers.run_range(_classify_range, n, geometry.pos_model, geometry.pos_clip,
+    workers.run_range(_classify_range, n, geometry.degenerate, geometry.pos_clip,
                       geometry.codes, geometry.faces, geometry.width, geometry.height,
                       geometry.depth_scale, geometry.depth_offset, status, xy, depth, area)
     return status, xy, depth, area
@@ -184,10 +185,10 @@ def _codes(pos_clip, v, gx, gy):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _classify_one(pos_model, codes, a, b, c):
-    """Status of the face with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE
+def _classify_one(degenerate, codes, f, a, b, c):
+    """Status of face f with corners a, b, c: DEGENERATE, OUTSIDE, NEEDS_CLIP or SIMPLE
     (``codes``: the vertices' outcodes)."""
-    if is_degenerate(pos_model, a, b, c):
+    if degenerate[f]:
         return DEGENERATE
     code_a, code_b, code_c = codes[a], codes[b], codes[c]
     # Trivial reject: all corners outside one frustum plane.
@@ -199,11 +200,11 @@ def _classify_one(pos_model, codes, a, b, c):
 
 
 @njit(cache=True, nogil=True)
-def _classify_range(lo, hi, pos_model, pos_clip, codes, faces, width, height, depth_scale,
+def _classify_range(lo, hi, degenerate, pos_clip, codes, faces, width, height, depth_scale,
                     depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     for f in range(lo, hi):
-        status[f] = _classify_one(pos_model, codes, faces[f, 0], faces[f, 1], faces[f, 2])
+        status[f] = _classify_one(degenerate, codes, f, faces[f, 0], faces[f, 1], faces[f, 2])
         if status[f] != SIMPLE:
             continue
         for k in range(3):
@@ -216,7 +217,7 @@ def _classify_range(lo, hi, pos_model, pos_clip, codes, faces, width, height, de
 
 
 @njit(cache=True, nogil=True)
-def classify_setup_range(lo, hi, base, pos_model, pos_clip, codes, faces, width, height,
+def classify_setup_range(lo, hi, base, degenerate, pos_clip, codes, faces, width, height,
                          depth_scale, depth_offset, keep_ccw, keep_cw, offset_factor,
                          offset_units, status, vert_fixed, edge_bias, bbox, zplane, delta):
     """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
@@ -235,7 +236,7 @@ def classify_setup_range(lo, hi, base, pos_model, pos_clip, codes, faces, width,
         r = f - base
         bbox[r, 0], bbox[r, 1], bbox[r, 2], bbox[r, 3] = 0, -1, 0, -1
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        status[f] = _classify_one(pos_model, codes, a, b, c)
+        status[f] = _classify_one(degenerate, codes, f, a, b, c)
         if status[f] != SIMPLE:
             continue
         x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2], pos_clip[a, 3],
@@ -275,15 +276,15 @@ def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
 
 
 def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, workers=None):
-    """Model-space and clip-space vertices of all instances and their faces re-indexed
-    into them: ``(pos_model (V, 3), pos_clip (V, 4), faces (F, 3))``, submission order.
-    (Degeneracy is judged in model space, where a model matrix cannot hide it.)"""
+    """Clip-space vertices of all instances, their faces re-indexed into them and which
+    faces are degenerate (judged in model space, where a model matrix cannot hide it):
+    ``(pos_clip (V, 4), faces (F, 3), degenerate (F,) bool)``, submission order."""
     workers = workers or Workers()
     instances = scene.instances
     if len(instances) == 1:
         mesh = instances[0].mesh
-        return (mesh.positions, transform_points(workers, mesh.positions,
-                                                 view_proj @ instances[0].model), mesh.faces)
+        return (transform_points(workers, mesh.positions, view_proj @ instances[0].model),
+                mesh.faces, mesh.degenerate_mask())
     # All instances in one compiled call (a scene of many small parts would otherwise
     # pay a thread hand-off per part, every view).
     sizes = np.array([len(inst.mesh.positions) for inst in instances], dtype=np.int64)
@@ -292,11 +293,12 @@ def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, workers=None):
     matrices = np.stack([view_proj @ inst.model for inst in instances])
     faces = np.concatenate([inst.mesh.faces + starts[k] if starts[k] else inst.mesh.faces
                             for k, inst in enumerate(instances)])
+    degenerate = np.concatenate([inst.mesh.degenerate_mask() for inst in instances])
     pos_clip = np.empty((len(pos_model), 4))
     owner = np.repeat(np.arange(len(instances), dtype=np.int64), sizes)
     workers.run_range(_transform_range, len(pos_model), pos_model, owner, matrices, pos_clip,
                       min_chunk=65536)
-    return pos_model, pos_clip, faces
+    return pos_clip, faces, degenerate
 
 
 def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -348,11 +350,11 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     the vertices are transformed now; faces are classified, clipped and projected when the
     screen triangles are first read (or streamed by the z-buffer, which fills ``stats``)."""
     workers = workers or Workers()
-    pos_model, pos_clip, faces = scene_clip_vertices(scene, view_proj, workers)
+    pos_clip, faces, degenerate = scene_clip_vertices(scene, view_proj, workers)
     near, far = state.depth_range
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
     codes = vertex_codes(workers, pos_clip, float(planes[2, 3]), float(planes[4, 3]))
-    geometry = Geometry(pos_model, pos_clip, codes, faces, width, height, state, planes,
+    geometry = Geometry(degenerate, pos_clip, codes, faces, width, height, state, planes,
                         0.5 * (far - near), 0.5 * (far + near), stats, workers.threads)
     if deferred:
         return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,

@@ -42,6 +42,11 @@ class Mesh:
 
     Raises :class:`~hsr.errors.MeshError` for arrays of the wrong shape or type, indices
     outside the vertices, NaN, infinite or huge (> 1e100) coordinates used by a face, no faces.
+
+    The arrays are used as given when they already have the right type (no copy). Do not
+    change them in place afterwards; assign new arrays instead (``mesh.positions = p``):
+    what is derived from them once (:meth:`extent`, :meth:`degenerate_mask`) is kept per
+    array object.
     """
 
     positions: np.ndarray
@@ -106,11 +111,16 @@ class Mesh:
         return extent
 
     def degenerate_mask(self) -> np.ndarray:
-        """(F,) bool: faces with a repeated vertex index or zero area (collinear corners).
-
-        Such faces cover no pixel in OpenGL either; renderers skip and count them.
-        """
-        return degenerate_faces(self.positions, self.faces)
+        """(F,) bool, read-only: faces with a repeated vertex index or zero area (collinear
+        corners). Such faces cover no pixel in OpenGL either; renderers skip and count
+        them. Judged in model space, so it does not depend on the view: kept while
+        ``positions`` and ``faces`` are the same arrays (every render asks again)."""
+        positions, faces, mask = getattr(self, "_degenerate", (None, None, None))
+        if positions is not self.positions or faces is not self.faces:
+            mask = degenerate_faces(self.positions, self.faces)
+            mask.flags.writeable = False
+            self._degenerate = (self.positions, self.faces, mask)
+        return mask
 
     def used_positions(self) -> np.ndarray:
         """(N, 3) positions of the vertices that faces use, in vertex order."""
