@@ -3,9 +3,9 @@
 model/view/projection -> clip space -> clip (near, far, guard band) -> divide + viewport
 -> face culling -> :class:`ScreenTriangles`.
 
-Vertices are transformed once (a compiled loop, see :func:`transform_points`); a compiled
-per-face kernel classifies each face (degenerate / outside / needs clipping / simple) and
-projects the simple ones straight to window space. Only the (usually few) faces that cross
+Vertices are transformed once, their outcodes computed on the way (a compiled loop, see
+:func:`scene_clip_vertices`); a compiled per-face kernel classifies each face (degenerate /
+outside / needs clipping / simple) and projects the simple ones straight to window space. Only the (usually few) faces that cross
 a clip plane go through the Sutherland-Hodgman clipper in :mod:`hsr.geometry.clip`.
 
 The plain z-buffer does not need the window-space triangles stored: with
@@ -41,7 +41,7 @@ class Geometry:
     pos_clip : (V, 4) clip-space vertices; faces : (F, 3) global faces into them.
     degenerate : (F,) bool, faces of zero area in model space (where a model matrix cannot
         hide it; :meth:`hsr.scene.mesh.Mesh.degenerate_mask`).
-    codes : (V,) uint8 outcodes of the clip-space vertices (:func:`vertex_codes`).
+    codes : (V,) uint8 outcodes of the clip-space vertices (:func:`_codes`).
     planes : the clipping planes (:func:`hsr.geometry.clip.clip_planes`).
     depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
     stats : the dict that receives the triangle counts once faces are classified.
@@ -142,20 +142,6 @@ def classify_faces(workers, geometry: Geometry):
                       geometry.codes, geometry.faces, geometry.width, geometry.height,
                       geometry.depth_scale, geometry.depth_offset, status, xy, depth, area)
     return status, xy, depth, area
-
-
-def vertex_codes(workers, pos_clip, gx, gy) -> np.ndarray:
-    """(V,) uint8 outcodes of the clip-space vertices (see :func:`_codes`), computed once
-    per vertex: a vertex is shared by about six faces, which then only combine bits."""
-    codes = np.empty(len(pos_clip), dtype=np.uint8)
-    workers.run_range(_codes_range, len(pos_clip), pos_clip, gx, gy, codes, min_chunk=65536)
-    return codes
-
-
-@njit(cache=True, nogil=True)
-def _codes_range(lo, hi, pos_clip, gx, gy, codes):
-    for v in range(lo, hi):
-        codes[v] = _codes(pos_clip, v, gx, gy)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -275,30 +261,35 @@ def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
     return xy, depth, area
 
 
-def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, workers=None):
-    """Clip-space vertices of all instances, their faces re-indexed into them and which
-    faces are degenerate (judged in model space, where a model matrix cannot hide it):
-    ``(pos_clip (V, 4), faces (F, 3), degenerate (F,) bool)``, submission order."""
+def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, workers=None):
+    """Clip-space vertices of all instances, their outcodes (:func:`_codes`, for the
+    ``guard_band`` (gx, gy)), their faces re-indexed into them and which faces are
+    degenerate (judged in model space, where a model matrix cannot hide it):
+    ``(pos_clip (V, 4), codes (V,) uint8, faces (F, 3), degenerate (F,) bool)``, in
+    submission order. All instances go through one compiled call (a scene of many small
+    parts would otherwise pay a thread hand-off per part, every view)."""
     workers = workers or Workers()
     instances = scene.instances
     if len(instances) == 1:
         mesh = instances[0].mesh
-        return (transform_points(workers, mesh.positions, view_proj @ instances[0].model),
-                mesh.faces, mesh.degenerate_mask())
-    # All instances in one compiled call (a scene of many small parts would otherwise
-    # pay a thread hand-off per part, every view).
-    sizes = np.array([len(inst.mesh.positions) for inst in instances], dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-    pos_model = np.concatenate([inst.mesh.positions for inst in instances])
-    matrices = np.stack([view_proj @ inst.model for inst in instances])
-    faces = np.concatenate([inst.mesh.faces + starts[k] if starts[k] else inst.mesh.faces
-                            for k, inst in enumerate(instances)])
-    degenerate = np.concatenate([inst.mesh.degenerate_mask() for inst in instances])
+        pos_model, faces, degenerate = mesh.positions, mesh.faces, mesh.degenerate_mask()
+        owner, matrices = _ONE_OWNER, (view_proj @ instances[0].model)[None]
+    else:
+        sizes = np.array([len(inst.mesh.positions) for inst in instances], dtype=np.int64)
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        pos_model = np.concatenate([inst.mesh.positions for inst in instances])
+        matrices = np.stack([view_proj @ inst.model for inst in instances])
+        faces = np.concatenate([inst.mesh.faces + starts[k] if starts[k] else inst.mesh.faces
+                                for k, inst in enumerate(instances)])
+        degenerate = np.concatenate([inst.mesh.degenerate_mask() for inst in instances])
+        owner = np.repeat(np.arange(len(instances), dtype=np.int64), sizes)
     pos_clip = np.empty((len(pos_model), 4))
-    owner = np.repeat(np.arange(len(instances), dtype=np.int64), sizes)
-    workers.run_range(_transform_range, len(pos_model), pos_model, owner, matrices, pos_clip,
+    codes = np.empty(len(pos_model), dtype=np.uint8)
+    gx, gy = guard_band
+    workers.run_range(_transform_range, len(pos_model), pos_model, owner,
+                      np.ascontiguousarray(matrices), pos_clip, float(gx), float(gy), codes,
                       min_chunk=65536)
-    return pos_clip, faces, degenerate
+    return pos_clip, codes, faces, degenerate
 
 
 def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -311,24 +302,30 @@ def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndar
     out = np.empty((len(points), 4))
     workers.run_range(_transform_range, len(points), np.ascontiguousarray(points), _ONE_OWNER,
                       np.ascontiguousarray(matrix, dtype=np.float64).reshape(1, 4, 4), out,
-                      min_chunk=65536)
+                      0.0, 0.0, _NO_CODES, min_chunk=65536)
     return out
 
 
 _ONE_OWNER = np.zeros(0, dtype=np.int64)
+_NO_CODES = np.zeros(0, dtype=np.uint8)
 
 
 @njit(cache=True, nogil=True)
-def _transform_range(lo, hi, points, owner, matrices, out):
+def _transform_range(lo, hi, points, owner, matrices, out, gx, gy, codes):
     """Points ``lo .. hi`` each through its instance's matrix ``matrices[owner[i]]``
-    (``owner`` empty: all through ``matrices[0]``)."""
+    (``owner`` empty: all through ``matrices[0]``) into ``out``; unless ``codes`` is
+    empty, also their outcodes (:func:`_codes`, guard band ``gx``, ``gy``), computed
+    while the point is at hand rather than by a second pass over the clip-space array."""
     one = owner.shape[0] == 0
+    with_codes = codes.shape[0] > 0
     for i in range(lo, hi):
         k = 0 if one else owner[i]
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         for r in range(4):
             out[i, r] = (matrices[k, r, 0] * x + matrices[k, r, 1] * y + matrices[k, r, 2] * z
                          + matrices[k, r, 3])
+        if with_codes:
+            codes[i] = _codes(out, i, gx, gy)
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
@@ -350,10 +347,10 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     the vertices are transformed now; faces are classified, clipped and projected when the
     screen triangles are first read (or streamed by the z-buffer, which fills ``stats``)."""
     workers = workers or Workers()
-    pos_clip, faces, degenerate = scene_clip_vertices(scene, view_proj, workers)
     near, far = state.depth_range
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
-    codes = vertex_codes(workers, pos_clip, float(planes[2, 3]), float(planes[4, 3]))
+    pos_clip, codes, faces, degenerate = scene_clip_vertices(
+        scene, view_proj, (planes[2, 3], planes[4, 3]), workers)
     geometry = Geometry(degenerate, pos_clip, codes, faces, width, height, state, planes,
                         0.5 * (far - near), 0.5 * (far + near), stats, workers.threads)
     if deferred:
