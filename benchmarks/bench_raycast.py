@@ -21,12 +21,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
 import time
 
 import numpy as np
-from common import agreement_percent
+from common import agreement_percent, timings
 
 import hsr
 import hsr.algorithms.bvh as rc
@@ -96,19 +95,6 @@ def open3d_peer(tris, origin, direction):
     ids = res["primitive_ids"].numpy().astype(np.int64)
     face = np.where(np.isfinite(t_hit) & (t_hit <= 1.0), ids, -1)
     return build, lambda: scene.cast_rays(ray_tensor), face
-
-
-def timings(fns, repeat, rounds):
-    """(min, median) ms of each function over alternating blocks of ``repeat`` calls."""
-    times = [[] for _ in fns]
-    for _ in range(rounds):
-        for fn, bucket in zip(fns, times):
-            fn()  # warm
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                fn()
-                bucket.append(1e3 * (time.perf_counter() - t0))
-    return [(min(t), statistics.median(t)) for t in times]
 
 
 def main(argv=None):

@@ -8,9 +8,9 @@ MODEL is a mesh file or ``terrain:N``, a generated displaced grid of N triangles
 so that it covers a thin strip: the per-triangle cost with almost no fill). Mesh files are
 framed by ``Camera.frame`` (front view, 45 degrees). For each model and size: hsr.render (warm;
 face_id + depth + flat colour) and moderngl (static vertex buffer; clear + draw + finish
-+ read back face ids and depth), median over alternating blocks of --repeat runs, the
-ratio hsr / llvmpipe (< 1 means hsr is faster), triangles per second and the process's
-peak resident memory so far. Runs on demand, never as part of the test suite.
++ read back face ids and depth), min and median over three alternating blocks of --repeat
+runs each, the ratios hsr / llvmpipe of both (< 1 means hsr is faster), triangles per
+second (median) and the process's peak resident memory so far. Runs on demand, never as part of the test suite.
 """
 
 from __future__ import annotations
@@ -18,10 +18,11 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from math import nan
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from common import median_ms, peak_gb, progress  # noqa: E402
+from common import peak_gb, progress, timings  # noqa: E402
 
 import hsr  # noqa: E402
 
@@ -62,8 +63,9 @@ def main(argv=None):
         except Exception as exc:  # moderngl or Mesa missing
             print(f"# OpenGL peer unavailable ({exc}); timing hsr alone", file=sys.stderr)
 
-    print(f"{'model':24} {'triangles':>9} {'size':>10} {'hsr ms':>8} {'gl ms':>8} "
-          f"{'hsr/gl':>7} {'Mtri/s':>7} {'covered':>7} {'peak GB':>8}")
+    print(f"{'model':24} {'triangles':>9} {'size':>10} {'hsr ms min/med':>15} "
+          f"{'gl ms min/med':>15} {'hsr/gl min/med':>15} {'Mtri/s':>7} {'covered':>7} "
+          f"{'peak GB':>8}")
     jobs = [(m, s) for m in args.models for s in sizes]
     meshes = {}
     for model, (width, height) in progress(jobs, "bench"):
@@ -73,20 +75,21 @@ def main(argv=None):
         mesh, label, cam = meshes[model]
         run_hsr = lambda: hsr.render(mesh, cam, width, height)  # noqa: E731
         if gl is None:
-            hsr_ms, gl_ms = median_ms([run_hsr], args.repeat, rounds=3)[0], float("nan")
+            hsr_ms, gl_ms = timings([run_hsr], args.repeat, rounds=3)[0], (nan, nan)
         else:
             view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
             vao, vbo = gl.upload(hsr.Scene([mesh]).world_triangles())
-            hsr_ms, gl_ms = median_ms(
+            hsr_ms, gl_ms = timings(
                 [run_hsr, lambda: gl.render(None, view_proj, width, height, vao=vao)],
                 args.repeat, rounds=3)
             vao.release()
             vbo.release()
-        ratio = hsr_ms / gl_ms if gl_ms == gl_ms else float("nan")
+        ratio = (hsr_ms[0] / gl_ms[0], hsr_ms[1] / gl_ms[1])
         covered = run_hsr().stats["pixels_covered"] / (width * height)
         peak = peak_gb()
         print(f"{label:24} {mesh.n_faces:9d} {width:>4}x{height:<5} "
-              f"{hsr_ms:8.1f} {gl_ms:8.1f} {ratio:7.2f} {mesh.n_faces / hsr_ms / 1e3:7.2f} "
+              f"{hsr_ms[0]:7.1f}/{hsr_ms[1]:<7.1f} {gl_ms[0]:7.1f}/{gl_ms[1]:<7.1f} "
+              f"{ratio[0]:7.2f}/{ratio[1]:<7.2f} {mesh.n_faces / hsr_ms[1] / 1e3:7.2f} "
               f"{covered:7.1%} {peak:8.2f}", flush=True)
     return 0
 

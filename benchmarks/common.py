@@ -17,11 +17,11 @@ def timed(fn):
     return result, 1e3 * (time.perf_counter() - t0)
 
 
-def median_ms(fns, repeat, rounds=1):
-    """Median milliseconds of each function. Each runs in blocks of ``repeat`` calls after
-    one warm-up call (so no function pays for another's cache and page state inside a
-    block); with several ``rounds`` the blocks alternate, so all see the same machine load
-    over time."""
+def timings(fns, repeat, rounds=1):
+    """(min, median) milliseconds of each function. Each runs in blocks of ``repeat`` calls
+    after one warm-up call (so no function pays for another's cache and page state inside
+    a block); with several ``rounds`` the blocks alternate, so all see the same machine
+    load over time."""
     times = [[] for _ in fns]
     for _ in range(rounds):
         for fn, bucket in zip(fns, times):
@@ -29,8 +29,8 @@ def median_ms(fns, repeat, rounds=1):
             for _ in range(repeat):
                 t0 = time.perf_counter()
                 fn()
-                bucket.append(time.perf_counter() - t0)
-    return [1e3 * statistics.median(t) for t in times]
+                bucket.append(1e3 * (time.perf_counter() - t0))
+    return [(min(t), statistics.median(t)) for t in times]
 
 
 def agreement_percent(face_a: np.ndarray, face_b: np.ndarray) -> float:
