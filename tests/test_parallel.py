@@ -69,3 +69,19 @@ def test_split_range_covers_the_range_in_near_equal_parts():
             if n >= parts:
                 sizes = np.diff(b)
                 assert len(sizes) == parts and sizes.max() - sizes.min() <= 1
+
+
+def test_renders_leave_no_threads_behind():
+    # Each render's pool is shut down without joining (joining cost milliseconds a view);
+    # its idle threads must still exit rather than pile up over many renders.
+    import hsr
+
+    mesh = hsr.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
+    camera = hsr.Camera.frame(mesh.bounds())
+    before = threading.active_count()
+    for _ in range(100):
+        hsr.render(mesh, camera, 32, 24, threads=2)
+    deadline = time.monotonic() + 5.0
+    while threading.active_count() > before + 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert threading.active_count() <= before + 1
