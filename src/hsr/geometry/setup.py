@@ -107,6 +107,44 @@ def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, ver
     if area < 0:  # make the corner order counter-clockwise
         x1, x2 = x2, x1
         y1, y2 = y2, y1
+    # Every field of the record is computed first and stored once, at the end: a store
+    # into one of these arrays in the middle keeps the compiler from holding the others
+    # in registers across it (they might alias), which cost a fifth of the set-up.
+    # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
+    bx0 = max(-((-(min(x0, x1, x2) - HALF)) // ONE), 0)
+    bx1 = min((max(x0, x1, x2) - HALF) // ONE, width - 1)
+    by0 = max(-((-(min(y0, y1, y2) - HALF)) // ONE), 0)
+    by1 = min((max(y0, y1, y2) - HALF) // ONE, height - 1)
+    covers = area != 0 and bx0 <= bx1 and by0 <= by1
+    dzdx = dzdy = 0.0
+    z_min, z_max = -np.inf, np.inf
+    z_at = fz0
+    if covers:
+        # Depth plane from the unsnapped positions.
+        ax, ay = fx1 - fx0, fy1 - fy0
+        bx, by = fx2 - fx0, fy2 - fy0
+        az, bz = fz1 - fz0, fz2 - fz0
+        det = ax * by - bx * ay
+        if det != 0.0:
+            dzdx = (az * by - bz * ay) / det
+            dzdy = (ax * bz - bx * az) / det
+        # Coverage is decided on the snapped corners, depth on the unsnapped plane, which
+        # is extrapolated at a covered centre just outside the unsnapped triangle (OpenGL
+        # does the same; at edge pixels the difference is a float32 step or so). But a
+        # sliver narrower than the snapping step (1/256 pixel) has a plane whose slope
+        # across it is meaningless, and snapping can make it cover centres far from it
+        # in that direction: the extrapolated depth is then anything (a face inside a
+        # closed box won a pixel with depth 0). Such a triangle's depth is clamped to its
+        # corners' range, which holds any weighted mean of them (OpenGL 4.6, 14.6.1).
+        cx, cy = fx2 - fx1, fy2 - fy1
+        longest = max(ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy)
+        if det * det * (ONE * ONE) < longest:  # height |det| / edge below 1/256 pixel
+            z_min, z_max = min(fz0, fz1, fz2), max(fz0, fz1, fz2)
+        if offset_factor != 0.0 or offset_units != 0.0:
+            offset = polygon_offset(dzdx, dzdy, fz0, fz1, fz2, offset_factor, offset_units)
+            z_at += offset
+            z_min += offset
+            z_max += offset
     vert_fixed[t, 0], vert_fixed[t, 1] = x0, y0
     vert_fixed[t, 2], vert_fixed[t, 3] = x1, y1
     vert_fixed[t, 4], vert_fixed[t, 5] = x2, y2
@@ -114,46 +152,14 @@ def setup_one(t, fx0, fy0, fz0, fx1, fy1, fz1, fx2, fy2, fz2, width, height, ver
     edge_bias[t, 1] = _bias(x2 - x1, y2 - y1)
     edge_bias[t, 2] = _bias(x0 - x2, y0 - y2)
     zplane[t, 0], zplane[t, 1], zplane[t, 2], zplane[t, 3], zplane[t, 4] = \
-        fx0, fy0, fz0, 0.0, 0.0
-    zplane[t, 5], zplane[t, 6] = -np.inf, np.inf
-    # Pixel i is a candidate when its centre 256*i + 128 lies within the box.
-    bx0 = max(-((-(min(x0, x1, x2) - HALF)) // ONE), 0)
-    bx1 = min((max(x0, x1, x2) - HALF) // ONE, width - 1)
-    by0 = max(-((-(min(y0, y1, y2) - HALF)) // ONE), 0)
-    by1 = min((max(y0, y1, y2) - HALF) // ONE, height - 1)
-    if area == 0 or bx0 > bx1 or by0 > by1:  # covers no pixel centre
+        fx0, fy0, z_at, dzdx, dzdy
+    zplane[t, 5], zplane[t, 6] = z_min, z_max
+    if not covers:
         bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = 0, -1, 0, -1
         return 0
     bbox[t, 0], bbox[t, 1], bbox[t, 2], bbox[t, 3] = bx0, bx1, by0, by1
     delta[by0] += bx1 - bx0 + 1
     delta[by1 + 1] -= bx1 - bx0 + 1
-    # Depth plane from the unsnapped positions.
-    ax, ay = fx1 - fx0, fy1 - fy0
-    bx, by = fx2 - fx0, fy2 - fy0
-    az, bz = fz1 - fz0, fz2 - fz0
-    det = ax * by - bx * ay
-    if det != 0.0:
-        zplane[t, 3] = (az * by - bz * ay) / det
-        zplane[t, 4] = (ax * bz - bx * az) / det
-    # Coverage is decided on the snapped corners, depth on the unsnapped plane, which is
-    # extrapolated at a covered centre just outside the unsnapped triangle (OpenGL does
-    # the same; at edge pixels the difference is a float32 step or so). But a sliver
-    # narrower than the snapping step (1/256 pixel) has a plane whose slope across it
-    # is meaningless, and snapping can make it cover centres far from it in that
-    # direction: the extrapolated depth is then anything (a face inside a closed box
-    # won a pixel with depth 0). Such a triangle's depth is clamped to its corners'
-    # range, which holds any weighted mean of them (OpenGL 4.6, 14.6.1).
-    cx, cy = fx2 - fx1, fy2 - fy1
-    longest = max(ax * ax + ay * ay, bx * bx + by * by, cx * cx + cy * cy)
-    if det * det * (ONE * ONE) < longest:  # height |det| / edge below 1/256 pixel
-        zplane[t, 5] = min(fz0, fz1, fz2)
-        zplane[t, 6] = max(fz0, fz1, fz2)
-    if offset_factor != 0.0 or offset_units != 0.0:
-        offset = polygon_offset(zplane[t, 3], zplane[t, 4], fz0, fz1, fz2, offset_factor,
-                                offset_units)
-        zplane[t, 2] += offset
-        zplane[t, 5] += offset
-        zplane[t, 6] += offset
     return bx1 + 1
 
 
