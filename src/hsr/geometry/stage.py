@@ -220,21 +220,23 @@ def classify_setup_range(lo, hi, base, degenerate, pos_clip, codes, faces, width
     covering = 0
     for f in range(lo, hi):
         r = f - base
-        bbox[r, 0], bbox[r, 1], bbox[r, 2], bbox[r, 3] = 0, -1, 0, -1
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        status[f] = _classify_one(degenerate, codes, f, a, b, c)
-        if status[f] != SIMPLE:
-            continue
-        x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2], pos_clip[a, 3],
-                                half_w, half_h, depth_scale, depth_offset)
-        x1, y1, z1 = _to_window(pos_clip[b, 0], pos_clip[b, 1], pos_clip[b, 2], pos_clip[b, 3],
-                                half_w, half_h, depth_scale, depth_offset)
-        x2, y2, z2 = _to_window(pos_clip[c, 0], pos_clip[c, 1], pos_clip[c, 2], pos_clip[c, 3],
-                                half_w, half_h, depth_scale, depth_offset)
-        # The same area expression as _classify_range, so facing is decided identically.
-        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if not (keep_ccw if area > 0 else keep_cw):
-            status[f] = CULLED
+        # Status kept in a register and stored once (see setup_one on stores).
+        face_status = _classify_one(degenerate, codes, f, a, b, c)
+        if face_status == SIMPLE:
+            x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2],
+                                    pos_clip[a, 3], half_w, half_h, depth_scale, depth_offset)
+            x1, y1, z1 = _to_window(pos_clip[b, 0], pos_clip[b, 1], pos_clip[b, 2],
+                                    pos_clip[b, 3], half_w, half_h, depth_scale, depth_offset)
+            x2, y2, z2 = _to_window(pos_clip[c, 0], pos_clip[c, 1], pos_clip[c, 2],
+                                    pos_clip[c, 3], half_w, half_h, depth_scale, depth_offset)
+            # The same area expression as _classify_range, so facing is decided identically.
+            area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+            if not (keep_ccw if area > 0 else keep_cw):
+                face_status = CULLED
+        status[f] = face_status
+        if face_status != SIMPLE:
+            bbox[r, 0], bbox[r, 1], bbox[r, 2], bbox[r, 3] = 0, -1, 0, -1
             continue
         right = setup_one(r, x0, y0, z0, x1, y1, z1, x2, y2, z2, width, height, vert_fixed,
                           edge_bias, bbox, zplane, offset_factor, offset_units, delta)
