@@ -5,12 +5,14 @@ screen triangles (same face ids, same depth bits, same counts)."""
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_zbuffer_reference import check, small_scene
 
 import hsr
 from hsr import scenes
 from hsr.algorithms import zbuffer
-from hsr.geometry.stage import prepare
+from hsr.geometry.stage import CULLED, prepare, status_counts
 from hsr.geometry.state import RenderState
 from hsr.scene.mesh import as_scene
 
@@ -141,3 +143,11 @@ def test_band_counts(threads):
     else:
         assert stats["triangles_rasterized"] < stats["band_triangles"] \
             <= threads * stats["triangles_rasterized"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, CULLED), max_size=300))
+def test_status_counts_equal_numpy_bincount(codes):
+    status = np.array(codes, dtype=np.int8)
+    expect = np.bincount(status.astype(np.int64), minlength=CULLED + 1)
+    assert status_counts(status).tolist() == expect.tolist()

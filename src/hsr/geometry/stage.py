@@ -382,11 +382,18 @@ def clip_and_project(geometry: Geometry, clip_faces: np.ndarray):
 @njit(cache=True, nogil=True)
 def status_counts(status):
     """(CULLED + 1,) int64 number of faces of each status: one pass over the int8 codes
-    (``np.bincount`` first widens them to int64, 5 ms on a million faces)."""
-    counts = np.zeros(CULLED + 1, dtype=np.int64)
+    (``np.bincount`` first widens them to int64, 5 ms on a million faces). One counter per
+    status, each a comparison summed (no increment of a counter picked by the data, whose
+    chain of loads and stores through memory cost 2.5 ms there), so it vectorises."""
+    simple = degenerate = outside = needs_clip = culled = 0
     for f in range(status.shape[0]):
-        counts[status[f]] += 1
-    return counts
+        code = status[f]
+        simple += code == SIMPLE
+        degenerate += code == DEGENERATE
+        outside += code == OUTSIDE
+        needs_clip += code == NEEDS_CLIP
+        culled += code == CULLED
+    return np.array([simple, degenerate, outside, needs_clip, culled], dtype=np.int64)
 
 
 def screen_arrays(geometry: Geometry, workers):
