@@ -10,7 +10,8 @@ framed by ``Camera.frame`` (front view, 45 degrees). For each model and size: hs
 face_id + depth + flat colour) and moderngl (static vertex buffer; clear + draw + finish
 + read back face ids and depth), min and median over three alternating blocks of --repeat
 runs each, the ratios hsr / llvmpipe of both (< 1 means hsr is faster), triangles per
-second (median) and the process's peak resident memory so far. Runs on demand, never as part of the test suite.
+second (median) and the process's peak resident memory so far. Runs on demand, never as
+part of the test suite.
 """
 
 from __future__ import annotations

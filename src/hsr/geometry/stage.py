@@ -5,8 +5,9 @@ model/view/projection -> clip space -> clip (near, far, guard band) -> divide + 
 
 Vertices are transformed once, their outcodes computed on the way (a compiled loop, see
 :func:`scene_clip_vertices`); a compiled per-face kernel classifies each face (degenerate /
-outside / needs clipping / simple) and projects the simple ones straight to window space. Only the (usually few) faces that cross
-a clip plane go through the Sutherland-Hodgman clipper in :mod:`hsr.geometry.clip`.
+outside / needs clipping / simple) and projects the simple ones straight to window space.
+Only the (usually few) faces that cross a clip plane go through the Sutherland-Hodgman
+clipper in :mod:`hsr.geometry.clip`.
 
 The plain z-buffer does not need the window-space triangles stored: with
 ``prepare(..., deferred=True)`` it streams faces from clip space through
@@ -190,8 +191,10 @@ def _classify_range(lo, hi, degenerate, pos_clip, codes, faces, width, height, d
                     depth_offset, status, xy, depth, area):
     half_w, half_h = 0.5 * width, 0.5 * height
     for f in range(lo, hi):
-        status[f] = _classify_one(degenerate, codes, f, faces[f, 0], faces[f, 1], faces[f, 2])
-        if status[f] != SIMPLE:
+        # Status kept in a register and stored once (see setup_one on stores).
+        face_status = _classify_one(degenerate, codes, f, faces[f, 0], faces[f, 1], faces[f, 2])
+        status[f] = face_status
+        if face_status != SIMPLE:
             continue
         for k in range(3):
             v = faces[f, k]
