@@ -180,3 +180,41 @@ def test_degenerate_mask_follows_replaced_arrays_and_the_render_with_it():
     assert 0 in frame.face_id
     with pytest.raises(ValueError):
         mesh.degenerate_mask()[0] = True  # read-only: callers cannot corrupt it
+
+
+def _two_part_scene():
+    a = hsr.Mesh(np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
+    b = hsr.Mesh(np.array([[-1, 1, -0.5], [0.5, -1, 0.5], [1, 1, -0.5], [5, 5, 5]], float),
+                 np.array([[0, 1, 2], [0, 0, 1]]))
+    return hsr.Scene([a, b]), a, b
+
+
+def test_assembled_joins_the_instances_in_submission_order():
+    scene, a, b = _two_part_scene()
+    positions, faces, degenerate, owner = scene.assembled()
+    assert np.array_equal(positions, np.vstack([a.positions, b.positions]))
+    assert np.array_equal(faces, np.vstack([a.faces, b.faces + 3]))
+    assert degenerate.tolist() == [False, False, True]
+    assert owner.tolist() == [0, 0, 0, 1, 1, 1, 1]
+    assert scene.assembled()[1] is faces  # kept between calls
+
+
+def test_renders_follow_a_scene_whose_parts_change():
+    # The joined arrays are kept on the scene between renders; a render after an
+    # instance is added or a mesh gets new positions must not draw the old geometry.
+    scene, a, b = _two_part_scene()
+    camera = hsr.Camera(eye=(0.2, 0.1, 4.0), target=(0, 0, 0), up=(0, 1, 0), fov_y=45)
+
+    def matches_reference():
+        frame = hsr.render(scene, camera, 40, 36)
+        ref_face, ref_depth = reference_render(scene, camera, 40, 36)
+        amb = ambiguous_pixels(scene, camera, 40, 36)
+        return compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+
+    assert matches_reference()
+    b.positions = b.positions + np.array([0.3, 0.0, 0.4])
+    assert matches_reference()
+    scene.add(hsr.Mesh(np.array([[-2, -2, 0.2], [0, -2, 0.2], [-1, 0.5, 0.2]], float),
+                       np.array([[0, 1, 2]])))
+    assert matches_reference()
+    assert 3 in hsr.render(scene, camera, 40, 36).face_id

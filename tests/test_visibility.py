@@ -235,6 +235,24 @@ def test_skipping_hidden_objects_changes_no_count(depth_func):
         assert np.array_equal(a, b)
 
 
+def test_subset_scenes_reuse_a_scene_per_set_and_keep_few():
+    # The culled draws render subsets of the instances; the same set gets the same Scene
+    # (which keeps its joined arrays), and only the most recent few are held.
+    from hsr.visibility.count import SubsetScenes
+
+    scene = box_with_parts()
+    subsets = SubsetScenes(scene, keep=2)
+    first = subsets.get(np.array([0, 2]))
+    assert [i is j for i, j in zip(first.instances, [scene.instances[0],
+                                                     scene.instances[2]])] == [True, True]
+    assert subsets.get(np.array([0, 2])) is first
+    second = subsets.get(np.array([1]))
+    assert subsets.get(np.array([0, 2])) is first  # used last: kept
+    subsets.get(np.array([3]))  # evicts [1], the least recently used
+    assert subsets.get(np.array([0, 2])) is first
+    assert subsets.get(np.array([1])) is not second
+
+
 @settings(max_examples=12, deadline=None)
 @given(st.integers(0, 100_000))
 def test_skipping_hidden_objects_on_random_assemblies(seed):

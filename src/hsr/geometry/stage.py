@@ -280,14 +280,8 @@ def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, workers
         pos_model, faces, degenerate = mesh.positions, mesh.faces, mesh.degenerate_mask()
         owner, matrices = _ONE_OWNER, (view_proj @ instances[0].model)[None]
     else:
-        sizes = np.array([len(inst.mesh.positions) for inst in instances], dtype=np.int64)
-        starts = np.concatenate([[0], np.cumsum(sizes)])
-        pos_model = np.concatenate([inst.mesh.positions for inst in instances])
+        pos_model, faces, degenerate, owner = scene.assembled()
         matrices = np.stack([view_proj @ inst.model for inst in instances])
-        faces = np.concatenate([inst.mesh.faces + starts[k] if starts[k] else inst.mesh.faces
-                                for k, inst in enumerate(instances)])
-        degenerate = np.concatenate([inst.mesh.degenerate_mask() for inst in instances])
-        owner = np.repeat(np.arange(len(instances), dtype=np.int64), sizes)
     pos_clip = np.empty((len(pos_model), 4))
     codes = np.empty(len(pos_model), dtype=np.uint8)
     gx, gy = guard_band

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 
 import numpy as np
 from numba import njit
@@ -137,7 +138,6 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
     another view's fill, instead of every view being cut into bands), summed at the end.
     ``boxes``: per-instance bounds to skip hidden objects (:func:`count_view_culled`),
     or None."""
-    import threading
     from concurrent.futures import ThreadPoolExecutor
 
     from ..parallel import Workers
@@ -148,6 +148,7 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
     local = threading.local()
     lock = threading.Lock()
     taken = []
+    subsets = SubsetScenes(scene) if boxes is not None else None
 
     def one(camera):
         if not hasattr(local, "total"):
@@ -159,7 +160,7 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
             # same counts), so a slightly stale sum over the lanes is fine.
             seen = per_object(scene, totals.sum(axis=0)) > 0
             count_view_culled(scene, camera, width, height, view_threads, options,
-                              local.total, seen, boxes, always=always)
+                              local.total, seen, boxes, always=always, subsets=subsets)
         else:
             count_view(scene, camera, width, height, view_threads, options, local.total)
 
@@ -341,8 +342,32 @@ def can_cull_objects(options) -> bool:
                 and tuple(state.polygon_offset) == (0.0, 0.0))
 
 
+class SubsetScenes:
+    """The scenes of instance subsets drawn by :func:`count_view_culled`, the same Scene
+    object for the same subset over the views (views mostly draw the same few sets, and
+    a Scene keeps its joined arrays between renders: :meth:`Scene.assembled`). Holds the
+    ``keep`` most recent sets (each as large as its meshes); safe to share by threads."""
+
+    def __init__(self, scene: Scene, keep: int = 4):
+        self.scene, self.keep = scene, keep
+        self._scenes: dict = {}
+        self._lock = threading.Lock()
+
+    def get(self, drawn: np.ndarray) -> Scene:
+        """The Scene of the instances ``drawn`` (ascending indices)."""
+        key = tuple(int(k) for k in drawn)
+        with self._lock:
+            found = self._scenes.pop(key, None)
+            if found is None:
+                found = Scene([self.scene.instances[k] for k in key])
+            while len(self._scenes) >= self.keep:
+                self._scenes.pop(next(iter(self._scenes)))  # least recently used
+            self._scenes[key] = found
+            return found
+
+
 def count_view_culled(scene, camera, width, height, threads, options, total, seen, boxes,
-                      always=False) -> int:
+                      always=False, subsets=None) -> int:
     """:func:`count_view` that skips the objects this view cannot show. ``seen`` (per
     instance, True once an earlier view showed it) names the likely occluders: they are
     drawn first, alone; an unseen object whose bounding box (``boxes``: model-space
@@ -353,7 +378,8 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
     objects is drawn in submission order. Either way ties resolve exactly as in the full
     draw and the counts are the same. Object-level occlusion culling (Greene, Kass and
     Miller 1993) with the occluders taken from earlier views. Unless ``always``, the
-    plain draw is used where the extra pass cannot pay. Returns how many objects were
+    plain draw is used where the extra pass cannot pay. ``subsets``: a
+    :class:`SubsetScenes` of ``scene`` kept over the views. Returns how many objects were
     skipped."""
     from ..render import render
 
@@ -367,16 +393,17 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
         count_view(scene, camera, width, height, threads, options, total)
         return 0
     drawn = np.flatnonzero(seen)
-    frame = render(Scene([scene.instances[k] for k in drawn]), camera, width, height,
-                   threads=threads, color=False, **options)
+    subsets = subsets or SubsetScenes(scene)
+    frame = render(subsets.get(drawn), camera, width, height, threads=threads, color=False,
+                   **options)
     unseen = np.flatnonzero(~seen)
     hidden = hidden_instances(scene, unseen, camera, width, height, frame.depth,
                               options.get("depth_range", (0.0, 1.0)), boxes)
     face_id = frame.face_id
     if len(hidden) < len(unseen):  # some may show: draw all but the hidden, in order
         drawn = np.setdiff1d(np.arange(len(scene)), hidden)
-        face_id = render(Scene([scene.instances[k] for k in drawn]), camera, width, height,
-                         threads=threads, color=False, **options).face_id
+        face_id = render(subsets.get(drawn), camera, width, height, threads=threads,
+                         color=False, **options).face_id
     global_id = np.concatenate([np.arange(offsets[k], offsets[k + 1]) for k in drawn])
     add_pixels_through(np.ascontiguousarray(face_id), global_id, total)
     return len(hidden)
