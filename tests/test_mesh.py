@@ -218,3 +218,13 @@ def test_renders_follow_a_scene_whose_parts_change():
                        np.array([[0, 1, 2]])))
     assert matches_reference()
     assert 3 in hsr.render(scene, camera, 40, 36).face_id
+
+
+def test_a_pickled_scene_leaves_its_joined_arrays_behind():
+    import pickle
+
+    scene, _, _ = _two_part_scene()
+    scene.assembled()
+    copy = pickle.loads(pickle.dumps(scene))
+    assert not hasattr(copy, "_assembled")
+    assert np.array_equal(copy.assembled()[1], scene.assembled()[1])

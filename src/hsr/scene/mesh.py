@@ -286,6 +286,13 @@ class Scene:
     def __len__(self):
         return len(self.instances)
 
+    def __getstate__(self):
+        # Pickled (sent to Dask workers) without the joined arrays kept by assembled():
+        # they would double what is sent, and a worker rebuilds them on first use.
+        state = dict(self.__dict__)
+        state.pop("_assembled", None)
+        return state
+
     def __repr__(self):
         meshes = len({id(inst.mesh) for inst in self.instances})
         n = len(self.instances)
