@@ -291,40 +291,28 @@ def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, workers
     return pos_clip, codes, faces, degenerate
 
 
-def transform_points(workers, points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """(N, 4) = ``matrix`` (4, 4) applied to the points (N, 3) with w = 1.
-
-    A compiled loop rather than NumPy's ``@``: a large matrix product goes to OpenBLAS,
-    whose own threads keep spinning for a while after it returns and, on a machine with
-    few cores, take the CPU from the kernels that run next (measured: the 1M-triangle
-    terrain's set-up ran at half speed behind it)."""
-    out = np.empty((len(points), 4))
-    workers.run_range(_transform_range, len(points), np.ascontiguousarray(points), _ONE_OWNER,
-                      np.ascontiguousarray(matrix, dtype=np.float64).reshape(1, 4, 4), out,
-                      0.0, 0.0, _NO_CODES, min_chunk=65536)
-    return out
-
-
 _ONE_OWNER = np.zeros(0, dtype=np.int64)
-_NO_CODES = np.zeros(0, dtype=np.uint8)
 
 
 @njit(cache=True, nogil=True)
 def _transform_range(lo, hi, points, owner, matrices, out, gx, gy, codes):
     """Points ``lo .. hi`` each through its instance's matrix ``matrices[owner[i]]``
-    (``owner`` empty: all through ``matrices[0]``) into ``out``; unless ``codes`` is
-    empty, also their outcodes (:func:`_codes`, guard band ``gx``, ``gy``), computed
-    while the point is at hand rather than by a second pass over the clip-space array."""
+    (``owner`` empty: all through ``matrices[0]``) into ``out``, and their outcodes
+    (:func:`_codes`, guard band ``gx``, ``gy``), computed while the point is at hand
+    rather than by a second pass over the clip-space array.
+
+    A compiled loop rather than NumPy's ``@``: a large matrix product goes to OpenBLAS,
+    whose own threads keep spinning for a while after it returns and, on a machine with
+    few cores, take the CPU from the kernels that run next (measured: the 1M-triangle
+    terrain's set-up ran at half speed behind it)."""
     one = owner.shape[0] == 0
-    with_codes = codes.shape[0] > 0
     for i in range(lo, hi):
         k = 0 if one else owner[i]
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         for r in range(4):
             out[i, r] = (matrices[k, r, 0] * x + matrices[k, r, 1] * y + matrices[k, r, 2] * z
                          + matrices[k, r, 3])
-        if with_codes:
-            codes[i] = _codes(out, i, gx, gy)
+        codes[i] = _codes(out, i, gx, gy)
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
