@@ -61,7 +61,7 @@ class Mesh:
     def __post_init__(self):
         self.positions, self.faces, extent = _validate_arrays(self.positions, self.faces,
                                                               self.name)
-        self._extent = (self.positions, extent)
+        self._extent = ((self.positions,), extent)
         n_faces = len(self.faces)
         self.corner_uv = _validate_corner(self.corner_uv, (n_faces, 3, 2), "corner_uv", self.name)
         self.corner_normals = _validate_corner(
@@ -104,23 +104,21 @@ class Mesh:
         may hold anything, NaN included). Kept from the validation while ``positions`` is
         the same array: every render places the mesh again, and a scan of a million
         vertices per view is not free."""
-        positions, extent = getattr(self, "_extent", (None, 0.0))
-        if positions is not self.positions:
-            extent = float(np.abs(self.used_positions()).max())
-            self._extent = (self.positions, extent)
-        return extent
+        return _kept(self, "_extent", (self.positions,),
+                     lambda: float(np.abs(self.used_positions()).max()))
 
     def degenerate_mask(self) -> np.ndarray:
         """(F,) bool, read-only: faces with a repeated vertex index or zero area (collinear
         corners). Such faces cover no pixel in OpenGL either; renderers skip and count
         them. Judged in model space, so it does not depend on the view: kept while
         ``positions`` and ``faces`` are the same arrays (every render asks again)."""
-        positions, faces, mask = getattr(self, "_degenerate", (None, None, None))
-        if positions is not self.positions or faces is not self.faces:
+
+        def judge():
             mask = degenerate_faces(self.positions, self.faces)
             mask.flags.writeable = False
-            self._degenerate = (self.positions, self.faces, mask)
-        return mask
+            return mask
+
+        return _kept(self, "_degenerate", (self.positions, self.faces), judge)
 
     def used_positions(self) -> np.ndarray:
         """(N, 3) positions of the vertices that faces use, in vertex order."""
@@ -132,6 +130,20 @@ class Mesh:
         """(2, 3) array: min and max corner of the vertices that faces use."""
         pos = self.used_positions()
         return np.stack([pos.min(axis=0), pos.max(axis=0)])
+
+
+def _kept(owner, name, key, compute):
+    """``compute()``, kept on ``owner`` as attribute ``name`` while every array of ``key``
+    (a tuple) is the same object as when it was computed: what is derived from a mesh's
+    arrays once instead of every render (replacing an array recomputes it; changing one
+    in place is not noticed, see :class:`Mesh`)."""
+    cached = getattr(owner, name, None)
+    if cached is not None and len(cached[0]) == len(key) and all(
+            a is b for a, b in zip(cached[0], key)):
+        return cached[1]
+    value = compute()
+    setattr(owner, name, (key, value))
+    return value
 
 
 def _validate_arrays(positions, faces, name):
@@ -320,11 +332,19 @@ class Scene:
         applied per view). Kept while the instances hold the same mesh arrays: a view of
         a scene of many parts would otherwise copy every vertex and face (28 ms of a
         140 ms render of a million faces in 16 parts). Do not modify the arrays."""
-        key = [(inst.mesh.positions, inst.mesh.faces) for inst in self.instances]
-        cached_key, arrays = getattr(self, "_assembled", (None, None))
-        if cached_key is not None and len(cached_key) == len(key) and all(
-                p is q and f is g for (p, f), (q, g) in zip(cached_key, key)):
-            return arrays
+        meshes = [inst.mesh for inst in self.instances]
+
+        def join():
+            sizes = np.array([len(m.positions) for m in meshes], dtype=np.int64)
+            starts = np.concatenate([[0], np.cumsum(sizes)])
+            return (np.concatenate([m.positions for m in meshes]),
+                    np.concatenate([m.faces + starts[k] if starts[k] else m.faces
+                                    for k, m in enumerate(meshes)]),
+                    np.concatenate([m.degenerate_mask() for m in meshes]),
+                    np.repeat(np.arange(len(meshes), dtype=np.int64), sizes))
+
+        key = tuple(array for m in meshes for array in (m.positions, m.faces))
+        return _kept(self, "_assembled", key, join)
         sizes = np.array([len(p) for p, _ in key], dtype=np.int64)
         starts = np.concatenate([[0], np.cumsum(sizes)])
         arrays = (np.concatenate([p for p, _ in key]),
