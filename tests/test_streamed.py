@@ -5,7 +5,7 @@ screen triangles (same face ids, same depth bits, same counts)."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from test_zbuffer_reference import check, small_scene
 
@@ -110,6 +110,30 @@ def test_streamed_equals_prepared(chunk, case):
     assert np.array_equal(frame.fragments.count_written, fragments.count_written)
     assert {k: frame.stats[k] for k in KEYS} == {k: stats[k] for k in KEYS}
     assert frame.stats["fragments_tested"] > 0 or case == "soup-cw-front"
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 160), st.integers(1, 40), st.sampled_from([1, 2]))
+@example(100, 7, 2)  # 14 chunks of 8 faces were counted for 13
+def test_any_face_count_and_chunk_size_equal_prepared(n_faces, chunk_size, threads):
+    """Chunk k's fill and chunk k + 1's set-up share a hand-off (two record buffers):
+    every split of the faces into chunks gives the prepared path's buffers and counts,
+    and no chunk is empty (a size rounded up used to leave the last of the chunks
+    counted without faces; walking it in the pipeline read records of a negative size)."""
+    mesh, cam = soup(seed=n_faces, n=n_faces)
+    before = zbuffer.STREAM_CHUNK
+    zbuffer.STREAM_CHUNK = chunk_size
+    try:
+        frame = hsr.render(mesh, cam, W, H, counts=True, threads=threads)
+    finally:
+        zbuffer.STREAM_CHUNK = before
+    fragments, stats = prepared(mesh, cam)
+    assert np.array_equal(frame.face_id, fragments.face_id)
+    assert np.array_equal(frame.depth.view(np.uint32), fragments.depth.view(np.uint32))
+    assert np.array_equal(frame.fragments.count_written, fragments.count_written)
+    assert {k: frame.stats[k] for k in KEYS} == {k: stats[k] for k in KEYS}
+    chunks = frame.stats["chunks"]
+    assert len(range(0, n_faces, -(-n_faces // chunks))) == chunks
 
 
 def test_second_draw_into_a_frame(chunk):

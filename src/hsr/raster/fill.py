@@ -24,8 +24,8 @@ from numba import njit
 
 from ..geometry.setup import HALF, ONE, depth_bounds, setup_triangles
 
-__all__ = ["band_split", "fill_bands", "fill_band", "fill_band_less", "fill_targets",
-           "depth_passes", "FIRST_WINS", "rasterize"]
+__all__ = ["band_split", "fill_bands", "fill_band", "fill_band_less", "fill_kernel",
+           "fill_targets", "depth_passes", "FIRST_WINS", "rasterize"]
 
 # Pseudo depth function for front-to-back filling with a coverage mask: a pixel takes the
 # first fragment that reaches it (BSP front-to-back traversal).
@@ -90,13 +90,19 @@ def fill_bands(workers, bands, vert_fixed, edge_bias, bbox, zplane, tri_face, wi
     clip_at, piece_off) for records laid out by face (see :func:`fill_band`); by default
     record t is triangle t of face ``tri_face[t]``."""
     face_base, clip_at, piece_off = pieces if pieces is not None else (0, _NO_CLIP, _NO_PIECES)
-    kernel = fill_band_less if (depth_test and depth_func == 1 and not want_counts
-                                and not tie_by_face) else fill_band
+    kernel = fill_kernel(depth_test, depth_func, want_counts, tie_by_face)
     counts = workers.run(kernel, bands, vert_fixed, edge_bias, bbox, zplane, tri_face,
                          face_base, clip_at, piece_off, width, height, depth_test,
                          depth_func, depth_write, z_lo, z_hi, clear_depth, depth_buf,
                          face_buf, count_tested, count_written, want_counts, tie_by_face)
     return tuple(sum(c[k] for c in counts) for k in range(3))
+
+
+def fill_kernel(depth_test, depth_func, want_counts, tie_by_face=False):
+    """:func:`fill_band_less` for the default state, else :func:`fill_band`."""
+    if depth_test and depth_func == 1 and not want_counts and not tie_by_face:
+        return fill_band_less
+    return fill_band
 
 
 # Boxes at least this many pixels wide are filled by row spans (:func:`row_span`).
