@@ -345,15 +345,6 @@ class Scene:
 
         key = tuple(array for m in meshes for array in (m.positions, m.faces))
         return _kept(self, "_assembled", key, join)
-        sizes = np.array([len(p) for p, _ in key], dtype=np.int64)
-        starts = np.concatenate([[0], np.cumsum(sizes)])
-        arrays = (np.concatenate([p for p, _ in key]),
-                  np.concatenate([f + starts[k] if starts[k] else f
-                                  for k, (_, f) in enumerate(key)]),
-                  np.concatenate([inst.mesh.degenerate_mask() for inst in self.instances]),
-                  np.repeat(np.arange(len(key), dtype=np.int64), sizes))
-        self._assembled = (key, arrays)
-        return arrays
 
     def world_triangles(self) -> np.ndarray:
         """(F, 3, 3) world-space corners of every face, in submission order. Vertices
