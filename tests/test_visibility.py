@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 import hsr
 from hsr.cli import main
-from hsr.visibility import (VisibilityError, face_visibility, grow_rings, keep_faces,
-                            object_visibility, prune, verify)
+from hsr.visibility import (VisibilityError, auto_size, decide, face_visibility, grow_rings,
+                            keep_faces, object_visibility, prune, verify)
 from reference import ambiguous_pixels, reference_render
 
 
@@ -299,6 +299,7 @@ def test_dask_client_gives_the_same_counts(tmp_path):
                                        silence_logs=50)
     with distributed.Client(cluster) as client:
         remote = face_visibility(scene, "sphere:12", 64, client=client)
+        remote_auto = decide(scene, "auto", 64, client=client)
         # The command, connected to the same scheduler by its address.
         src, out = tmp_path / "assembly.glb", tmp_path / "pruned.glb"
         hsr.write_mesh(scene, src)
@@ -306,6 +307,10 @@ def test_dask_client_gives_the_same_counts(tmp_path):
                      "64", "--scheduler", cluster.scheduler_address, "--quiet"]) == 0
     cluster.close()
     assert np.array_equal(local, remote)
+    # The automatic rounds run there too, and decide as they do here.
+    local_auto = decide(scene, "auto", 64)
+    assert remote_auto.views == local_auto.views
+    assert np.array_equal(remote_auto.counts, local_auto.counts)
     pruned, _ = prune(scene, "sphere:12", 64, counts=local)
     back = hsr.load_scene(out)
     assert [i.name for i in back.instances] == [i.name for i in pruned.instances]
@@ -427,6 +432,8 @@ def test_cli_prune_faces_with_interior_cameras(tmp_path, capsys):
     (["--min-pixels", "0"], "min_pixels"),
     (["--keep-neighbors", "-2"], "keep_neighbors"),
     (["--size", "0"], "width"),
+    (["--size", "big"], "--size"),
+    (["--max-views", "0"], "max_views"),
     (["-o", "out.fbx"], "extension"),
 ])
 def test_cli_prune_errors_are_one_line(args, message, tmp_path, capsys):
@@ -455,3 +462,128 @@ def test_transforms_of_interior_cameras_parse(tmp_path):
     assert len(data["frames"]) == 1
     got = hsr.visibility.cameras_for(box_with_parts(), str(tmp_path / "t.json"), 1.0)
     assert len(got) == 1 and np.allclose(got[0].view_matrix, cams[0].view_matrix)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 1_000_000), st.integers(0, 3))
+def test_rings_on_random_soups_match_a_set_reference(seed, rings):
+    """Random soups on a coarse lattice (repeated positions, edges shared by several
+    faces, collapsed edges and faces with a repeated index): each ring adds the faces
+    that share an edge, as a set of two distinct positions, with a kept face."""
+    rng = np.random.default_rng(seed)
+    positions = rng.integers(0, 3, size=(rng.integers(3, 25), 3)).astype(float)
+    faces = rng.integers(0, len(positions), size=(rng.integers(1, 50), 3))
+    mesh = hsr.Mesh(positions, faces)
+    keep = rng.random(len(faces)) < 0.2
+
+    def edges(f):
+        corners = [tuple(positions[v]) for v in faces[f]]
+        return {frozenset((corners[k], corners[(k + 1) % 3])) for k in range(3)
+                if corners[k] != corners[(k + 1) % 3]}
+
+    expected = keep.copy()
+    for _ in range(rings):
+        reached = set().union(*(edges(f) for f in np.flatnonzero(expected)))
+        expected = expected | np.array([bool(edges(f) & reached) for f in range(len(faces))])
+    assert np.array_equal(grow_rings(mesh, keep, rings), expected)
+
+
+def test_auto_views_settle_on_the_closed_box():
+    """The automatic decision: a Fibonacci sphere, then random rounds until one changes
+    nothing. The box's faces are kept and nothing inside; the views it reports are
+    the ones it rendered (recounting them gives its counts, and the views before the
+    last round already give its decision); the last round holds at least half as many
+    views as came before it; its random directions are not those verify draws from the
+    same seed."""
+    scene = box_with_parts()
+    decision = decide(scene, "auto", 64, seed=3)
+    housing = scene.instances[0].mesh.n_faces
+    assert decision.converged and decision.size == (64, 64)
+    assert np.array_equal(np.flatnonzero(decision.keep), np.arange(housing))
+    n, last = decision.views, decision.last_round
+    assert last >= max(16, -(-(n - last) // 2)) and n >= 32 + 16
+    cameras = list(decision.cameras)
+    assert np.array_equal(face_visibility(scene, cameras, 64), decision.counts)
+    before = face_visibility(scene, cameras[:n - last], 64)
+    assert np.array_equal(keep_faces(scene, before, keep_neighbors=2), decision.keep)
+    drawn = np.array([c.eye for c in cameras[32:]]) - scene.bounds().mean(axis=0)
+    drawn /= np.linalg.norm(drawn, axis=1, keepdims=True)
+    rng = np.random.default_rng(3)  # what verify(seed=3) draws
+    theirs = rng.normal(size=(len(drawn), 3))
+    theirs /= np.linalg.norm(theirs, axis=1, keepdims=True)
+    assert np.abs(drawn @ theirs.T).max() < 0.999999
+    # The same seed decides the same way; and prune's default is this decision.
+    again = decide(scene, "auto", 64, seed=3)
+    assert again.views == n and np.array_equal(again.counts, decision.counts)
+    pruned, kept = prune(scene, size=64, seed=3)
+    assert np.array_equal(kept, np.flatnonzero(decision.keep))
+    assert verify(scene, pruned, kept, 12, 64, seed=3)["changed"] == 0
+
+
+def test_auto_views_go_on_while_rounds_find_faces():
+    """A convex ball shows every face from outside, but at 48 x 48 without rings its
+    5,120 small faces take several rounds to be found: each round holds half as many
+    views as came before it (at least 16), and the decision ends with every face."""
+    m = trimesh.creation.icosphere(subdivisions=4)
+    scene = hsr.Scene().add(hsr.Mesh(m.vertices, m.faces))
+    decision = decide(scene, "auto", 48, keep_neighbors=0)
+    assert decision.converged and decision.keep.all()
+    n, last = decision.views, decision.last_round
+    assert n > 48 and last == max(16, -(-(n - last) // 2))
+
+
+def test_auto_views_add_to_interior_cameras(tmp_path):
+    """Given views stay in the first round of an automatic decision: cameras inside the
+    inner of two nested spheres keep its faces, which no outside view sees."""
+    scene = hsr.Scene([_ball((0, 0, 0), 2.0, 2, "outer"), _ball((0, 0, 0), 1.0, 2, "inner")])
+    inside = [hsr.Camera.look_at((0, 0, 0), d, (0, 1, 0), fov_y=120, near=0.05, far=10)
+              for d in ((1, 0, 0), (-1, 0, 0), (0, 0, 1), (0, 0, -1), (0, 1, 0.01),
+                        (0, -1, 0.01))]
+    outer = scene.instances[0].mesh.n_faces
+    outside_only = decide(scene, "auto", 64)
+    assert np.array_equal(np.flatnonzero(outside_only.keep), np.arange(outer))
+    both = decide(scene, inside + ["auto"], 64)
+    assert both.keep.all() and both.cameras[:len(inside)] == tuple(inside)
+
+
+def test_auto_size_gives_about_a_pixel_per_face():
+    def faces(n):
+        tri = np.tile(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), (n, 1))
+        tri += np.repeat(np.arange(n), 3)[:, None] * np.array([0, 0, 1.0])
+        return hsr.Scene().add(hsr.Mesh(tri, np.arange(3 * n).reshape(-1, 3)))
+
+    assert auto_size(faces(12)) == 256  # the smallest
+    assert auto_size(faces(200_000)) == 512  # sqrt: 447, up to a multiple of 128
+    assert auto_size(faces(1_000_000)) == 1024
+    assert auto_size(faces(5_000_000)) == 2048  # the largest
+    assert decide(faces(12), "sphere:2").size == (256, 256)
+
+
+def test_auto_stops_at_max_views_and_says_so(tmp_path, capsys):
+    scene = box_with_parts()
+    short = decide(scene, "auto", 32, max_views=40)
+    assert not short.converged and short.views == 32 and short.last_round == 0
+    with pytest.warns(hsr.visibility.VisibilityWarning, match="max_views"):
+        prune(scene, "auto", 32, max_views=40)
+    with pytest.raises(VisibilityError, match="max_views"):
+        decide(scene, "auto", 32, max_views=0)
+    with pytest.raises(VisibilityError, match="seed"):
+        decide(scene, "auto", 32, seed=-1)
+    src = tmp_path / "box.glb"
+    hsr.write_mesh(scene, src)
+    assert main(["prune", str(src), "-o", str(tmp_path / "o.glb"), "--size", "32",
+                 "--max-views", "40"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.startswith("hsr: warning: no round") and "\n" not in \
+        captured.err.strip()
+    assert "still changing" in captured.out
+
+
+def test_cli_prune_defaults_to_auto_views_and_size(tmp_path, capsys):
+    scene = box_with_parts()
+    src, out = tmp_path / "box.glb", tmp_path / "kept.obj"
+    hsr.write_mesh(scene, src)
+    assert main(["prune", str(src), "-o", str(out), "--verify", "8"]) == 0
+    text = capsys.readouterr().out
+    assert "views at 256x256 (auto: the last" in text and "verify: 0 of" in text
+    assert hsr.load(out).n_faces == scene.instances[0].mesh.n_faces

@@ -249,17 +249,22 @@ def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
                    help="the pruned model: " + ", ".join(MESH_FORMATS))
     g = p.add_argument_group("decision")
     g.add_argument("--views", action="append", metavar="SPEC",
-                   help="sphere:N, hemisphere:N, orbit:N[:ELEVATION] (outside the bounding "
-                   "sphere), or a transforms.json / COLMAP folder (e.g. interior cameras); "
-                   "repeat to use several (default: sphere:256)")
-    g.add_argument("--size", type=int, default=512, metavar="R",
-                   help="R x R pixels per view")
+                   help="auto (outside views added in rounds until a round changes "
+                   "nothing), sphere:N, hemisphere:N, orbit:N[:ELEVATION] (outside the "
+                   "bounding sphere), or a transforms.json / COLMAP folder (e.g. interior "
+                   "cameras); repeat to use several (default: auto)")
+    g.add_argument("--size", default="auto", metavar="R",
+                   help="R x R pixels per view, or auto: about one pixel per face, "
+                   "512..2048 (default)")
+    g.add_argument("--max-views", type=int, default=2048, metavar="N",
+                   help="auto starts no round that would pass N views")
     g.add_argument("--level", default="faces", choices=list(LEVELS),
                    help="remove single faces, or whole objects (glTF nodes)")
     g.add_argument("--min-pixels", type=int, default=1, metavar="P",
                    help="keep a face seen on at least P pixels over all views")
-    g.add_argument("--keep-neighbors", type=int, default=0, metavar="K",
-                   help="also keep faces within K edge-rings of a kept face")
+    g.add_argument("--keep-neighbors", type=int, metavar="K",
+                   help="also keep faces within K edge-rings of a kept face (default: 2 "
+                   "with auto views, else 0)")
     g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
                    help="visibility algorithm whose face ids decide")
     g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
@@ -273,7 +278,8 @@ def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
     g.add_argument("--verify", type=int, default=0, metavar="K",
                    help="render K random outside viewpoints not used for the decision, of "
                    "the original and the pruned model, and report the pixels that changed")
-    g.add_argument("--seed", type=int, default=0, help="seed of the --verify viewpoints")
+    g.add_argument("--seed", type=int, default=0, help="seed of the random viewpoints "
+                   "(auto rounds and --verify draw different ones from it)")
     g.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler to "
                    "spread the views over (default: this process, all cores)")
     g.add_argument("--threads", type=int, help="kernel threads in this process (default: "
@@ -287,36 +293,54 @@ def _cmd_prune(args) -> int:
     from .scene.load import load_scene
     from .scene.write import write_mesh
     from .visibility.count import cameras_for
-    from .visibility.prune import prune, verify
+    from .visibility.prune import decide, subset_scene, unsettled, verify
 
     start = time.perf_counter()
+    if args.size != "auto":
+        try:
+            args.size = int(args.size)
+        except ValueError:
+            raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
     scene = load_scene(args.model)
+    specs = args.views or ["auto"]
+    auto = "auto" in specs
     # The cameras once, before any connection: a bad --views fails at once.
-    cameras = cameras_for(scene, args.views or ["sphere:256"], 1.0, args.near, args.far)
+    fixed = [s for s in specs if s != "auto"]
+    cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []
     client = _client(args.scheduler, "prune") if args.scheduler else None
     options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
                    depth_func=args.depth_func)
     try:
-        pruned, kept = prune(scene, cameras, args.size, level=args.level,
-                             keep_neighbors=args.keep_neighbors, min_pixels=args.min_pixels,
-                             client=client, threads=args.threads,
-                             progress=not args.quiet and sys.stderr.isatty(), **options)
+        decision = decide(scene, cameras + (["auto"] if auto else []), args.size,
+                          level=args.level, keep_neighbors=args.keep_neighbors,
+                          min_pixels=args.min_pixels, seed=args.seed,
+                          max_views=args.max_views, client=client, threads=args.threads,
+                          progress=not args.quiet and sys.stderr.isatty(), **options)
     finally:
         if client is not None:
             client.close()
+    kept = np.flatnonzero(decision.keep)
+    pruned = subset_scene(scene, decision.keep)
     written = write_mesh(pruned, args.output)
     seconds = time.perf_counter() - start
+    width, height = decision.size
+    if not decision.converged:
+        print(f"hsr: warning: {unsettled(decision)}", file=sys.stderr)
     if not args.quiet:
         before, after = scene.n_faces, pruned.n_faces
+        settled = (f" (auto: the last {decision.last_round} changed nothing)"
+                   if auto and decision.converged else
+                   " (auto: still changing at --max-views)" if auto else "")
         print(f"faces {before:,} -> {after:,} ({100.0 * (before - after) / before:.2f}% "
-              f"removed); objects {len(scene):,} -> {len(pruned):,}; {len(cameras):,} views at "
-              f"{args.size}x{args.size}; {seconds:.1f} s; wrote {', '.join(written)}")
+              f"removed); objects {len(scene):,} -> {len(pruned):,}; {decision.views:,} "
+              f"views at {width}x{height}{settled}; {seconds:.1f} s; wrote "
+              f"{', '.join(written)}")
     if args.verify:
-        report = verify(scene, pruned, kept, args.verify, args.size, seed=args.seed,
+        report = verify(scene, pruned, kept, args.verify, (width, height), seed=args.seed,
                         threads=args.threads, **options)
         print(f"verify: {report['changed']:,} of {report['covered']:,} covered pixels "
               f"changed ({report['percent']:.4f}%) over {report['views']} random outside "
-              f"views at {args.size}x{args.size}")
+              f"views at {width}x{height}")
     return 0
 
 

@@ -226,6 +226,9 @@ def count_view(scene, camera, width, height, threads, options, total) -> None:
 # Window depth by which a hidden object's box must lie behind what is drawn (about 16
 # float32 steps at depth 1: the rasterizer interpolates depth in float32).
 CULL_MARGIN = 1e-6
+# The faces whose set-up and fill cost what testing one object's box costs (about
+# 0.2 ms / 140 ns).
+CULL_OBJECT_FACES = 1400
 # How far (in pixels at its far side) an object's box is grown before the test: the
 # rasterizer snaps vertices to 1/256 pixel, so a face may cover a pixel centre just
 # outside the exact box's image.
@@ -386,10 +389,13 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
     offsets = scene.face_offsets()
     unseen_faces = int(np.diff(offsets)[~seen].sum())
     # Worth a try only when skipping the unseen objects saves more than a second draw
-    # may cost: a frame's clear, fill and shading take about 10 ns a pixel, a face's
-    # set-up and fill about 140 ns (measured on the bunny at 1024 x 1024).
-    if not seen.any() or seen.all() or (not always
-                                        and unseen_faces <= width * height // 14):
+    # and the box tests may cost: a frame's clear, fill and shading take about 10 ns a
+    # pixel, a face's set-up and fill about 140 ns (measured on the bunny at 1024 x
+    # 1024), the test of one object's box about 0.2 ms (mostly Python; measured on the
+    # CAD-like assembly of benchmarks/bench_prune.py, where four hidden objects of 6k
+    # faces saved nothing at 256 x 256).
+    if not seen.any() or seen.all() or (not always and unseen_faces <= width * height // 14
+                                        + CULL_OBJECT_FACES * int((~seen).sum())):
         count_view(scene, camera, width, height, threads, options, total)
         return 0
     drawn = np.flatnonzero(seen)

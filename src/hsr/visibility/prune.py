@@ -9,36 +9,176 @@ against that; ``verify`` counts it, never hides it).
 
 from __future__ import annotations
 
+import math
+import warnings
+from dataclasses import dataclass
+
 import numpy as np
 
-from ..scene.mesh import Mesh, Scene, as_scene
-from .count import VisibilityError, check_size, face_visibility, per_object
+from ..scene.mesh import Mesh, Scene, _kept, as_scene
+from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
 
-__all__ = ["prune", "keep_faces", "grow_rings", "subset_scene", "verify", "LEVELS"]
+__all__ = ["prune", "decide", "Decision", "auto_size", "VisibilityWarning", "keep_faces",
+           "grow_rings", "subset_scene", "verify", "LEVELS"]
 
 LEVELS = ("faces", "objects")
 MAX_RINGS = 1000
 
 
-def prune(scene, views, size=512, *, level: str = "faces", keep_neighbors: int = 0,
-          min_pixels: int = 1, counts: np.ndarray | None = None, **options) -> tuple:
+# The automatic decision (views "auto", see decide): a Fibonacci sphere of AUTO_FIRST
+# directions, then rounds of fresh random ones, each at least AUTO_ROUND views and half as
+# many as all before it, until a round changes nothing; two rings kept unless told.
+AUTO_FIRST = 32
+AUTO_ROUND = 16
+AUTO_RINGS = 2
+AUTO_MAX_VIEWS = 2048
+# Automatic size: about one pixel per face (sqrt of the face count, to a multiple of 128)
+# within these bounds.
+AUTO_SIZE = (256, 2048)
+# Mixed into the seed of the automatic rounds, so their directions are not those
+# verify draws from the same seed.
+AUTO_STREAM = 0x5EED_0F_A070
+
+
+class VisibilityWarning(UserWarning):
+    """An automatic decision stopped at its view limit while still changing."""
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What :func:`decide` found: ``counts`` (per face, visible pixels over all views),
+    ``keep`` (per face, bool), the ``cameras`` rendered (in order) at ``size`` (width,
+    height), ``last_round`` (the views of the final round: all of them for fixed views)
+    and ``converged`` (False only when ``auto`` stopped at ``max_views`` before a round
+    confirmed the kept faces)."""
+
+    counts: np.ndarray
+    keep: np.ndarray
+    cameras: tuple
+    size: tuple
+    last_round: int
+    converged: bool
+
+    @property
+    def views(self) -> int:
+        """How many views were rendered."""
+        return len(self.cameras)
+
+
+def auto_size(scene: Scene) -> int:
+    """The side of the square views of ``size="auto"``: about one pixel per face of the
+    scene (``sqrt(n_faces)`` rounded up to a multiple of 128) within ``AUTO_SIZE``: a
+    model of many small faces gets finer views, where its faces and not its pixels are
+    most of a view's cost anyway."""
+    side = 128 * math.ceil(math.sqrt(scene.n_faces) / 128)
+    return int(min(max(side, AUTO_SIZE[0]), AUTO_SIZE[1]))
+
+
+def decide(scene, views="auto", size="auto", *, level: str = "faces",
+           keep_neighbors: int | None = None, min_pixels: int = 1, seed: int = 0,
+           max_views: int = AUTO_MAX_VIEWS, client=None, progress: bool | None = None,
+           **options) -> Decision:
+    """Which faces to keep: :func:`face_visibility` over ``views`` at ``size``, then
+    :func:`keep_faces` (``level``, ``keep_neighbors``, ``min_pixels``).
+
+    ``views`` may be or hold ``"auto"``: the given views plus a Fibonacci sphere of
+    ``AUTO_FIRST`` outside directions, then rounds of uniformly random outside directions
+    (from ``seed``, a stream of their own: never :func:`verify`'s), each of at least
+    ``AUTO_ROUND`` views and half as many as all the views before it, until a round
+    leaves the kept faces unchanged (``last_round``: that round's views). The stop is a
+    sampled test: more views only add to the kept faces, so none of the last round's
+    ``m`` random views changed the decision, and a further random view would change it
+    with probability below ``3 / m`` (the rule of three, 95% confidence); ``m`` is a
+    third of all views, and the work is at most about 2.25 times the views rendered
+    until the last change. A round that would pass ``max_views`` is not started
+    (``converged`` False, ``last_round`` 0); the first round always runs. With
+    ``"auto"``, ``keep_neighbors`` defaults to ``AUTO_RINGS`` (two rings protect faces
+    small enough to fall between the pixel centres of every view), else to 0.
+    ``size="auto"``: :func:`auto_size`.
+
+    Raises :class:`VisibilityError` for bad views, size, level, thresholds or
+    ``max_views``, and what :func:`face_visibility` raises."""
+    from ..scene import views as view_sets
+
+    scene = as_scene(scene)
+    if level not in LEVELS:
+        raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
+    items = list(views) if isinstance(views, (list, tuple)) else [views]
+    auto = any(isinstance(v, str) and v == "auto" for v in items)
+    fixed = [v for v in items if not (isinstance(v, str) and v == "auto")]
+    if keep_neighbors is None:
+        keep_neighbors = AUTO_RINGS if auto else 0
+    if isinstance(size, str) and size == "auto":
+        size = auto_size(scene)
+    width, height = check_size(size)
+    if isinstance(max_views, bool) or not isinstance(max_views, (int, np.integer)) \
+            or max_views < 1:
+        raise VisibilityError(f"max_views must be a positive integer, got {max_views!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise VisibilityError(f"seed must be a non-negative integer, got {seed!r}")
+    run = dict(options, client=client, progress=progress)
+    first = fixed + ([f"sphere:{AUTO_FIRST}"] if auto else [])
+    cameras = cameras_for(scene, first, width / height, options.get("near", 0.1),
+                          options.get("far", 100.0))
+    counts = face_visibility(scene, cameras, (width, height), **run)
+    keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
+    if not auto:
+        return Decision(counts, keep, tuple(cameras), (width, height), len(cameras), True)
+    rng = np.random.default_rng((AUTO_STREAM, int(seed)))
+    bounds = scene.bounds()
+    while True:
+        more = max(AUTO_ROUND, math.ceil(len(cameras) / 2))
+        if len(cameras) + more > max_views:
+            return Decision(counts, keep, tuple(cameras), (width, height), 0, False)
+        directions = rng.normal(size=(more, 3))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        added = [view_sets.framed(bounds, d, width / height) for d in directions]
+        counts = counts + face_visibility(scene, added, (width, height), **run)
+        cameras += added
+        grown = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
+        if np.array_equal(grown, keep):
+            return Decision(counts, keep, tuple(cameras), (width, height), more, True)
+        keep = grown
+
+
+def prune(scene, views="auto", size="auto", *, level: str = "faces",
+          keep_neighbors: int | None = None, min_pixels: int = 1,
+          counts: np.ndarray | None = None, **options) -> tuple:
     """``(pruned Scene, kept)``: ``scene`` without the faces (``level="faces"``) or
     instances (``"objects"``) that no view of ``views`` shows on at least ``min_pixels``
     pixels (summed over the views), ``kept`` the original global ids of the faces left,
     in order (face ``i`` of the pruned scene is face ``kept[i]`` of the original).
     ``keep_neighbors`` K also keeps faces within K edge-rings of a kept face.
-    ``counts``: per-face pixel counts already measured (else :func:`face_visibility`
-    with ``views``, ``size`` and ``options``: algorithm, client, cull, ...).
+    ``views="auto"`` (the default) and ``size="auto"`` choose the views until the
+    decision is stable (:func:`decide`, which also takes ``seed``, ``max_views``,
+    ``client`` and the render options); a warning says when it did not settle.
+    ``counts``: per-face pixel counts already measured (then no view is rendered).
 
     Raises :class:`VisibilityError` for a bad level, threshold or ring count, or when
     nothing is visible (an empty scene is not a scene)."""
     scene = as_scene(scene)
-    if level not in LEVELS:
-        raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
-    if counts is None:
-        counts = face_visibility(scene, views, size, **options)
-    keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
+    if counts is not None:
+        if level not in LEVELS:
+            raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
+        items = views if isinstance(views, (list, tuple)) else [views]
+        if keep_neighbors is None:
+            keep_neighbors = AUTO_RINGS if "auto" in [v for v in items if isinstance(v, str)] \
+                else 0
+        keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
+    else:
+        decision = decide(scene, views, size, level=level, keep_neighbors=keep_neighbors,
+                          min_pixels=min_pixels, **options)
+        if not decision.converged:
+            warnings.warn(unsettled(decision), VisibilityWarning, stacklevel=2)
+        keep = decision.keep
     return subset_scene(scene, keep), np.flatnonzero(keep)
+
+
+def unsettled(decision: Decision) -> str:
+    """The one-line message of a decision that did not settle."""
+    return (f"no round of new views confirmed the kept faces within max_views "
+            f"({decision.views} views rendered); raise max_views or size, keep more "
+            f"rings, and measure with verify")
 
 
 def keep_faces(scene: Scene, counts, level: str = "faces", keep_neighbors: int = 0,
@@ -74,21 +214,46 @@ def grow_rings(mesh: Mesh, keep: np.ndarray, rings: int) -> np.ndarray:
     """``keep`` plus every face within ``rings`` edge-steps of a kept face. Faces are
     neighbours when they share an edge between two positions (vertices at the same
     position count as one, so seams split for texture coordinates do not stop the
-    growth; an edge shared by more than two faces joins all of them)."""
-    _, vertex = np.unique(mesh.positions, axis=0, return_inverse=True)
-    corners = vertex.reshape(-1)[mesh.faces]
-    a = corners[:, [0, 1, 2]].reshape(-1)
-    b = corners[:, [1, 2, 0]].reshape(-1)
-    # One integer per undirected edge (both orders give the same key).
-    n = int(vertex.max()) + 1
-    edge = (np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)).reshape(-1, 3)
-    keep = keep.copy()
+    growth; an edge shared by more than two faces joins all of them; a collapsed edge,
+    both ends at one position, joins nothing)."""
+    face, starts = _edge_groups(mesh)
+    keep = np.array(keep, dtype=bool)
+    if not len(starts):
+        return keep
+    sizes = np.diff(np.append(starts, len(face)))
     for _ in range(rings):
-        reached = np.isin(edge, edge[keep]).any(axis=1)
-        if (reached == keep).all():
+        # A group of equal edges is reached when any of its faces is kept; every face of
+        # a reached group is then kept.
+        reached = np.repeat(np.logical_or.reduceat(keep[face], starts), sizes)
+        grown = keep.copy()
+        grown[face[reached]] = True
+        if np.array_equal(grown, keep):
             break
-        keep = reached | keep
+        keep = grown
     return keep
+
+
+def _edge_groups(mesh: Mesh) -> tuple:
+    """``(face, starts)``: the faces of the mesh's edges sorted by edge (an undirected
+    pair of welded positions), and where each run of equal edges starts. Kept on the mesh
+    while its arrays are the same (ring growth runs once per decision round)."""
+
+    def compute():
+        _, vertex = np.unique(mesh.positions, axis=0, return_inverse=True)
+        corners = vertex.reshape(-1)[mesh.faces]
+        a = corners[:, [0, 1, 2]].reshape(-1)
+        b = corners[:, [1, 2, 0]].reshape(-1)
+        n = int(vertex.max()) + 1 if len(vertex) else 1
+        # One integer per undirected edge (both orders give the same key).
+        key = np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+        edge = np.flatnonzero(a != b)
+        order = edge[np.argsort(key[edge], kind="stable")]
+        key = key[order]
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else \
+            np.zeros(0, dtype=np.int64)
+        return order // 3, starts
+
+    return _kept(mesh, "_edge_groups", (mesh.positions, mesh.faces), compute)
 
 
 def subset_scene(scene: Scene, keep: np.ndarray) -> Scene:
