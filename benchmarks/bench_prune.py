@@ -2,7 +2,7 @@
 the same run, on the same meshes.
 
     python benchmarks/bench_prune.py [--views 256] [--size 1024] [--keep-neighbors 0]
-                                     [--also VIEWS@SIZE+RINGS ...] [--verify 100]
+                                     [--also VIEWS@SIZE+RINGS|auto ...] [--verify 100]
                                      [--verify-size SIZE] [--rays 256] [--skip-million]
                                      [--picture FILE.png]
 
@@ -10,7 +10,8 @@ For each model: faces, views, seconds, faces removed and the verify error (chang
 pixels of covered pixels over ``--verify`` random outside viewpoints not used for the
 decision, at ``--verify-size``, by default the decision resolution) for hsr, at the
 setting of ``--views``, ``--size`` and ``--keep-neighbors`` and at each ``--also``
-setting (e.g. ``48@512+1``: ``sphere:48`` at 512 x 512, one ring of neighbours kept),
+setting (e.g. ``48@512+1``: ``sphere:48`` at 512 x 512, one ring of neighbours kept;
+``auto``: the automatic views and size of ``hsr prune``'s default, two rings kept),
 all verified the same way; for pymeshlab
 (``compute_scalar_ambient_occlusion(rays=N)`` gives each vertex the share of rays that
 escape; the faces whose three corners have none are deleted) the same, its deletion
@@ -33,7 +34,8 @@ import numpy as np
 import trimesh
 
 import hsr
-from hsr.visibility import face_visibility, keep_faces, subset_scene, verify
+from hsr.visibility import decide, face_visibility, keep_faces, subset_scene, verify
+from hsr.visibility.prune import AUTO_RINGS
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 
@@ -104,7 +106,10 @@ def cad_assembly():
 
 
 def setting(text):
-    """``VIEWS@SIZE+RINGS`` (``+RINGS`` optional) -> (views, size, rings)."""
+    """``VIEWS@SIZE+RINGS`` (``+RINGS`` optional) -> (views, size, rings); ``auto`` ->
+    ("auto", "auto", None): :func:`hsr.visibility.decide`'s automatic views and size."""
+    if text == "auto":
+        return "auto", "auto", None
     try:
         views, rest = text.split("@")
         size, _, rings = rest.partition("+")
@@ -138,7 +143,8 @@ def main():
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--keep-neighbors", type=int, default=0)
     parser.add_argument("--also", action="append", default=[], type=setting,
-                        metavar="VIEWS@SIZE+RINGS", help="another hsr setting to run")
+                        metavar="VIEWS@SIZE+RINGS", help="another hsr setting to run, or "
+                        "auto (hsr prune's default: automatic views and size)")
     parser.add_argument("--verify", type=int, default=100)
     parser.add_argument("--verify-size", type=int, help="default: --size")
     parser.add_argument("--rays", type=int, default=256)
@@ -163,16 +169,24 @@ def main():
     rows = []
     for name, scene in models:
         for k, (views, size, rings) in enumerate(settings):
+            for inst in scene.instances:  # each route pays for its edge rings
+                vars(inst.mesh).pop("_edge_groups", None)
             start = time.perf_counter()
-            counts = face_visibility(scene, f"sphere:{views}", size, progress=False)
-            keep = keep_faces(scene, counts, keep_neighbors=rings)
+            if views == "auto":
+                decision = decide(scene, "auto", "auto", progress=False)
+                keep, size = decision.keep, decision.size[0]
+                label = (f"hsr auto: {decision.views} views at {size}, "
+                         f"{AUTO_RINGS} rings kept")
+            else:
+                counts = face_visibility(scene, f"sphere:{views}", size, progress=False)
+                keep = keep_faces(scene, counts, keep_neighbors=rings)
+                label = f"hsr sphere:{views} at {size}" + (
+                    f", {rings} ring{'s' if rings > 1 else ''} kept" if rings else "")
             seconds = time.perf_counter() - start
             pruned = subset_scene(scene, keep)
             report = verify(scene, pruned, np.flatnonzero(keep), args.verify, verify_size,
                             seed=7)
-            rows.append((name, f"hsr sphere:{views} at {size}" + (
-                f", {rings} ring{'s' if rings > 1 else ''} kept" if rings else ""),
-                scene.n_faces, seconds, int((~keep).sum()), report))
+            rows.append((name, label, scene.n_faces, seconds, int((~keep).sum()), report))
             if args.picture and name == "CAD-like assembly" and k == 0:
                 picture(scene, keep, args.picture)
             print(rows[-1], file=sys.stderr)
