@@ -238,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
     from .scene.write import MESH_FORMATS
-    from .visibility.prune import LEVELS
+    from .visibility.prune import AUTO_SIZE, LEVELS
 
     p = sub.add_parser("prune", help="remove the geometry no viewpoint can see",
                        description="Render MODEL from many viewpoints, count the pixels where "
@@ -255,7 +255,7 @@ def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
                    "cameras); repeat to use several (default: auto)")
     g.add_argument("--size", default="auto", metavar="R",
                    help="R x R pixels per view, or auto: about one pixel per face, "
-                   "512..2048 (default)")
+                   f"{AUTO_SIZE[0]}..{AUTO_SIZE[1]} (default)")
     g.add_argument("--max-views", type=int, default=2048, metavar="N",
                    help="auto starts no round that would pass N views")
     g.add_argument("--level", default="faces", choices=list(LEVELS),

@@ -41,7 +41,7 @@ AUTO_STREAM = 0x5EED_0F_A070
 
 
 class VisibilityWarning(UserWarning):
-    """An automatic decision stopped at its view limit while still changing."""
+    """An automatic decision stopped at its view limit before a round confirmed it."""
 
 
 @dataclass(frozen=True)
@@ -103,9 +103,7 @@ def decide(scene, views="auto", size="auto", *, level: str = "faces",
     scene = as_scene(scene)
     if level not in LEVELS:
         raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
-    items = list(views) if isinstance(views, (list, tuple)) else [views]
-    auto = any(isinstance(v, str) and v == "auto" for v in items)
-    fixed = [v for v in items if not (isinstance(v, str) and v == "auto")]
+    auto, fixed = _split_auto(views)
     if keep_neighbors is None:
         keep_neighbors = AUTO_RINGS if auto else 0
     if isinstance(size, str) and size == "auto":
@@ -160,10 +158,8 @@ def prune(scene, views="auto", size="auto", *, level: str = "faces",
     if counts is not None:
         if level not in LEVELS:
             raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
-        items = views if isinstance(views, (list, tuple)) else [views]
         if keep_neighbors is None:
-            keep_neighbors = AUTO_RINGS if "auto" in [v for v in items if isinstance(v, str)] \
-                else 0
+            keep_neighbors = AUTO_RINGS if _split_auto(views)[0] else 0
         keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
     else:
         decision = decide(scene, views, size, level=level, keep_neighbors=keep_neighbors,
@@ -172,6 +168,13 @@ def prune(scene, views="auto", size="auto", *, level: str = "faces",
             warnings.warn(unsettled(decision), VisibilityWarning, stacklevel=2)
         keep = decision.keep
     return subset_scene(scene, keep), np.flatnonzero(keep)
+
+
+def _split_auto(views) -> tuple:
+    """``(auto, fixed)``: whether ``views`` is or holds ``"auto"``, and the other views."""
+    items = list(views) if isinstance(views, (list, tuple)) else [views]
+    fixed = [v for v in items if not (isinstance(v, str) and v == "auto")]
+    return len(fixed) < len(items), fixed
 
 
 def unsettled(decision: Decision) -> str:
