@@ -15,6 +15,7 @@ import hsr
 from hsr.cli import main
 from hsr.visibility import (VisibilityError, auto_size, decide, face_visibility, grow_rings,
                             keep_faces, object_visibility, prune, verify)
+from hsr.visibility.prune import MAX_RINGS
 from reference import ambiguous_pixels, reference_render
 
 
@@ -332,6 +333,12 @@ def test_bad_arguments_are_refused():
                             ({"keep_neighbors": -1}, "keep_neighbors")):
         with pytest.raises(VisibilityError, match=message):
             prune(scene, "sphere:4", 32, counts=counts, **kwargs)
+    # decide refuses a bad rule before any view is rendered or sent: this client would
+    # fail at its first use.
+    for kwargs, message in (({"min_pixels": 0}, "min_pixels"), ({"level": "parts"}, "level"),
+                            ({"keep_neighbors": MAX_RINGS + 1}, "keep_neighbors")):
+        with pytest.raises(VisibilityError, match=message):
+            decide(scene, "auto", 32, client=object(), **kwargs)
     with pytest.raises(VisibilityError, match="nothing would be left"):
         prune(scene, "sphere:4", 32, counts=np.zeros(scene.n_faces, np.int64))
     with pytest.raises(VisibilityError, match="size"):

@@ -293,7 +293,7 @@ def _cmd_prune(args) -> int:
     from .scene.load import load_scene
     from .scene.write import write_mesh
     from .visibility.count import cameras_for
-    from .visibility.prune import decide, subset_scene, unsettled, verify
+    from .visibility.prune import decide, split_auto, subset_scene, unsettled, verify
 
     start = time.perf_counter()
     if args.size != "auto":
@@ -302,10 +302,8 @@ def _cmd_prune(args) -> int:
         except ValueError:
             raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
     scene = load_scene(args.model)
-    specs = args.views or ["auto"]
-    auto = "auto" in specs
+    auto, fixed = split_auto(args.views or ["auto"])
     # The cameras once, before any connection: a bad --views fails at once.
-    fixed = [s for s in specs if s != "auto"]
     cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []
     client = _client(args.scheduler, "prune") if args.scheduler else None
     options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,

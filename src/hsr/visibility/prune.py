@@ -101,19 +101,15 @@ def decide(scene, views="auto", size="auto", *, level: str = "faces",
     from ..scene import views as view_sets
 
     scene = as_scene(scene)
-    if level not in LEVELS:
-        raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
-    auto, fixed = _split_auto(views)
+    auto, fixed = split_auto(views)
     if keep_neighbors is None:
         keep_neighbors = AUTO_RINGS if auto else 0
+    _check_rule(level, keep_neighbors, min_pixels)  # before any view is rendered
     if isinstance(size, str) and size == "auto":
         size = auto_size(scene)
     width, height = check_size(size)
-    if isinstance(max_views, bool) or not isinstance(max_views, (int, np.integer)) \
-            or max_views < 1:
-        raise VisibilityError(f"max_views must be a positive integer, got {max_views!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise VisibilityError(f"seed must be a non-negative integer, got {seed!r}")
+    _check_int("max_views", max_views, 1)
+    _check_int("seed", seed, 0)
     run = dict(options, client=client, progress=progress)
     first = fixed + ([f"sphere:{AUTO_FIRST}"] if auto else [])
     cameras = cameras_for(scene, first, width / height, options.get("near", 0.1),
@@ -156,10 +152,8 @@ def prune(scene, views="auto", size="auto", *, level: str = "faces",
     nothing is visible (an empty scene is not a scene)."""
     scene = as_scene(scene)
     if counts is not None:
-        if level not in LEVELS:
-            raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
         if keep_neighbors is None:
-            keep_neighbors = AUTO_RINGS if _split_auto(views)[0] else 0
+            keep_neighbors = AUTO_RINGS if split_auto(views)[0] else 0
         keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
     else:
         decision = decide(scene, views, size, level=level, keep_neighbors=keep_neighbors,
@@ -170,7 +164,7 @@ def prune(scene, views="auto", size="auto", *, level: str = "faces",
     return subset_scene(scene, keep), np.flatnonzero(keep)
 
 
-def _split_auto(views) -> tuple:
+def split_auto(views) -> tuple:
     """``(auto, fixed)``: whether ``views`` is or holds ``"auto"``, and the other views."""
     items = list(views) if isinstance(views, (list, tuple)) else [views]
     fixed = [v for v in items if not (isinstance(v, str) and v == "auto")]
@@ -187,13 +181,7 @@ def unsettled(decision: Decision) -> str:
 def keep_faces(scene: Scene, counts, level: str = "faces", keep_neighbors: int = 0,
                min_pixels: int = 1) -> np.ndarray:
     """(n_faces,) bool: the faces to keep, from per-face pixel ``counts``."""
-    for name, value, top in (("min_pixels", min_pixels, 1 << 62),
-                             ("keep_neighbors", keep_neighbors, MAX_RINGS)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
-                or not (0 if name == "keep_neighbors" else 1) <= value <= top:
-            raise VisibilityError(f"{name} must be an integer in "
-                                  f"{0 if name == 'keep_neighbors' else 1}..{top}, "
-                                  f"got {value!r}")
+    _check_rule(level, keep_neighbors, min_pixels)
     counts = np.asarray(counts)
     if counts.shape != (scene.n_faces,):
         raise VisibilityError(f"counts must have shape ({scene.n_faces},), got {counts.shape}")
@@ -211,6 +199,22 @@ def keep_faces(scene: Scene, counts, level: str = "faces", keep_neighbors: int =
         raise VisibilityError("no face is visible from these views (check the cameras "
                               "and --min-pixels): nothing would be left")
     return keep
+
+
+def _check_rule(level, keep_neighbors, min_pixels) -> None:
+    """Refuse a bad level, ring count or pixel threshold (:class:`VisibilityError`)."""
+    if level not in LEVELS:
+        raise VisibilityError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
+    _check_int("min_pixels", min_pixels, 1, 1 << 62)
+    _check_int("keep_neighbors", keep_neighbors, 0, MAX_RINGS)
+
+
+def _check_int(name: str, value, low: int, high: int | None = None) -> None:
+    """Refuse ``value`` unless it is an integer (not a bool) in ``low..high``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low \
+            or (high is not None and value > high):
+        bounds = f"in {low}..{high}" if high is not None else f">= {low}"
+        raise VisibilityError(f"{name} must be an integer {bounds}, got {value!r}")
 
 
 def grow_rings(mesh: Mesh, keep: np.ndarray, rings: int) -> np.ndarray:
@@ -306,8 +310,7 @@ def verify(original, pruned, kept, count: int = 100, size=512, *, seed: int = 0,
     if kept.shape != (pruned.n_faces,):
         raise VisibilityError(f"kept must list the pruned scene's {pruned.n_faces} faces, "
                               f"got shape {kept.shape}")
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
-        raise VisibilityError(f"verify count must be a non-negative integer, got {count!r}")
+    _check_int("verify count", count, 0)
     width, height = check_size(size)
     rng = np.random.default_rng(seed)
     directions = rng.normal(size=(count, 3))
