@@ -341,3 +341,38 @@ def test_headlight_is_the_default_and_lights_are_checked():
         hsr.render(mesh, cam, W, H, light="sun")
     with pytest.raises(hsr.RenderError, match="light"):
         hsr.Look(light=None)
+
+
+def test_flat_colours_of_transformed_instances_follow_their_world_normals():
+    """Per-face colours are computed only for the faces that show, instance by instance
+    (each through its own model matrix): every covered pixel of three cubes (rotated,
+    sheared, scaled unevenly, one half hidden behind another) has ``230 |n . view|``
+    with ``n`` the normal of its face's corners taken to world space here (no normal
+    matrix: the cross product of the world edges)."""
+    mesh = cube()
+
+    def rotation(angle, axis):
+        c, s = np.cos(angle), np.sin(angle)
+        i, j = [k for k in range(3) if k != axis]
+        m = np.eye(4)
+        m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+        return m
+
+    shear = np.eye(4)
+    shear[0, 1] = 0.7
+    models = [rotation(0.5, 1) @ np.diag([2.0, 0.5, 1.0, 1.0]),
+              np.eye(4) + np.array([[0, 0, 0, 1.2], [0, 0, 0, 0.3], [0, 0, 0, -1.5], [0] * 4]),
+              shear @ rotation(-0.8, 0) @ np.diag([0.6, 1.5, 0.8, 1.0])]
+    models[2][:3, 3] = (-1.4, 0.2, 0.5)
+    scene = hsr.Scene([hsr.Instance(mesh, m) for m in models])
+    cam = hsr.Camera.look_at(eye=(1.0, 2.5, 6.0), target=(0.0, 0.0, -0.5), fov_y=50)
+    frame = hsr.render(scene, cam, W, H)
+    covered = frame.face_id >= 0
+    corners = np.concatenate([(np.c_[mesh.positions, np.ones(len(mesh.positions))]
+                               @ m.T)[:, :3][mesh.faces] for m in models])
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    expected = 230 * np.abs(n @ np.asarray(cam.forward))[frame.face_id[covered]]
+    assert np.abs(frame.color[covered][:, 0] - expected).max() <= 1.01
+    assert len(np.unique(frame.object_id[covered])) == 3
+    assert len(np.unique(frame.face_id[covered])) < 3 * mesh.n_faces  # some faces hidden
