@@ -113,20 +113,22 @@ def test_streamed_equals_prepared(chunk, case):
 
 
 @settings(max_examples=30, deadline=None)
-@given(st.integers(1, 160), st.integers(1, 40), st.sampled_from([1, 2]))
-@example(100, 7, 2)  # 14 chunks of 8 faces were counted for 13
-def test_any_face_count_and_chunk_size_equal_prepared(n_faces, chunk_size, threads):
-    """Chunk k's fill and chunk k + 1's set-up share a hand-off (two record buffers):
-    every split of the faces into chunks gives the prepared path's buffers and counts,
-    and no chunk is empty (a size rounded up used to leave the last of the chunks
-    counted without faces; walking it in the pipeline read records of a negative size)."""
+@given(st.integers(1, 160), st.integers(1, 40), st.sampled_from([1, 2]), st.integers(1, 9))
+@example(100, 7, 2, 8192)  # 14 chunks of 8 faces were counted for 13
+def test_any_face_count_and_chunk_size_equal_prepared(n_faces, chunk_size, threads, part):
+    """Chunk k's fill and chunk k + 1's set-up share a hand-off (two record buffers),
+    the set-up cut into parts of ``part`` faces that the threads take in turn: every
+    split of the faces into chunks and parts gives the prepared path's buffers and
+    counts, and no chunk is empty (a size rounded up used to leave the last of the
+    chunks counted without faces; walking it in the pipeline read records of a negative
+    size)."""
     mesh, cam = soup(seed=n_faces, n=n_faces)
-    before = zbuffer.STREAM_CHUNK
-    zbuffer.STREAM_CHUNK = chunk_size
+    before = zbuffer.STREAM_CHUNK, zbuffer.SETUP_PART
+    zbuffer.STREAM_CHUNK, zbuffer.SETUP_PART = chunk_size, part
     try:
         frame = hsr.render(mesh, cam, W, H, counts=True, threads=threads)
     finally:
-        zbuffer.STREAM_CHUNK = before
+        zbuffer.STREAM_CHUNK, zbuffer.SETUP_PART = before
     fragments, stats = prepared(mesh, cam)
     assert np.array_equal(frame.face_id, fragments.face_id)
     assert np.array_equal(frame.depth.view(np.uint32), fragments.depth.view(np.uint32))

@@ -3,6 +3,8 @@ against what is stored. Follows OpenGL's depth state exactly, in submission orde
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ..errors import RenderError
@@ -19,7 +21,7 @@ from ..geometry.stage import (
     status_counts,
 )
 from ..geometry.state import DepthFunc, RenderState
-from ..parallel import Workers
+from ..parallel import Workers, split_range
 from ..raster.fill import band_split, fill_bands, fill_kernel, fill_targets, rasterize
 from .fragments import Fragments
 from .hiz import BLOCK, ObjectBounds, rect_hidden, screen_box, update_hzb
@@ -33,6 +35,8 @@ _BY_FACE = np.zeros(0, dtype=np.int64)  # fill_band: records laid out by face
 # Faces per streamed chunk (about): its set-up records (99 bytes a face) stay in the L3
 # cache between the set-up and the fill, and no per-face array of the whole mesh is written.
 STREAM_CHUNK = 1 << 16
+# Faces per set-up part (see _SetupParts): a part costs about half a millisecond.
+SETUP_PART = 8192
 
 
 def check(state: RenderState, needs: Needs) -> None:
@@ -132,10 +136,10 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     on ``workers``. Chunks go in submission order and every band keeps triangle order, so
     the result equals filling the prepared screen triangles.
 
-    The chunks are pipelined: each thread fills its band of chunk k, then sets up its
-    part of chunk k + 1 (into the other of two record buffers), in one hand-off. With a
-    hand-off for each (every one waits for the slowest thread) a 1M-face terrain at 1080p
-    spent 15 of its ~90 ms waiting; pipelined, 10."""
+    The chunks are pipelined: each thread fills its band of chunk k, then sets up parts
+    of chunk k + 1 (into the other of two record buffers) until none are left, in one
+    hand-off. With a hand-off for each (every one waits for the slowest thread) a
+    1M-face terrain at 1080p spent 15 of its ~90 ms waiting; pipelined, 10."""
     geometry: Geometry = screen.geometry
     width, height, n_faces = geometry.width, geometry.height, len(geometry.faces)
     # Fresh buffers are cleared by the first chunk's fill.
@@ -161,14 +165,16 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         return c0, c1, tuple(r[:c1 - c0] for r in records[k % 2])
 
     def set_up(k):
-        """Chunk k's set-up: face bounds of one part per thread, the arguments after
-        them, and one per-row work array per part (the parts run at once)."""
+        """Chunk k's set-up, cut into parts of about SETUP_PART faces that the threads
+        take as they come free (see :class:`_SetupParts`)."""
         c0, c1, chunk = chunk_of(k)
-        bounds = c0 + workers.split(c1 - c0)
-        return bounds, (c0, *setup_args, *chunk), np.zeros((len(bounds) - 1, height + 1))
+        n_parts = min(max(1, round((c1 - c0) / SETUP_PART)), c1 - c0)
+        return _SetupParts(c0 + split_range(c1 - c0, n_parts), (c0, *setup_args, *chunk),
+                           height)
 
-    bounds, args, delta = set_up(0)
-    done = workers.run(classify_setup_range, bounds, *args, each=delta)
+    parts = set_up(0)
+    workers.run(_set_up_parts, np.arange(workers.threads + 1), parts)
+    done, delta = parts.done, parts.delta
     tested = written = binned = rasterized = pieces_kept = clip_culled = 0
     for k in range(n_chunks):
         c0, c1, chunk = chunk_of(k)
@@ -192,19 +198,13 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         fill_args = (*chunk, _BY_FACE, c0, clip_at, piece_off, width, height,
                      state.depth_test, state.depth_func.code, state.depth_mask, z_lo, z_hi,
                      clear, depth, face, count_tested, count_written, counts, False)
-        # Step i: band i of this chunk, then part i of the next (the parts are never
-        # more than the bands, one per thread).
-        parts = [None] * (len(bands) - 1)
-        if k + 1 < n_chunks:
-            bounds, args, delta = set_up(k + 1)
-            for i in range(len(bounds) - 1):
-                parts[i] = (int(bounds[i]), int(bounds[i + 1]), args, delta[i])
-        steps = [(int(bands[i]), int(bands[i + 1]), parts[i]) for i in range(len(parts))]
-        results = workers.run(_fill_band_then_set_up, np.arange(len(steps) + 1), fill,
-                              fill_args, each=steps)
-        for (t, w, b), _ in results:
+        # Step i: band i of this chunk, then parts of the next as they come.
+        parts = set_up(k + 1) if k + 1 < n_chunks else None
+        results = workers.run(_fill_band_then_set_up, bands, fill, fill_args, parts)
+        for t, w, b in results:
             tested, written, binned = tested + t, written + w, binned + b
-        done = [part_done for _, part_done in results if part_done is not None]
+        if parts is not None:
+            done, delta = parts.done, parts.delta
         clear = np.nan
     by_status = status_counts(status)
     stats = geometry_counts(n_faces, by_status, by_status[CULLED] + clip_culled,
@@ -217,14 +217,34 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                      count_written if counts else None)
 
 
-def _fill_band_then_set_up(_, __, fill, fill_args, step):
-    """One thread's step of the pipeline: fill its band of this chunk, then set up its
-    part of the next. ``step`` = (band lo, band end, part) with part = (lo, hi,
-    arguments, per-row work) or None. Returns the fill's counts and the set-up's
-    (widest, covering) or None."""
-    band_lo, band_end, part = step
+class _SetupParts:
+    """The set-up of one chunk cut into parts (face bounds ``bounds``), taken by the
+    threads in turn as each comes free, so that a thread whose band filled quickly sets up
+    more (equal shares left the threads of the 1M-face terrain waiting for each other
+    about 5 of its 60 ms). Each part adds to its own row of ``delta`` and leaves its
+    (widest, covering) in ``done``: the result does not depend on who ran what."""
+
+    def __init__(self, bounds, args, height):
+        self.bounds, self.args = bounds, args
+        self.delta = np.zeros((len(bounds) - 1, height + 1))
+        self.done = [None] * (len(bounds) - 1)
+        self._next = itertools.count()  # next() is atomic under the GIL
+
+    def run(self):
+        while (i := next(self._next)) < len(self.done):
+            self.done[i] = classify_setup_range(int(self.bounds[i]), int(self.bounds[i + 1]),
+                                                *self.args, self.delta[i])
+
+
+def _set_up_parts(_, __, parts):
+    parts.run()
+
+
+def _fill_band_then_set_up(band_lo, band_end, fill, fill_args, parts):
+    """One thread's step of the pipeline: fill its band of this chunk, then take parts of
+    the next chunk's set-up (``parts``, or None after the last chunk) until none are left.
+    Returns the fill's counts."""
     counts = fill(band_lo, band_end, *fill_args)
-    if part is None:
-        return counts, None
-    lo, hi, args, delta = part
-    return counts, classify_setup_range(lo, hi, *args, delta)
+    if parts is not None:
+        parts.run()
+    return counts
