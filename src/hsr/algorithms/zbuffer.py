@@ -168,7 +168,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         """Chunk k's set-up, cut into parts of about SETUP_PART faces that the threads
         take as they come free (see :class:`_SetupParts`)."""
         c0, c1, chunk = chunk_of(k)
-        n_parts = min(max(1, round((c1 - c0) / SETUP_PART)), c1 - c0)
+        n_parts = max(1, round((c1 - c0) / SETUP_PART))  # split_range keeps parts <= faces
         return _SetupParts(c0 + split_range(c1 - c0, n_parts), (c0, *setup_args, *chunk),
                            height)
 

@@ -91,11 +91,12 @@ def _face_rgb(lo, hi, positions, faces, linear, forward, light_dirs, light_power
     Computes faces ``wanted[lo:hi]`` (the others are never looked up): a list rather
     than a mask over all faces, so that the threads get equal shares of the work and
     the loop has no branch on visibility, which is as good as random where hills hide
-    each other (the 1M-face terrain at 1080p: 8.2 ms -> 5 ms on two threads).
+    each other (the 1M-face terrain at 1080p: its whole shading stage 13.5 -> 11.9 ms,
+    median of 90 renders each).
     """
     per_face = base_rgb.shape[0] == faces.shape[0]
-    # The matrix and view direction in locals: the stores into ``out`` below could alias
-    # the arrays for all the compiler knows, which made it reload them every face.
+    # The matrix and view direction read once, into locals: the stores into ``out`` below
+    # could alias those arrays for all the compiler knows.
     l00, l01, l02 = linear[0, 0], linear[0, 1], linear[0, 2]
     l10, l11, l12 = linear[1, 0], linear[1, 1], linear[1, 2]
     l20, l21, l22 = linear[2, 0], linear[2, 1], linear[2, 2]
