@@ -173,7 +173,9 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
                            height)
 
     parts = set_up(0)
-    workers.run(_set_up_parts, np.arange(workers.threads + 1), parts)
+    # No more threads than parts: a mesh of one part (under SETUP_PART faces) is set up
+    # by the calling thread alone, without waking another for nothing.
+    workers.run(_set_up_parts, np.arange(min(workers.threads, len(parts.done)) + 1), parts)
     done, delta = parts.done, parts.delta
     tested = written = binned = rasterized = pieces_kept = clip_culled = 0
     for k in range(n_chunks):
