@@ -156,6 +156,38 @@ def test_second_draw_into_a_frame(chunk):
     assert drawn.any() and (~drawn & (first.face_id >= 0)).any()
 
 
+def test_window_coordinates_read_after_the_z_buffer():
+    """The z-buffer reads the vertices' window coordinates, computed once per vertex with
+    the transform, and drops them when done (the frame keeps its geometry, not that
+    copy). Window-space triangles asked for afterwards are computed again: they must be
+    the viewport transform of the clip coordinates (evaluated here in NumPy, as
+    glViewport and glDepthRange define it: x_w = (x_c / w_c + 1) * W / 2, with 1 / w_c
+    taken once), bit for bit, and equal those of the eagerly prepared path."""
+    mesh, cam = soup()
+    near, far = 0.2, 0.9
+    frame = hsr.render(mesh, cam, W, H, depth_range=(near, far))
+    screen = frame.fragments.screen
+    assert screen.pending and screen.geometry.pos_window is None  # released
+    pos_clip, faces = screen.pos_clip, screen.faces
+    inv_w = 1.0 / pos_clip[:, 3]
+    expect = np.stack([(pos_clip[:, 0] * inv_w + 1.0) * (0.5 * W),
+                       (pos_clip[:, 1] * inv_w + 1.0) * (0.5 * H),
+                       pos_clip[:, 2] * inv_w * (0.5 * (far - near)) + 0.5 * (far + near)],
+                      axis=1)
+    xy, depth, face_id = screen.xy_window, screen.depth_window, screen.face_id
+    # Pieces of clipped faces come from the clipper; whole faces from their corners.
+    corners = faces[face_id]
+    whole = np.all(np.isin(corners, np.flatnonzero(screen.geometry.codes < 64)), axis=1)
+    assert 20 < whole.sum() < len(face_id)
+    assert np.array_equal(xy[whole], expect[corners[whole]][..., :2])
+    assert np.array_equal(depth[whole], expect[corners[whole]][..., 2])
+    state = RenderState(depth_range=(near, far))
+    view_proj = cam.projection_matrix(W / H) @ cam.view_matrix
+    eager = prepare(as_scene(mesh), view_proj, W, H, state, {})
+    assert np.array_equal(face_id, eager.face_id)
+    assert np.array_equal(xy, eager.xy_window) and np.array_equal(depth, eager.depth_window)
+
+
 @pytest.mark.parametrize("threads", [1, 2])
 def test_band_counts(threads):
     """Each triangle that covers a pixel centre is filled in every band it overlaps: once

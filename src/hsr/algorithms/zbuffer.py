@@ -155,9 +155,8 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     n_chunks = max(1, -(-n_faces // size))  # rounding up the size may leave fewer
     records = [setup_records(size) for _ in range(min(n_chunks, 2))]
     fill = fill_kernel(state.depth_test, state.depth_func.code, counts)
-    setup_args = (geometry.degenerate, geometry.pos_clip, geometry.codes, geometry.faces,
-                  width, height, geometry.depth_scale, geometry.depth_offset, keep_ccw,
-                  keep_cw, factor, units, status)
+    setup_args = (geometry.degenerate, geometry.window(workers), geometry.codes,
+                  geometry.faces, width, height, keep_ccw, keep_cw, factor, units, status)
 
     def chunk_of(k):
         c0 = k * size
@@ -208,6 +207,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
         if parts is not None:
             done, delta = parts.done, parts.delta
         clear = np.nan
+    geometry.release_window()  # the frame keeps the geometry; see release_window
     by_status = status_counts(status)
     stats = geometry_counts(n_faces, by_status, by_status[CULLED] + clip_culled,
                             by_status[SIMPLE] + pieces_kept)

@@ -3,9 +3,10 @@
 model/view/projection -> clip space -> clip (near, far, guard band) -> divide + viewport
 -> face culling -> :class:`ScreenTriangles`.
 
-Vertices are transformed once, their outcodes computed on the way (a compiled loop, see
-:func:`scene_clip_vertices`); a compiled per-face kernel classifies each face (degenerate /
-outside / needs clipping / simple) and projects the simple ones straight to window space.
+Vertices are transformed once, their outcodes and window coordinates computed on the way
+(a compiled loop, see :func:`scene_clip_vertices`); a compiled per-face kernel classifies
+each face (degenerate / outside / needs clipping / simple) and gathers the simple ones'
+corners in window space.
 Only the (usually few) faces that cross a clip plane go through the Sutherland-Hodgman
 clipper in :mod:`hsr.geometry.clip`.
 
@@ -43,6 +44,9 @@ class Geometry:
     degenerate : (F,) bool, faces of zero area in model space (where a model matrix cannot
         hide it; :meth:`hsr.scene.mesh.Mesh.degenerate_mask`).
     codes : (V,) uint8 outcodes of the clip-space vertices (:func:`_codes`).
+    pos_window : (V, 3) window x, y (y up) and depth of the vertices inside the guard band
+        (outcode bit 6 clear; NaN for the others, which only the clipper reads), or None
+        once released (:meth:`release_window`); read it through :meth:`window`.
     planes : the clipping planes (:func:`hsr.geometry.clip.clip_planes`).
     depth_scale, depth_offset : NDC z -> window depth for the state's depth range.
     stats : the dict that receives the triangle counts once faces are classified.
@@ -51,6 +55,7 @@ class Geometry:
     degenerate: np.ndarray
     pos_clip: np.ndarray
     codes: np.ndarray
+    pos_window: np.ndarray | None
     faces: np.ndarray
     width: int
     height: int
@@ -71,6 +76,26 @@ class Geometry:
         clockwise, y up) survive glFrontFace + glCullFace."""
         _, keep = _keep_mask(np.array([True, False]), self.state)
         return bool(keep[0]), bool(keep[1])
+
+    def window(self, workers) -> np.ndarray:
+        """``pos_window``, computed again (on ``workers``) if it was released: the same
+        :func:`_to_window` of the same clip coordinates, so bit for bit what the transform
+        stored."""
+        if self.pos_window is None:
+            pos_window = np.empty((len(self.pos_clip), 3))
+            workers.run_range(_window_range, len(self.pos_clip), self.pos_clip, self.codes,
+                              0.5 * self.width, 0.5 * self.height, self.depth_scale,
+                              self.depth_offset, pos_window, min_chunk=65536)
+            self.pos_window = pos_window
+        return self.pos_window
+
+    def release_window(self) -> None:
+        """Drop ``pos_window`` (24 bytes a vertex) once the faces are set up: a frame
+        keeps its geometry for attributes read later, and with the window copy kept too,
+        the 1M-face terrain's frames grew past the C allocator's trim threshold, so that
+        every other render gave its memory back and faulted 17 MB in again (about 10 ms
+        here)."""
+        self.pos_window = None
 
 
 class ScreenTriangles:
@@ -139,9 +164,8 @@ def classify_faces(workers, geometry: Geometry):
     xy = np.empty((n, 3, 2))
     depth = np.empty((n, 3))
     area = np.zeros(n)
-    workers.run_range(_classify_range, n, geometry.degenerate, geometry.pos_clip,
-                      geometry.codes, geometry.faces, geometry.width, geometry.height,
-                      geometry.depth_scale, geometry.depth_offset, status, xy, depth, area)
+    workers.run_range(_classify_range, n, geometry.degenerate, geometry.window(workers),
+                      geometry.codes, geometry.faces, status, xy, depth, area)
     return status, xy, depth, area
 
 
@@ -187,9 +211,7 @@ def _classify_one(degenerate, codes, f, a, b, c):
 
 
 @njit(cache=True, nogil=True)
-def _classify_range(lo, hi, degenerate, pos_clip, codes, faces, width, height, depth_scale,
-                    depth_offset, status, xy, depth, area):
-    half_w, half_h = 0.5 * width, 0.5 * height
+def _classify_range(lo, hi, degenerate, pos_window, codes, faces, status, xy, depth, area):
     for f in range(lo, hi):
         # Status kept in a register and stored once (see setup_one on stores).
         face_status = _classify_one(degenerate, codes, f, faces[f, 0], faces[f, 1], faces[f, 2])
@@ -198,17 +220,16 @@ def _classify_range(lo, hi, degenerate, pos_clip, codes, faces, width, height, d
             continue
         for k in range(3):
             v = faces[f, k]
-            xy[f, k, 0], xy[f, k, 1], depth[f, k] = _to_window(
-                pos_clip[v, 0], pos_clip[v, 1], pos_clip[v, 2], pos_clip[v, 3], half_w, half_h,
-                depth_scale, depth_offset)
+            xy[f, k, 0], xy[f, k, 1], depth[f, k] = (pos_window[v, 0], pos_window[v, 1],
+                                                     pos_window[v, 2])
         area[f] = ((xy[f, 1, 0] - xy[f, 0, 0]) * (xy[f, 2, 1] - xy[f, 0, 1])
                    - (xy[f, 2, 0] - xy[f, 0, 0]) * (xy[f, 1, 1] - xy[f, 0, 1]))
 
 
 @njit(cache=True, nogil=True)
-def classify_setup_range(lo, hi, base, degenerate, pos_clip, codes, faces, width, height,
-                         depth_scale, depth_offset, keep_ccw, keep_cw, offset_factor,
-                         offset_units, status, vert_fixed, edge_bias, bbox, zplane, delta):
+def classify_setup_range(lo, hi, base, degenerate, pos_window, codes, faces, width, height,
+                         keep_ccw, keep_cw, offset_factor, offset_units, status, vert_fixed,
+                         edge_bias, bbox, zplane, delta):
     """The geometry stage and the raster set-up in one pass (the z-buffer's streamed
     path): classify faces ``lo .. hi`` as :func:`classify_faces` does, cull by facing
     (``keep_ccw`` / ``keep_cw``: keep faces of positive / negative window area) and set up
@@ -218,7 +239,6 @@ def classify_setup_range(lo, hi, base, degenerate, pos_clip, codes, faces, width
     Adds the per-row work to ``delta`` ((H + 1,) zeros, one per call), as
     :func:`hsr.geometry.setup.setup_triangles` gathers it, and returns (widest row,
     triangles set up that hold a pixel centre)."""
-    half_w, half_h = 0.5 * width, 0.5 * height
     widest = 1
     covering = 0
     for f in range(lo, hi):
@@ -227,12 +247,9 @@ def classify_setup_range(lo, hi, base, degenerate, pos_clip, codes, faces, width
         # Status kept in a register and stored once (see setup_one on stores).
         face_status = _classify_one(degenerate, codes, f, a, b, c)
         if face_status == SIMPLE:
-            x0, y0, z0 = _to_window(pos_clip[a, 0], pos_clip[a, 1], pos_clip[a, 2],
-                                    pos_clip[a, 3], half_w, half_h, depth_scale, depth_offset)
-            x1, y1, z1 = _to_window(pos_clip[b, 0], pos_clip[b, 1], pos_clip[b, 2],
-                                    pos_clip[b, 3], half_w, half_h, depth_scale, depth_offset)
-            x2, y2, z2 = _to_window(pos_clip[c, 0], pos_clip[c, 1], pos_clip[c, 2],
-                                    pos_clip[c, 3], half_w, half_h, depth_scale, depth_offset)
+            x0, y0, z0 = pos_window[a, 0], pos_window[a, 1], pos_window[a, 2]
+            x1, y1, z1 = pos_window[b, 0], pos_window[b, 1], pos_window[b, 2]
+            x2, y2, z2 = pos_window[c, 0], pos_window[c, 1], pos_window[c, 2]
             # The same area expression as _classify_range, so facing is decided identically.
             area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
             if not (keep_ccw if area > 0 else keep_cw):
@@ -266,13 +283,15 @@ def project_triangles(pos_clip, width, height, depth_scale, depth_offset):
     return xy, depth, area
 
 
-def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, workers=None):
+def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, viewport,
+                        workers=None):
     """Clip-space vertices of all instances, their outcodes (:func:`_codes`, for the
-    ``guard_band`` (gx, gy)), their faces re-indexed into them and which faces are
+    ``guard_band`` (gx, gy)), their window coordinates for ``viewport`` (width, height,
+    depth_scale, depth_offset), their faces re-indexed into them and which faces are
     degenerate (judged in model space, where a model matrix cannot hide it):
-    ``(pos_clip (V, 4), codes (V,) uint8, faces (F, 3), degenerate (F,) bool)``, in
-    submission order. All instances go through one compiled call (a scene of many small
-    parts would otherwise pay a thread hand-off per part, every view)."""
+    ``(pos_clip (V, 4), codes (V,) uint8, pos_window (V, 3), faces (F, 3), degenerate (F,)
+    bool)``, in submission order. All instances go through one compiled call (a scene of
+    many small parts would otherwise pay a thread hand-off per part, every view)."""
     workers = workers or Workers()
     instances = scene.instances
     if len(instances) == 1:
@@ -284,22 +303,32 @@ def scene_clip_vertices(scene: Scene, view_proj: np.ndarray, guard_band, workers
         matrices = np.stack([view_proj @ inst.model for inst in instances])
     pos_clip = np.empty((len(pos_model), 4))
     codes = np.empty(len(pos_model), dtype=np.uint8)
+    pos_window = np.empty((len(pos_model), 3))
     gx, gy = guard_band
+    width, height, depth_scale, depth_offset = viewport
     workers.run_range(_transform_range, len(pos_model), pos_model, owner,
                       np.ascontiguousarray(matrices), pos_clip, float(gx), float(gy), codes,
-                      min_chunk=65536)
-    return pos_clip, codes, faces, degenerate
+                      0.5 * width, 0.5 * height, float(depth_scale), float(depth_offset),
+                      pos_window, min_chunk=65536)
+    return pos_clip, codes, pos_window, faces, degenerate
 
 
 _ONE_OWNER = np.zeros(0, dtype=np.int64)
 
 
 @njit(cache=True, nogil=True)
-def _transform_range(lo, hi, points, owner, matrices, out, gx, gy, codes):
+def _transform_range(lo, hi, points, owner, matrices, out, gx, gy, codes, half_w, half_h,
+                     depth_scale, depth_offset, pos_window):
     """Points ``lo .. hi`` each through its instance's matrix ``matrices[owner[i]]``
-    (``owner`` empty: all through ``matrices[0]``) into ``out``, and their outcodes
-    (:func:`_codes`, guard band ``gx``, ``gy``), computed while the point is at hand
-    rather than by a second pass over the clip-space array.
+    (``owner`` empty: all through ``matrices[0]``) into ``out``, their outcodes
+    (:func:`_codes`, guard band ``gx``, ``gy``) and, for those inside the guard band, their
+    window coordinates into ``pos_window`` (NaN for the others), all computed while the
+    point is at hand rather than by more passes over the clip-space array.
+
+    Window coordinates per vertex rather than per face corner: a vertex of a closed mesh
+    is a corner of about six faces, and the division and viewport transform were a third
+    of the z-buffer's set-up (1M-face terrain: 47 -> 36 ms on one thread, bit-identical,
+    as the same :func:`_to_window` of the same clip coordinates).
 
     A compiled loop rather than NumPy's ``@``: a large matrix product goes to OpenBLAS,
     whose own threads keep spinning for a while after it returns and, on a machine with
@@ -312,7 +341,31 @@ def _transform_range(lo, hi, points, owner, matrices, out, gx, gy, codes):
         for r in range(4):
             out[i, r] = (matrices[k, r, 0] * x + matrices[k, r, 1] * y + matrices[k, r, 2] * z
                          + matrices[k, r, 3])
-        codes[i] = _codes(out, i, gx, gy)
+        code = _codes(out, i, gx, gy)
+        codes[i] = code
+        pos_window[i, 0], pos_window[i, 1], pos_window[i, 2] = _vertex_window(
+            code, out[i, 0], out[i, 1], out[i, 2], out[i, 3], half_w, half_h, depth_scale,
+            depth_offset)
+
+
+@njit(cache=True, nogil=True)
+def _window_range(lo, hi, pos_clip, codes, half_w, half_h, depth_scale, depth_offset,
+                  pos_window):
+    """``pos_window`` of vertices ``lo .. hi`` from their clip coordinates and outcodes, as
+    :func:`_transform_range` stores it."""
+    for i in range(lo, hi):
+        pos_window[i, 0], pos_window[i, 1], pos_window[i, 2] = _vertex_window(
+            codes[i], pos_clip[i, 0], pos_clip[i, 1], pos_clip[i, 2], pos_clip[i, 3], half_w,
+            half_h, depth_scale, depth_offset)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _vertex_window(code, x, y, z, w, half_w, half_h, depth_scale, depth_offset):
+    """A vertex's window x, y, depth, or NaNs outside a clipping plane (outcode bit 6),
+    where only the clipper reads the vertex."""
+    if code & 64:
+        return np.nan, np.nan, np.nan
+    return _to_window(x, y, z, w, half_w, half_h, depth_scale, depth_offset)
 
 
 def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndarray]:
@@ -336,10 +389,12 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     workers = workers or Workers()
     near, far = state.depth_range
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
-    pos_clip, codes, faces, degenerate = scene_clip_vertices(
-        scene, view_proj, (planes[2, 3], planes[4, 3]), workers)
-    geometry = Geometry(degenerate, pos_clip, codes, faces, width, height, state, planes,
-                        0.5 * (far - near), 0.5 * (far + near), stats, workers.threads)
+    depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
+    pos_clip, codes, pos_window, faces, degenerate = scene_clip_vertices(
+        scene, view_proj, (planes[2, 3], planes[4, 3]),
+        (width, height, depth_scale, depth_offset), workers)
+    geometry = Geometry(degenerate, pos_clip, codes, pos_window, faces, width, height, state,
+                        planes, depth_scale, depth_offset, stats, workers.threads)
     if deferred:
         return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,
                                geometry)
