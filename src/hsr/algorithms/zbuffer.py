@@ -131,8 +131,8 @@ def _resolve_with_occlusion(screen, state, depth_buffer, workers, occlusion):
 
 def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer, counts,
                       workers) -> Fragments:
-    """The z-buffer straight from clip space, in chunks of faces: each chunk is classified
-    and set up in one pass (no window-space copy of the mesh is stored), then filled, all
+    """The z-buffer straight from the vertices, in chunks of faces: each chunk is classified
+    and set up in one pass (no window-space copy of the triangles is stored), then filled, all
     on ``workers``. Chunks go in submission order and every band keeps triangle order, so
     the result equals filling the prepared screen triangles.
 

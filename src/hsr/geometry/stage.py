@@ -11,9 +11,10 @@ Only the (usually few) faces that cross a clip plane go through the Sutherland-H
 clipper in :mod:`hsr.geometry.clip`.
 
 The plain z-buffer does not need the window-space triangles stored: with
-``prepare(..., deferred=True)`` it streams faces from clip space through
-:func:`classify_setup_range` (classification, culling and raster set-up in one pass) and
-the screen triangles are only computed if something else reads them.
+``prepare(..., deferred=True)`` it streams faces, their corners gathered from the
+vertices' window coordinates, through :func:`classify_setup_range` (classification,
+culling and raster set-up in one pass) and the screen triangles are only computed if
+something else reads them.
 """
 
 from __future__ import annotations
@@ -113,8 +114,8 @@ class ScreenTriangles:
 
     A *deferred* set (``prepare(..., deferred=True)``) computes the four per-triangle
     arrays on first use; until then ``pending`` is true and ``geometry`` holds the clip-space
-    scene, which lets the z-buffer stream faces from clip space straight into its set-up
-    without storing window coordinates at all.
+    scene, which lets the z-buffer stream faces straight into its set-up without storing
+    window coordinates per triangle (only per vertex, and only until the set-up is done).
     """
 
     def __init__(self, xy_window, depth_window, face_id, front, width, height, pos_clip,
@@ -234,8 +235,9 @@ def classify_setup_range(lo, hi, base, degenerate, pos_window, codes, faces, wid
     path): classify faces ``lo .. hi`` as :func:`classify_faces` does, cull by facing
     (``keep_ccw`` / ``keep_cw``: keep faces of positive / negative window area) and set up
     the kept simple ones into record ``f - base`` (:func:`hsr.geometry.setup.setup_one`; every
-    other record gets an empty box). The corners go from clip space to the set-up without
-    being stored, which saves writing and re-reading 72 bytes per face.
+    other record gets an empty box). The corners are read from the vertices' window
+    coordinates (``pos_window``) and not stored per face, which saves writing and
+    re-reading 72 bytes per face.
     Adds the per-row work to ``delta`` ((H + 1,) zeros, one per call), as
     :func:`hsr.geometry.setup.setup_triangles` gathers it, and returns (widest row,
     triangles set up that hold a pixel centre)."""
