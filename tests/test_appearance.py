@@ -376,3 +376,40 @@ def test_flat_colours_of_transformed_instances_follow_their_world_normals():
     assert np.abs(frame.color[covered][:, 0] - expected).max() <= 1.01
     assert len(np.unique(frame.object_id[covered])) == 3
     assert len(np.unique(frame.face_id[covered])) < 3 * mesh.n_faces  # some faces hidden
+
+
+@pytest.mark.parametrize("light", ["headlight", "studio"])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_per_face_colours_of_many_faces_follow_lambert_face_by_face(light, threads):
+    """The per-face colour kernel works on blocks of faces (gathered, then computed in
+    SIMD lanes, then scattered): on a soup of 1000 faces (many blocks and a partial last
+    one, split between threads) with per-face base colours, an instance matrix that
+    shears and scales, and faces of zero area (zero normal), every face's flat and normal
+    colour matches Lambert / the normal map written out here with NumPy, face by face,
+    so a colour landing on another face or a lane left stale shows."""
+    from hsr.appearance.shading import face_colors, light_rig
+
+    rng = np.random.default_rng(7)
+    positions = rng.normal(size=(600, 3))
+    faces = rng.integers(0, 600, size=(1000, 3))
+    faces[::37, 2] = faces[::37, 0]  # zero area: the normal stays zero
+    base = rng.integers(0, 256, size=(1000, 3)).astype(np.uint8)
+    model = np.eye(4)
+    model[:3, :3] = [[1.5, 0.4, 0.0], [0.0, 0.7, 0.2], [0.3, 0.0, 1.1]]
+    scene = hsr.Scene([hsr.Instance(hsr.Mesh(positions, faces, face_colors=base), model)])
+    cam = hsr.Camera.look_at(eye=(0.5, 1.0, 6.0), target=(0.0, 0.0, 0.0), fov_y=50)
+    world = (positions @ model[:3, :3].T)[faces]
+    n = np.cross(world[:, 1] - world[:, 0], world[:, 2] - world[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0, n / np.where(length > 0, length, 1.0), 0.0)
+    rig = light_rig(light, cam)
+    toward_eye = np.where(n @ np.asarray(cam.forward) > 0, -1.0, 1.0)
+    shade = rig.ambient + np.maximum(0, (n * toward_eye[:, None]) @ rig.directions.T) @ rig.power
+    with hsr.parallel.Workers(threads) as workers:
+        flat = face_colors("flat", scene, cam, workers, light=light).astype(float)
+        normal = face_colors("normal", scene, cam, workers, light=light).astype(float)
+    assert np.abs(flat - np.minimum(255, base * shade[:, None])).max() <= 1.01
+    assert np.abs(normal - np.minimum(255, (n * 0.5 + 0.5) * 255)).max() <= 1.01
+    flat_zero = flat[::37]
+    assert np.abs(flat_zero - np.minimum(255, base[::37] * rig.ambient)).max() <= 1.01
+    assert (normal[::37] == 127).all()

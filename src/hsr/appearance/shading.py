@@ -78,7 +78,11 @@ def lambert(rig: LightRig, normals, toward_eye) -> np.ndarray:
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
 
 
-@njit(cache=True, nogil=True)
+# Faces per block of :func:`_face_rgb`: its per-face arrays stay in L1 (64 x 11 doubles).
+_RGB_BLOCK = 64
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _face_rgb(lo, hi, positions, faces, linear, forward, light_dirs, light_power, ambient,
               base_rgb, mode, wanted, out):
     """(F, 3) uint8 colour per face from its normal after the linear map ``linear``.
@@ -93,6 +97,16 @@ def _face_rgb(lo, hi, positions, faces, linear, forward, light_dirs, light_power
     the loop has no branch on visibility, which is as good as random where hills hide
     each other (the 1M-face terrain at 1080p: its whole shading stage 13.5 -> 11.9 ms,
     median of 90 renders each).
+
+    Blocks of faces in three passes: gather the edge vectors (indexed loads, one face at
+    a time), then normals and Lambert for the whole block in loops without indexing or
+    branches, which the compiler turns into SIMD (a square root and three divisions per
+    face were most of the time: the 360k visible faces of the 1M terrain at 1080p, one
+    thread, 8.5-11.9 -> 4.1-6.7 ms in three alternating runs), then scatter the colours.
+    Every value comes from the same operations in the same order as one face at a time
+    (IEEE division and square root round alike in SIMD lanes; ``error_model="numpy"``
+    only drops the zero-divisor check, and the divisor is never zero), so the colours
+    are bit for bit the same.
     """
     per_face = base_rgb.shape[0] == faces.shape[0]
     # The matrix and view direction read once, into locals: the stores into ``out`` below
@@ -101,38 +115,56 @@ def _face_rgb(lo, hi, positions, faces, linear, forward, light_dirs, light_power
     l10, l11, l12 = linear[1, 0], linear[1, 1], linear[1, 2]
     l20, l21, l22 = linear[2, 0], linear[2, 1], linear[2, 2]
     fx, fy, fz = forward[0], forward[1], forward[2]
-    for k in range(lo, hi):
-        f = wanted[k]
-        # Edges in model space, then through ``linear`` (a linear map keeps differences).
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        ax, ay, az = positions[a, 0], positions[a, 1], positions[a, 2]
-        d1x, d1y, d1z = positions[b, 0] - ax, positions[b, 1] - ay, positions[b, 2] - az
-        d2x, d2y, d2z = positions[c, 0] - ax, positions[c, 1] - ay, positions[c, 2] - az
-        e1x = l00 * d1x + l01 * d1y + l02 * d1z
-        e1y = l10 * d1x + l11 * d1y + l12 * d1z
-        e1z = l20 * d1x + l21 * d1y + l22 * d1z
-        e2x = l00 * d2x + l01 * d2y + l02 * d2z
-        e2y = l10 * d2x + l11 * d2y + l12 * d2z
-        e2z = l20 * d2x + l21 * d2y + l22 * d2z
-        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
-        length = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if length > 0.0:
-            nx, ny, nz = nx / length, ny / length, nz / length
-        b = f if per_face else 0
+    edge = np.empty((6, _RGB_BLOCK))  # model-space edges c1 - c0, c2 - c0 of the block
+    unit = np.empty((3, _RGB_BLOCK))  # unit normals
+    shade = np.empty(_RGB_BLOCK)
+    toward_eye = np.empty(_RGB_BLOCK)
+    for start in range(lo, hi, _RGB_BLOCK):
+        size = min(_RGB_BLOCK, hi - start)
+        for j in range(size):
+            f = wanted[start + j]
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            ax, ay, az = positions[a, 0], positions[a, 1], positions[a, 2]
+            edge[0, j], edge[1, j], edge[2, j] = (positions[b, 0] - ax, positions[b, 1] - ay,
+                                                  positions[b, 2] - az)
+            edge[3, j], edge[4, j], edge[5, j] = (positions[c, 0] - ax, positions[c, 1] - ay,
+                                                  positions[c, 2] - az)
+        for j in range(size):
+            # Edges through ``linear`` (a linear map keeps differences), then their cross.
+            d1x, d1y, d1z = edge[0, j], edge[1, j], edge[2, j]
+            d2x, d2y, d2z = edge[3, j], edge[4, j], edge[5, j]
+            e1x = l00 * d1x + l01 * d1y + l02 * d1z
+            e1y = l10 * d1x + l11 * d1y + l12 * d1z
+            e1z = l20 * d1x + l21 * d1y + l22 * d1z
+            e2x = l00 * d2x + l01 * d2y + l02 * d2z
+            e2y = l10 * d2x + l11 * d2y + l12 * d2z
+            e2z = l20 * d2x + l21 * d2y + l22 * d2z
+            nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+            length = np.sqrt(nx * nx + ny * ny + nz * nz)
+            # A zero normal stays zero: dividing by 1 leaves any value as it is.
+            scale = length if length > 0.0 else 1.0
+            unit[0, j], unit[1, j], unit[2, j] = nx / scale, ny / scale, nz / scale
         if mode == 0:
-            toward_eye = -1.0 if nx * fx + ny * fy + nz * fz > 0.0 else 1.0
-            shade = ambient
+            for j in range(size):
+                toward_eye[j] = (-1.0 if unit[0, j] * fx + unit[1, j] * fy + unit[2, j] * fz
+                                 > 0.0 else 1.0)
+                shade[j] = ambient
             for m in range(light_dirs.shape[0]):
-                lit = toward_eye * (nx * light_dirs[m, 0] + ny * light_dirs[m, 1]
-                                    + nz * light_dirs[m, 2])
-                if lit > 0.0:
-                    shade += light_power[m] * lit
-            for c in range(3):
-                out[f, c] = np.uint8(min(255.0, base_rgb[b, c] * shade))
+                dx, dy, dz = light_dirs[m, 0], light_dirs[m, 1], light_dirs[m, 2]
+                power = light_power[m]
+                for j in range(size):
+                    lit = toward_eye[j] * (unit[0, j] * dx + unit[1, j] * dy + unit[2, j] * dz)
+                    shade[j] = shade[j] + power * lit if lit > 0.0 else shade[j]
+            for j in range(size):
+                f = wanted[start + j]
+                b = f if per_face else 0
+                for c in range(3):
+                    out[f, c] = np.uint8(min(255.0, base_rgb[b, c] * shade[j]))
         else:
-            out[f, 0] = np.uint8(min(255.0, (nx * 0.5 + 0.5) * 255.0))
-            out[f, 1] = np.uint8(min(255.0, (ny * 0.5 + 0.5) * 255.0))
-            out[f, 2] = np.uint8(min(255.0, (nz * 0.5 + 0.5) * 255.0))
+            for j in range(size):
+                f = wanted[start + j]
+                for c in range(3):
+                    out[f, c] = np.uint8(min(255.0, (unit[c, j] * 0.5 + 0.5) * 255.0))
 
 
 def _face_base(mesh) -> np.ndarray:
