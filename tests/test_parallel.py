@@ -85,3 +85,36 @@ def test_renders_leave_no_threads_behind():
     while threading.active_count() > before + 1 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert threading.active_count() <= before + 1
+
+
+def test_a_workspace_keeps_its_scratch_and_grows_it():
+    import hsr
+
+    with hsr.Workspace(1) as workspace:
+        first = workspace.scratch("a", 10, (3,), np.int32)
+        again = workspace.scratch("a", 4, (3,), np.int32)
+        assert np.shares_memory(again, first) and again.shape == (4, 3)
+        assert again.flags.c_contiguous
+        grown = workspace.scratch("a", 20, (3,), np.int32)
+        assert grown.shape == (20, 3) and not np.shares_memory(grown, first)
+        other = workspace.scratch("a", 5, (3,), np.float64)  # another layout: a new buffer
+        assert other.dtype == np.float64 and other.shape == (5, 3)
+    with Workers(1) as workers:  # plain workers: fresh every time
+        assert not np.shares_memory(workers.scratch("a", 4), workers.scratch("a", 4))
+
+
+def test_render_refuses_a_workspace_in_use_or_of_other_threads():
+    import hsr
+    from hsr.errors import RenderError
+
+    mesh, cam = hsr.scenes.cubes()
+    with hsr.Workspace(2) as workspace:
+        with workspace.claim():  # another render holds it
+            with pytest.raises(RenderError, match="in use by another render"):
+                hsr.render(mesh, cam, 32, 24, workspace=workspace)
+        with pytest.raises(RenderError, match="differs from the workspace's 2"):
+            hsr.render(mesh, cam, 32, 24, threads=1, workspace=workspace)
+        frame = hsr.render(mesh, cam, 32, 24, threads=2, workspace=workspace)  # free again
+        assert (frame.face_id >= 0).any()
+    with pytest.raises(RenderError, match="workspace must be an hsr.Workspace"):
+        hsr.render(mesh, cam, 32, 24, workspace=Workers(1))

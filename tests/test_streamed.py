@@ -112,6 +112,47 @@ def test_streamed_equals_prepared(chunk, case):
     assert frame.stats["fragments_tested"] > 0 or case == "soup-cw-front"
 
 
+def test_one_workspace_through_many_scenes_matches_the_reference(chunk):
+    """Set-up records and face status kept in one Workspace from render to render (more
+    faces, fewer, clipped pieces, other states, two threads): every frame still matches
+    the ray reference, so nothing of an earlier render leaks into a later one (kept
+    buffers hold old records where fresh pages would hold zeros)."""
+    with hsr.Workspace(threads=2) as workspace:
+        for scene, cam, state in [(*soup(seed=5, n=300), {}),
+                                  (*inside_cubes(), {"cull": "back"}),
+                                  (*soup(seed=8, n=40), {"depth_func": "lequal"}),
+                                  (*small_scene("city"), {"depth_range": (0.9, 0.2),
+                                                          "depth_func": "greater",
+                                                          "clear_depth": 0.0}),
+                                  (*soup(seed=5, n=300), {"front_face": "cw"})]:
+            check(scene, cam, max_ambiguous=0.05, workspace=workspace, **state)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 300), st.integers(0, 1000)), min_size=2,
+                max_size=4),
+       st.sampled_from([1, 2]), st.integers(1, 40))
+def test_renders_through_a_workspace_equal_fresh_ones(soups, threads, chunk_size):
+    """A sequence of soups through one Workspace gives, render by render, the buffers
+    and counts of renders with fresh buffers."""
+    before = zbuffer.STREAM_CHUNK
+    zbuffer.STREAM_CHUNK = chunk_size
+    try:
+        with hsr.Workspace(threads) as workspace:
+            for n_faces, seed in soups:
+                mesh, cam = soup(seed=seed, n=n_faces)
+                kept = hsr.render(mesh, cam, W, H, counts=True, workspace=workspace)
+                fresh = hsr.render(mesh, cam, W, H, counts=True, threads=threads)
+                assert np.array_equal(kept.face_id, fresh.face_id)
+                assert np.array_equal(kept.depth.view(np.uint32),
+                                      fresh.depth.view(np.uint32))
+                assert np.array_equal(kept.fragments.count_written,
+                                      fresh.fragments.count_written)
+                assert {k: kept.stats[k] for k in KEYS} == {k: fresh.stats[k] for k in KEYS}
+    finally:
+        zbuffer.STREAM_CHUNK = before
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.integers(1, 160), st.integers(1, 40), st.sampled_from([1, 2]), st.integers(1, 9))
 @example(100, 7, 2, 8192)  # 14 chunks of 8 faces were counted for 13

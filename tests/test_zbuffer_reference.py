@@ -24,8 +24,8 @@ def small_scene(name):
     return scenes.get(name)
 
 
-def check(scene, camera, width=W, height=H, max_ambiguous=0.03, **state):
-    frame = hsr.render(scene, camera, width, height, **state)
+def check(scene, camera, width=W, height=H, max_ambiguous=0.03, workspace=None, **state):
+    frame = hsr.render(scene, camera, width, height, workspace=workspace, **state)
     # Transparent instances write neither depth nor ids (depth mask off): the truth for
     # face_id and depth is the opaque part of the scene, numbered as in the whole scene.
     # (Transparent instances are squashed to a point: their faces keep their numbers but

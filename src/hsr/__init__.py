@@ -22,6 +22,7 @@ from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
 from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
 from .lines.raster import HiddenLine
 from .lines.vector import hidden_lines, write_lines_svg
+from .parallel import Workspace
 from .render import Frame, render
 from .scene import builtin as scenes
 from .scene import views
@@ -41,5 +42,5 @@ __all__ = [
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "batch", "bsp",
     "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
-    "write_mesh", "write_transforms",
+    "Workspace", "write_mesh", "write_transforms",
 ]

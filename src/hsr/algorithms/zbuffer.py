@@ -148,12 +148,12 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     keep_ccw, keep_cw = geometry.keep_by_facing()
     factor, units = (float(v) for v in state.polygon_offset)
-    status = np.empty(n_faces, dtype=np.int8)
+    status = workers.scratch("status", n_faces, dtype=np.int8)
     # Chunks of about STREAM_CHUNK faces, none much smaller: a small last chunk (the
     # bunny's 69k faces made one of 4k) costs its own hand-offs and walks.
     size = max(1, -(-n_faces // max(1, round(n_faces / STREAM_CHUNK))))
     n_chunks = max(1, -(-n_faces // size))  # rounding up the size may leave fewer
-    records = [setup_records(size) for _ in range(min(n_chunks, 2))]
+    records = [setup_records(size, workers, slot) for slot in range(min(n_chunks, 2))]
     fill = fill_kernel(state.depth_test, state.depth_func.code, counts)
     setup_args = (geometry.degenerate, geometry.window(workers), geometry.codes,
                   geometry.faces, width, height, keep_ccw, keep_cw, factor, units, status)

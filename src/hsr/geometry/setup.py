@@ -55,13 +55,17 @@ def setup_triangles(xy_window, depth_window, width, height, workers, polygon_off
     return vert_fixed, edge_bias, bbox, zplane, estimate_row_work(delta, widest)
 
 
-def setup_records(n: int):
+def setup_records(n: int, workers=None, slot: int = 0):
     """Empty set-up records for ``n`` triangles: (vert_fixed, edge_bias, bbox, zplane) as
-    :func:`setup_triangles` describes them."""
+    :func:`setup_triangles` describes them; with ``workers``, its scratch buffers of set
+    ``slot`` (kept by a :class:`~hsr.parallel.Workspace`)."""
     # Compact records (fixed-point coordinates stay below 2**28 thanks to the guard band):
     # memory traffic, not arithmetic, is what set-up costs on large meshes.
-    return (np.empty((n, 6), dtype=np.int32), np.empty((n, 3), dtype=np.int8),
-            np.empty((n, 4), dtype=np.int32), np.empty((n, 7)))
+    layout = (((6,), np.int32), ((3,), np.int8), ((4,), np.int32), ((7,), np.float64))
+    if workers is None:
+        return tuple(np.empty((n, *shape), dtype=dtype) for shape, dtype in layout)
+    return tuple(workers.scratch(("records", slot, i), n, shape, dtype)
+                 for i, (shape, dtype) in enumerate(layout))
 
 
 def estimate_row_work(delta: np.ndarray, widest) -> np.ndarray:
