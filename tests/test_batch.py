@@ -221,6 +221,7 @@ def test_cli_against_a_separately_started_cluster(models, tmp_path, capsys):
     ({"size": (0, 10)}, hsr.RenderError, "width"),
     ({"cul": "back"}, hsr.RenderError, "no argument cul"),
     ({"algorithm": "painter", "depth_func": "greater"}, hsr.RenderError, "greater"),
+    ({"workspace": None}, hsr.RenderError, "workspace is not a batch render option"),
 ])
 def test_bad_jobs_are_refused_before_any_work(models, tmp_path, kwargs, error, message):
     args = {"views": "orbit:2", "size": SIZE, "outputs": ("color",), "out": tmp_path / "o"}

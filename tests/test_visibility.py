@@ -326,6 +326,12 @@ def test_bad_views_are_refused(views, message):
         face_visibility(box_with_parts(), views, 32)
 
 
+def test_a_workspace_is_not_an_option_of_face_visibility():
+    """Each lane of views keeps a workspace of its own; one passed in would be shared."""
+    with pytest.raises(VisibilityError, match="workspace is not an option"):
+        face_visibility(box_with_parts(), "sphere:4", 32, workspace=hsr.Workspace(1))
+
+
 def test_bad_arguments_are_refused():
     scene = box_with_parts()
     counts = np.ones(scene.n_faces, np.int64)

@@ -239,7 +239,7 @@ def probe_options(options: dict) -> None:
     from ..render import render
     from ..scene.mesh import Mesh
 
-    for name in ("threads", "into", "counts"):
+    for name in ("threads", "into", "counts", "workspace"):
         if name in options:
             raise RenderError(f"{name} is not a batch render option")
     tri = Mesh([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]])

@@ -185,6 +185,7 @@ def render_group(scene, path: str, stem: str, views: list, cameras: list, size, 
     is Dask's, a worker thread per core (a multithreaded render in each of several worker
     threads oversubscribed the cores and, for small views, spent more on thread hand-offs
     than on the view)."""
+    from ..parallel import Workspace
     from ..render import render
 
     rows = []
@@ -193,19 +194,27 @@ def render_group(scene, path: str, stem: str, views: list, cameras: list, size, 
     if store is None:
         for name in outputs:
             os.makedirs(os.path.dirname(output_path(out_dir, stem, name, 0)), exist_ok=True)
-    for view, camera in zip(views, cameras):
-        start = time.perf_counter()
-        try:
-            frame = render(scene, camera, width, height, threads=1, **options)
-            arrays = buffers(frame, outputs)
-            if store is None:
-                _write_files(out_dir, stem, view, arrays)
-            else:
-                _write_zarr(store, view, arrays)
-            rows.append({"model": path, "view": view, "status": "ok", "error": None,
-                         "ms": round((time.perf_counter() - start) * 1000.0, 3)})
-        except Exception as exc:  # noqa: BLE001 - one view's failure is its manifest row
-            rows.append({"model": path, "view": view, "status": "failed",
-                         "error": one_line(exc),
-                         "ms": round((time.perf_counter() - start) * 1000.0, 3)})
+    with Workspace(1) as workspace:  # scratch kept from view to view
+        for view, camera in zip(views, cameras):
+            rows.append(_render_view(render, scene, path, stem, view, camera, width, height,
+                                     outputs, out_dir, store, options, workspace))
     return rows
+
+
+def _render_view(render, scene, path, stem, view, camera, width, height, outputs, out_dir,
+                 store, options, workspace) -> dict:
+    """One view of :func:`render_group`, rendered and written: its manifest row."""
+    start = time.perf_counter()
+    try:
+        frame = render(scene, camera, width, height, threads=1, workspace=workspace,
+                       **options)
+        arrays = buffers(frame, outputs)
+        if store is None:
+            _write_files(out_dir, stem, view, arrays)
+        else:
+            _write_zarr(store, view, arrays)
+        return {"model": path, "view": view, "status": "ok", "error": None,
+                "ms": round((time.perf_counter() - start) * 1000.0, 3)}
+    except Exception as exc:  # noqa: BLE001 - one view's failure is its manifest row
+        return {"model": path, "view": view, "status": "failed", "error": one_line(exc),
+                "ms": round((time.perf_counter() - start) * 1000.0, 3)}

@@ -114,7 +114,7 @@ def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zb
     if not (isinstance(cull_objects, (bool, np.bool_)) or cull_objects == "always"):
         raise VisibilityError(f"cull_objects must be True, False or 'always', got "
                               f"{cull_objects!r}")
-    for name in ("into", "counts", "hidden_line", "color"):
+    for name in ("into", "counts", "hidden_line", "color", "workspace"):
         if name in options:
             raise VisibilityError(f"{name} is not an option of face_visibility")
     # Refuse bad options before the work is spread out: one 1 x 1 render.
@@ -140,7 +140,7 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
     or None."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from ..parallel import Workers
+    from ..parallel import Workers, Workspace
 
     lanes = min(Workers(threads).threads, len(cameras))
     view_threads = 1 if lanes > 1 else threads
@@ -154,29 +154,36 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
         if not hasattr(local, "total"):
             with lock:
                 local.total = totals[len(taken)]
-                taken.append(True)
+                # Each lane renders one view at a time: its own scratch, kept (Workspace).
+                local.options = {**options, "workspace": Workspace(view_threads)}
+                taken.append(local.options["workspace"])
         if boxes is not None:
             # Which objects earlier views saw only steers the speed (any set gives the
             # same counts), so a slightly stale sum over the lanes is fine.
             seen = per_object(scene, totals.sum(axis=0)) > 0
-            count_view_culled(scene, camera, width, height, view_threads, options,
+            count_view_culled(scene, camera, width, height, view_threads, local.options,
                               local.total, seen, boxes, always=always, subsets=subsets)
         else:
-            count_view(scene, camera, width, height, view_threads, options, local.total)
+            count_view(scene, camera, width, height, view_threads, local.options,
+                       local.total)
 
-    if lanes == 1:
-        for camera in cameras:
-            one(camera)
-            bar.update(1)
-        return totals[0]
-    pool = ThreadPoolExecutor(lanes)
     try:
-        for future in [pool.submit(one, camera) for camera in cameras]:
-            future.result()
-            bar.update(1)
-    finally:  # after an error (or Ctrl-C) the views not started are dropped
-        pool.shutdown(cancel_futures=True)
-    return totals.sum(axis=0)
+        if lanes == 1:
+            for camera in cameras:
+                one(camera)
+                bar.update(1)
+            return totals[0]
+        pool = ThreadPoolExecutor(lanes)
+        try:
+            for future in [pool.submit(one, camera) for camera in cameras]:
+                future.result()
+                bar.update(1)
+        finally:  # after an error (or Ctrl-C) the views not started are dropped
+            pool.shutdown(cancel_futures=True)
+        return totals.sum(axis=0)
+    finally:
+        for workspace in taken:
+            workspace.close()
 
 
 def object_visibility(scene, views, size=512, **options) -> np.ndarray:
@@ -418,9 +425,13 @@ def count_view_culled(scene, camera, width, height, threads, options, total, see
 def count_views(scene, cameras, width, height, options) -> np.ndarray:
     """A Dask task: the summed counts of a group of views (one thread each: the
     parallelism is the cluster's)."""
+    from ..parallel import Workspace
+
     total = np.zeros(scene.n_faces, dtype=np.int64)
-    for camera in cameras:
-        count_view(scene, camera, width, height, 1, options, total)
+    with Workspace(1) as workspace:  # scratch kept from view to view
+        for camera in cameras:
+            count_view(scene, camera, width, height, 1, {**options, "workspace": workspace},
+                       total)
     return total
 
 
