@@ -38,27 +38,51 @@ def test_the_calling_thread_runs_the_first_chunk():
 
     def kernel(lo, hi):
         seen[lo] = threading.get_ident()
+        time.sleep(0.05)
 
     with Workers(2) as workers:
         workers.run(kernel, np.array([0, 1, 2, 3]))
     assert seen[0] == threading.get_ident()
-    assert seen[1] != threading.get_ident() and seen[2] != threading.get_ident()
+    assert len(set(seen.values())) == 2  # the pool's thread took chunks too
+
+
+def test_more_chunks_than_threads_are_shared_as_threads_come_free():
+    """The ray caster cuts rows into 8 chunks per thread; the calling thread used to run
+    only the first and leave the other 15 to the pool's one thread (half the speed)."""
+    ran, reported = {}, []
+
+    def kernel(lo, hi):
+        ran[lo] = threading.get_ident()
+        time.sleep(0.02)
+        return lo
+
+    with Workers(2) as workers:
+        results = workers.run(kernel, np.arange(9),
+                              on_done=lambda lo, hi: reported.append(
+                                  (lo, hi, threading.get_ident())))
+    assert results == list(range(8))
+    me = threading.get_ident()
+    assert 2 <= sum(t == me for t in ran.values()) <= 6  # both threads worked
+    assert sorted(r[:2] for r in reported) == [(k, k + 1) for k in range(8)]
+    assert all(r[2] == me for r in reported)  # progress on the calling thread
 
 
 def test_a_failing_chunk_waits_for_the_others_before_raising():
-    finished = []
+    started, finished = [], []
 
     def kernel(lo, hi):
         if lo == 0:
             raise ValueError("chunk 0 failed")
+        started.append(lo)
         time.sleep(0.2)
         finished.append(lo)
 
     with Workers(2) as workers:
         with pytest.raises(ValueError, match="chunk 0"):
-            workers.run(kernel, np.array([0, 1, 2, 3]))
-        # Both other chunks finished before the error reached the caller.
-        assert sorted(finished) == [1, 2]
+            workers.run(kernel, np.array([0, 1, 2, 3, 4]))
+        # A chunk already running finished before the error reached the caller, and
+        # no chunk started after the failure.
+        assert sorted(finished) == sorted(started) and len(started) <= 1
 
 
 def test_split_range_covers_the_range_in_near_equal_parts():
