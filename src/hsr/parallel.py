@@ -143,7 +143,7 @@ class Workspace(Workers):
     freed at its end faults every page of it in again at the next one, depending on the
     process's heap history: the 1M-face terrain at 1080p rendered after the
     tinyrenderer head and the bunny faulted 5,200-5,700 pages (~21 MB) a render and took
-    99-168 ms; kept here, 1-2 faults and 72-100 ms. Kept: the z-buffer's set-up records
+    99-168 ms; kept here, 0-2 faults and 72-100 ms. Kept: the z-buffer's set-up records
     and face status, and the thread pool. One render at a time uses a workspace (another
     thread's render raises :class:`~hsr.errors.RenderError`); it holds its largest
     buffers until closed or dropped."""
