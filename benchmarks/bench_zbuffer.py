@@ -30,14 +30,13 @@ import argparse
 import multiprocessing
 import os
 import sys
-import time
 from math import nan
 
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from common import peak_gb, progress, timings  # noqa: E402
+from common import block_ms, peak_gb, progress, timings  # noqa: E402
 
 import hsr  # noqa: E402
 
@@ -82,13 +81,8 @@ def _gl_peer(conn):
             conn.send(True)
         else:
             _, view_proj, width, height, repeat = msg
-            gl.render(None, view_proj, width, height, vao=vao)  # warm, as timings() does
-            times = []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                gl.render(None, view_proj, width, height, vao=vao)
-                times.append(1e3 * (time.perf_counter() - t0))
-            conn.send(times)
+            conn.send(block_ms(lambda: gl.render(None, view_proj, width, height, vao=vao),
+                               repeat))
 
 
 class GLPeer:
@@ -121,11 +115,7 @@ def alternating(run_hsr, peer, view_proj, width, height, repeat, rounds=3):
     """(min, median) ms of hsr and of the peer, blocks alternating as in timings()."""
     hsr_ms, gl_ms = [], []
     for _ in range(rounds):
-        run_hsr()
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            run_hsr()
-            hsr_ms.append(1e3 * (time.perf_counter() - t0))
+        hsr_ms += block_ms(run_hsr, repeat)
         gl_ms += peer.block(view_proj, width, height, repeat)
     return [(min(t), float(np.median(t))) for t in (hsr_ms, gl_ms)]
 

@@ -25,12 +25,15 @@ def timings(fns, repeat, rounds=1):
     times = [[] for _ in fns]
     for _ in range(rounds):
         for fn, bucket in zip(fns, times):
-            fn()  # warm: JIT caches, buffers, driver state
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                fn()
-                bucket.append(1e3 * (time.perf_counter() - t0))
+            bucket += block_ms(fn, repeat)
     return [(min(t), statistics.median(t)) for t in times]
+
+
+def block_ms(fn, repeat) -> list:
+    """Milliseconds of ``repeat`` calls of ``fn`` after one warm-up call (JIT caches,
+    buffers, driver state)."""
+    fn()
+    return [timed(fn)[1] for _ in range(repeat)]
 
 
 def agreement_percent(face_a: np.ndarray, face_b: np.ndarray) -> float:
