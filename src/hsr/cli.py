@@ -60,13 +60,40 @@ def _color(text: str, what: str) -> tuple:
     return tuple(int(c) for c in color)
 
 
-def _size(text: str) -> tuple[int, int]:
+def _size(text: str, option: str = "--size") -> tuple[int, int]:
+    """WxH, each side in 1..MAX_SIZE, checked here so the error names the option (the
+    size is used for the aspect ratio before any render sees it)."""
+    from .geometry.viewport import MAX_SIZE
+
     parts = text.lower().split("x")
     try:
         width, height = (int(p) for p in parts)
     except ValueError:
-        raise CliError(f"--size must look like 800x600, got {text!r}") from None
+        raise CliError(f"{option} must look like 800x600, got {text!r}") from None
+    if not (0 < width <= MAX_SIZE and 0 < height <= MAX_SIZE):
+        raise CliError(f"{option} sides must be in 1..{MAX_SIZE}, got {text!r}")
     return width, height
+
+
+def _check_lens(args) -> None:
+    """--fov, --near, --far and --ortho on their own, before any camera is framed from
+    them, so a bad value is named (not blamed on the framing)."""
+    for name, value in (("--fov", args.fov), ("--near", args.near), ("--far", args.far),
+                        ("--ortho", args.ortho)):
+        if value is not None and not (math.isfinite(value) and abs(value) <= MAX_COORDINATE):
+            raise CliError(f"{name} must be a finite number within +-{MAX_COORDINATE:g}, "
+                           f"got {value}")
+    if not 0.0 < args.fov < 180.0:
+        raise CliError(f"--fov must be in (0, 180) degrees, got {args.fov:g}")
+    if args.ortho is not None and args.ortho <= 0.0:
+        raise CliError(f"--ortho (the visible height) must be > 0, got {args.ortho:g}")
+    if args.ortho is None:
+        for name, value in (("--near", args.near), ("--far", args.far)):
+            if value is not None and value <= 0.0:
+                raise CliError(f"{name} must be > 0 for a perspective camera (with --ortho "
+                               f"it may be negative), got {value:g}")
+    if args.near is not None and args.far is not None and args.far <= args.near:
+        raise CliError(f"--far ({args.far:g}) must be greater than --near ({args.near:g})")
 
 
 def _add_scene_args(p, SCENES, CullMode, DepthFunc, FrontFace, SHADING_MODES):
@@ -368,11 +395,11 @@ def _cmd_view(args) -> int:
 
 def _client(address: str, command: str):
     """A ``distributed.Client`` connected to ``address``, or a one-line error."""
-    try:
-        from distributed import Client
-    except ImportError as exc:
-        raise CliError(f"hsr {command} needs dask.distributed ({exc}); pip install "
-                       f"'hsr[dask]'") from None
+    from .errors import require_extra
+
+    require_extra(f"hsr {command} --scheduler", "distributed")
+    from distributed import Client
+
     try:
         return Client(address, timeout="10s")
     except (OSError, TimeoutError, ValueError) as exc:
@@ -543,15 +570,18 @@ def _camera_from_args(args, scene, default_camera, aspect):
             return Camera.orthographic(eye, target, up, args.ortho, near, far)
         return Camera.look_at(eye, target, up, args.fov, near, far)
     except CameraError as exc:
-        if args.view_from is not None and args.eye is None:
-            raise CliError(f"--view: {exc}") from None
-        given = [name for name, value in (("--eye", args.eye), ("--target", args.target),
-                                          ("--near", args.near), ("--far", args.far))
-                 if value is None]
-        if not given:
-            raise
+        # The options on their own passed _check_lens: what is wrong is how they meet
+        # the model (e.g. --far nearer than the framed near plane), or the model itself.
+        given = [f"{name} {value}" for name, value in (
+            ("--view", args.view_from), ("--eye", args.eye), ("--target", args.target),
+            ("--near", args.near), ("--far", args.far), ("--ortho", args.ortho))
+            if value is not None]
+        if given:
+            raise CliError(f"{', '.join(given)}: no valid camera for this model with "
+                           f"{'this value' if len(given) == 1 else 'these values'} ({exc})") \
+                from None
         raise CliError(f"the camera framed from the model's bounds is not valid ({exc}); "
-                       f"set {', '.join(given)}") from None
+                       f"set --eye, --target, --near and --far") from None
 
 
 def _options(pairs) -> dict:
@@ -582,6 +612,7 @@ def _setup(args):
     from .scene.load import load_scene
     from .scene.mesh import Scene
 
+    _check_lens(args)
     file_camera, file_size = _file_camera(args)
     width, height = _size(args.size) if args.size else (file_size or (800, 600))
     default_camera = None

@@ -22,6 +22,29 @@ class OutputError(HsrError):
     """An output file cannot be written (bad extension, missing directory, ...)."""
 
 
+class MissingExtraError(HsrError):
+    """An optional dependency that a feature needs is not installed."""
+
+
+# The extra of pyproject.toml that installs each optional module.
+EXTRAS = {"distributed": "dask", "zarr": "dask", "starlette": "view", "uvicorn": "view",
+          "OpenEXR": "exr"}
+
+
+def require_extra(what: str, *modules: str) -> None:
+    """Raise :class:`MissingExtraError` naming the extra to install unless every module
+    imports (imported for real, so a broken install counts as missing, and the cost is
+    paid once: the caller imports them next)."""
+    import importlib
+
+    for name in modules:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            raise MissingExtraError(f"{what} needs {name}, which is not installed: pip "
+                                    f"install 'hsr[{EXTRAS[name]}]' (or 'hsr[all]')") from None
+
+
 def check_choice(value, choices, what: str, error=None) -> str:
     """``value`` if it is one of the strings ``choices``, else an error (``error``, default
     :class:`RenderError`) that lists them. Safe for values of any type (an array is not

@@ -7,12 +7,15 @@ from .plan import OUTPUTS, BatchError, parse_views
 
 def render_views(*args, **kwargs):
     """See :func:`hsr.batch.run.render_views` (imported on first use: it needs Dask).
-    Raises what that function raises, and :class:`BatchError` when Dask is missing."""
-    try:
-        from .run import render_views as run
-    except ImportError as exc:
-        raise BatchError(f"hsr batch needs dask.distributed ({exc}); pip install "
-                         f"'hsr[dask]'") from None
+    Raises what that function raises, and :class:`~hsr.errors.MissingExtraError` when Dask (or, for ``format="zarr"``,
+    Zarr) is not installed."""
+    from ..errors import require_extra
+
+    require_extra("hsr batch", "distributed")
+    if kwargs.get("format") == "zarr":
+        require_extra("hsr batch --format zarr", "zarr")
+    from .run import render_views as run
+
     return run(*args, **kwargs)
 
 

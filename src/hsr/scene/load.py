@@ -22,8 +22,10 @@ import struct
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import HsrError, MeshError
+from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver
 from .files import MAX_MESH_BYTES, check_regular, read_regular
+from .images import MAX_TEXTURE_PIXELS
 from .mesh import Mesh, Scene, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
 from .obj import read_obj
 
@@ -100,16 +102,22 @@ def _read_with_trimesh(path: str, max_bytes: int):
 
     check_regular(path, "mesh file", max_bytes)
     header, source, kind = None, path, None
+    # Every file the model names is read through this resolver: inside the model's
+    # folder, regular files only, capped (see hsr.scene.assets).
+    resolver = folder_resolver(os.path.dirname(os.path.abspath(path)), path)
     if path.lower().endswith(_GLTF_EXTENSIONS):
         data = read_regular(path, "mesh file", max_bytes)
         header = _gltf_header(data, path)
-        if path.lower().endswith(".glb"):
-            # Self-contained: trimesh reads the bytes already in memory (a GLB with its
-            # textures can be hundreds of MB). A .gltf is read from its path, for the
-            # buffers and images beside it.
-            source, kind = io.BytesIO(data), "glb"
+        check_gltf_nodes(header, path)
+        check_gltf_assets(header, data, resolver, path, MAX_TEXTURE_PIXELS)
+        # trimesh reads the bytes already in memory (a GLB with its textures can be
+        # hundreds of MB), and the buffers and images through the resolver, which holds
+        # those the checks read.
+        source, kind = io.BytesIO(data), path.lower().rsplit(".", 1)[1]
     try:
-        loaded = trimesh.load(source, file_type=kind, process=False)
+        loaded = trimesh.load(source, file_type=kind, process=False, resolver=resolver)
+    except HsrError:
+        raise
     except Exception as exc:  # trimesh raises many types for malformed files
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     if not is_trimesh_scene(loaded) and type(loaded).__name__ != "Trimesh":
@@ -189,7 +197,10 @@ def _scene_from_trimesh(ts, header, label: str) -> Scene:
     for frame, name in frames:
         geom_name = holders[frame]
         if geom_name not in meshes:
-            meshes[geom_name] = from_trimesh(ts.geometry[geom_name], geom_name)
+            try:
+                meshes[geom_name] = from_trimesh(ts.geometry[geom_name], geom_name)
+            except MeshError as exc:
+                raise MeshError(f"{label}: {exc}") from None
         transform, _ = graph[frame]
         scene.add(meshes[geom_name], np.asarray(transform, dtype=np.float64), name=name)
     return scene

@@ -415,7 +415,9 @@ def from_trimesh(tm, name: str) -> Mesh:
     texture coordinates and the base-colour texture and factor of its material (glTF PBR
     or OBJ/MTL), vertex colours (interpolated) or face colours. Alpha is not used: hsr
     draws these surfaces opaque (set ``Instance.opacity`` to blend)."""
-    faces = np.asarray(tm.faces)
+    # Checked before the per-vertex attributes are gathered through the faces (a file's
+    # index past the vertex count would otherwise fail there as an IndexError).
+    positions, faces, _ = _validate_arrays(tm.vertices, tm.faces, name)
     visual = getattr(tm, "visual", None)
     kind = getattr(visual, "kind", None)
     corner_uv = texture = face_colors = corner_colors = None
@@ -428,7 +430,7 @@ def from_trimesh(tm, name: str) -> Mesh:
         if uv is not None and len(uv) == len(tm.vertices):
             corner_uv = np.asarray(uv, dtype=np.float64)[faces]
             if image is not None:
-                texture = np.asarray(image.convert("RGB"))
+                texture = _image_rgb(image, name)
         factor = getattr(material, "baseColorFactor", None)
         if factor is None:
             factor = getattr(material, "main_color", None)
@@ -443,8 +445,24 @@ def from_trimesh(tm, name: str) -> Mesh:
         corner_colors = np.asarray(visual.vertex_colors)[:, :3][faces]
     elif kind == "face":
         face_colors = np.asarray(visual.face_colors)[:, :3]
-    return Mesh(np.asarray(tm.vertices), faces, corner_uv=corner_uv, face_colors=face_colors,
+    return Mesh(positions, faces, corner_uv=corner_uv, face_colors=face_colors,
                 texture=texture, name=name, corner_colors=corner_colors)
+
+
+def _image_rgb(image, name: str) -> np.ndarray:
+    """(H, W, 3) uint8 pixels of a Pillow image trimesh opened lazily: decoding happens
+    here, so a truncated or corrupt picture is a :class:`MeshError`, not a traceback."""
+    from .images import MAX_TEXTURE_PIXELS
+
+    width, height = image.size
+    if width * height > MAX_TEXTURE_PIXELS:
+        raise MeshError(f"{name}: texture is {width}x{height} pixels, more than the "
+                        f"{MAX_TEXTURE_PIXELS:,} hsr reads")
+    try:
+        return np.asarray(image.convert("RGB"))
+    except (OSError, ValueError, SyntaxError, EOFError) as exc:
+        raise MeshError(f"{name}: cannot decode its texture ({type(exc).__name__}: "
+                        f"{exc})") from None
 
 
 @njit(cache=True, nogil=True, inline="always")

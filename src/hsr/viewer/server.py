@@ -170,7 +170,11 @@ def make_app(library: Library):
 def serve(models=(), host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True,
           first: str | None = None, announce=print) -> None:
     """Serve ``models`` (and the built-in scenes) on ``host``:``port`` until interrupted;
-    ``first``: the scene shown first. Prints the URL and opens the browser."""
+    ``first``: the scene shown first. Prints the URL and opens the browser. Raises
+    :class:`~hsr.errors.MissingExtraError` when the ``view`` extra is not installed."""
+    from ..errors import require_extra
+
+    require_extra("hsr view", "starlette", "uvicorn")
     import uvicorn
 
     library = Library(models)

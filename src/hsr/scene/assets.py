@@ -1,0 +1,289 @@
+"""The files a model names besides itself (a glTF's buffers and images, an MTL's textures
+read through trimesh): read only from inside the model's folder, only regular files, only
+up to a size cap, and checked before trimesh sees them, so a hostile or broken model is a
+:class:`MeshError` naming the URI and never a read of ``/etc/passwd``, ``/dev/zero`` or a
+FIFO, nor a texture silently dropped.
+
+glTF 2.0 (section 2.8, "URIs") makes a relative URI a percent-encoded path resolved
+against the file's own location; ``data:`` URIs carry their bytes inline. hsr follows
+that and refuses every other form (absolute paths, ``file:``, ``http:``, ``..`` out of the
+folder, also when spelt ``%2e%2e`` or reached through a symbolic link).
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import io
+import math
+import os
+import struct
+import urllib.parse
+
+from ..errors import MeshError
+from .files import read_regular
+
+__all__ = ["FolderResolver", "check_gltf_assets", "check_gltf_nodes", "image_size_ok",
+           "MAX_NODE_DEPTH"]
+
+# What one buffer or image file named by a model may hold.
+MAX_ASSET_BYTES = 1 << 30
+# Deepest node tree read: trimesh multiplies the matrices down each path with
+# numpy.linalg.multi_dot, whose chain ordering costs O(depth^3) per node (a 256-deep chain
+# took 51 s, 64 deep 0.2 s); skeletons and CAD assemblies stay far below this.
+MAX_NODE_DEPTH = 64
+# Largest magnitude of a node's matrix or TRS value (as hsr.scene.mesh.MAX_COORDINATE
+# bounds positions): beyond it products overflow to inf.
+MAX_NODE_VALUE = 1e15
+
+
+def _resolver_base():
+    import trimesh.resolvers
+
+    return trimesh.resolvers.Resolver
+
+
+class FolderResolver:
+    """Reads the files a model names, relative to ``folder``, for trimesh (which calls
+    :meth:`get`). Every read is checked (see the module notes) and kept, so a file the
+    checks read is not read again by trimesh. Build it with :func:`folder_resolver`."""
+
+    def __init__(self, folder: str, label: str, max_bytes: int = MAX_ASSET_BYTES):
+        self.folder = os.path.realpath(folder)
+        self.label = label
+        self.max_bytes = max_bytes
+        self._read = {}
+
+    def path_of(self, uri) -> str:
+        """The real path inside the folder that the relative ``uri`` names, or a
+        :class:`MeshError` saying why it is refused."""
+        if not isinstance(uri, str) or not uri.strip():
+            raise MeshError(f"{self.label}: a file reference must be a non-empty string, "
+                            f"got {uri!r}")
+        name = urllib.parse.unquote(uri.strip())
+        scheme = urllib.parse.urlsplit(name).scheme
+        if (len(scheme) > 1 or os.path.isabs(name) or name.startswith(("\\", "~"))
+                or "\x00" in name):
+            raise MeshError(f"{self.label}: refuses {uri!r}: hsr reads only files in the "
+                            f"model's folder, named by a relative path")
+        path = os.path.realpath(os.path.join(self.folder, name))
+        if os.path.commonpath([path, self.folder]) != self.folder:
+            raise MeshError(f"{self.label}: refuses {uri!r}: it points outside the model's "
+                            f"folder {self.folder}")
+        return path
+
+    def get(self, uri) -> bytes:
+        if uri in self._read:
+            return self._read[uri]
+        if isinstance(uri, str) and uri.startswith("data:"):
+            data = data_uri_bytes(uri, self.label)
+        else:
+            path = self.path_of(uri)
+            try:
+                data = read_regular(path, "file", self.max_bytes)
+            except MeshError as exc:
+                raise MeshError(f"{self.label}: names {uri!r}: {exc}") from None
+        self._read[uri] = data
+        return data
+
+    def __getitem__(self, uri):
+        return self.get(uri)
+
+    def __contains__(self, uri) -> bool:
+        try:
+            self.get(uri)
+        except MeshError:
+            return False
+        return True
+
+    def keys(self):
+        return iter(())
+
+    def write(self, name, data):
+        raise MeshError(f"{self.label}: hsr does not write beside a model it reads")
+
+    def namespaced(self, namespace):
+        return folder_resolver(self.path_of(namespace), self.label, self.max_bytes)
+
+
+def folder_resolver(folder: str, label: str, max_bytes: int = MAX_ASSET_BYTES):
+    """A :class:`FolderResolver` that is also a ``trimesh.resolvers.Resolver`` (trimesh
+    checks the type), made here so trimesh is imported only when a file needs it."""
+    cls = type("TrimeshFolderResolver", (FolderResolver, _resolver_base()), {})
+    return cls(folder, label, max_bytes)
+
+
+def data_uri_bytes(uri: str, label: str) -> bytes:
+    """The bytes of a base64 ``data:`` URI (RFC 2397), or a :class:`MeshError`."""
+    head, sep, payload = uri.partition(",")
+    if not sep or not head.endswith(";base64"):
+        raise MeshError(f"{label}: a data: URI must be base64 ('data:...;base64,...'), "
+                        f"got {uri[:40]!r}")
+    try:
+        return base64.b64decode(payload, validate=True)
+    except (binascii.Error, ValueError) as exc:
+        raise MeshError(f"{label}: a data: URI holds bad base64 ({exc})") from None
+
+
+def _glb_bin_chunk(data: bytes, label: str) -> bytes | None:
+    """The binary chunk of a GLB (glTF 2.0, section 4.4), checked against the lengths the
+    file states, or None when it has none."""
+    if len(data) < 20:
+        raise MeshError(f"{label}: a GLB needs a 12-byte header and a chunk, got "
+                        f"{len(data)} bytes")
+    _, version, total = struct.unpack_from("<4sII", data, 0)
+    if version != 2:
+        raise MeshError(f"{label}: GLB version {version}; hsr reads glTF 2.0")
+    if total != len(data):
+        raise MeshError(f"{label}: the GLB header says {total:,} bytes, the file has "
+                        f"{len(data):,}")
+    offset, first = 12, True
+    while offset < len(data):
+        if offset + 8 > len(data):
+            raise MeshError(f"{label}: a GLB chunk header is cut off at byte {offset}")
+        length, kind = struct.unpack_from("<I4s", data, offset)
+        if offset + 8 + length > len(data):
+            raise MeshError(f"{label}: a GLB chunk at byte {offset} claims {length:,} bytes "
+                            f"past the end of the file")
+        if not first and kind == b"BIN\x00":
+            return data[offset + 8:offset + 8 + length]
+        first = False
+        offset += 8 + length
+    return None
+
+
+def _index(value, count: int, what: str, label: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < count:
+        raise MeshError(f"{label}: {what} must be an index below {count}, got {value!r}")
+    return value
+
+
+def _natural(entry: dict, key: str, default, what: str, label: str) -> int:
+    value = entry.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise MeshError(f"{label}: {what}.{key} must be a whole number >= 0, got {value!r}")
+    return value
+
+
+def _list(header: dict, key: str, label: str) -> list:
+    value = header.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise MeshError(f"{label}: '{key}' must be a list of objects")
+    return value
+
+
+def check_gltf_assets(header: dict, data: bytes, resolver: FolderResolver,
+                      label: str, max_pixels: int) -> None:
+    """Check what a glTF's ``header`` names before trimesh reads it: every buffer's bytes
+    (the GLB chunk, a data: URI or a file in the folder, through ``resolver``, which keeps
+    them for trimesh) at least as long as it says, every buffer view inside its buffer,
+    and every image a readable picture of at most ``max_pixels``. Raises
+    :class:`MeshError` naming the buffer, view or image."""
+    buffers = _list(header, "buffers", label)
+    views = _list(header, "bufferViews", label)
+    images = _list(header, "images", label)
+    glb = data[:4] == b"glTF"
+    chunk = _glb_bin_chunk(data, label) if glb else None
+    stored = []
+    for k, buffer in enumerate(buffers):
+        what = f"buffer {k}"
+        length = _natural(buffer, "byteLength", None, what, label)
+        if "uri" in buffer:
+            blob = resolver.get(buffer["uri"])
+        elif glb and k == 0 and chunk is not None:
+            blob = chunk
+        else:
+            raise MeshError(f"{label}: {what} has no uri and no GLB binary chunk holds it")
+        if len(blob) < length:
+            raise MeshError(f"{label}: {what} says {length:,} bytes, holds {len(blob):,}")
+        stored.append(blob)
+    spans = []
+    for k, view in enumerate(views):
+        what = f"bufferView {k}"
+        b = _index(view.get("buffer"), len(buffers), f"{what}.buffer", label)
+        start = _natural(view, "byteOffset", 0, what, label)
+        length = _natural(view, "byteLength", None, what, label)
+        if start + length > len(stored[b]):
+            raise MeshError(f"{label}: {what} (bytes {start:,}..{start + length:,}) runs past "
+                            f"the end of buffer {b} ({len(stored[b]):,} bytes)")
+        spans.append((b, start, length))
+    for k, image in enumerate(images):
+        what = f"image {k}"
+        if "bufferView" in image:
+            b, start, length = spans[_index(image["bufferView"], len(views),
+                                            f"{what}.bufferView", label)]
+            blob = stored[b][start:start + length]
+        elif "uri" in image:
+            blob = resolver.get(image["uri"])
+        else:
+            raise MeshError(f"{label}: {what} has neither a uri nor a bufferView")
+        problem = image_size_ok(blob, max_pixels)
+        if problem:
+            raise MeshError(f"{label}: {what}: {problem}")
+
+
+def check_gltf_nodes(header: dict, label: str) -> None:
+    """Refuse a node graph that is not a forest of strict trees (glTF 2.0, section 3.5.3:
+    no node has two parents, none is its own ancestor), that is deeper than
+    :data:`MAX_NODE_DEPTH`, or whose children, matrix or TRS values are malformed
+    (an index out of range, a count other than 16 / 3 / 4, a value that is not a finite
+    number). Raises :class:`MeshError` naming the node."""
+    nodes = _list(header, "nodes", label)
+    parent = {}
+    for k, node in enumerate(nodes):
+        children = node.get("children", [])
+        if not isinstance(children, list):
+            raise MeshError(f"{label}: node {k}: children must be a list of node indices")
+        for child in children:
+            _index(child, len(nodes), f"node {k}'s child", label)
+            if child in parent or child == k:
+                raise MeshError(f"{label}: node {child} has two parents or is its own "
+                                f"child (nodes must form trees)")
+            parent[child] = k
+        for key, count in (("matrix", 16), ("translation", 3), ("rotation", 4),
+                           ("scale", 3)):
+            if key in node:
+                value = node[key]
+                if (not isinstance(value, list) or len(value) != count
+                        or not all(_finite_number(v) for v in value)):
+                    raise MeshError(f"{label}: node {k}: {key} must be {count} finite "
+                                    f"numbers, got {value!r}"[:200])
+    for k in range(len(nodes)):  # walk up from each node: a cycle never reaches a root
+        depth, node = 0, k
+        while node in parent:
+            node, depth = parent[node], depth + 1
+            if node == k:
+                raise MeshError(f"{label}: node {k} is its own ancestor (a cycle)")
+            if depth > MAX_NODE_DEPTH:
+                raise MeshError(f"{label}: node {k} lies more than {MAX_NODE_DEPTH} levels "
+                                f"deep; hsr reads node trees up to {MAX_NODE_DEPTH} deep")
+
+
+def _finite_number(value) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value) and abs(value) <= MAX_NODE_VALUE)
+
+
+def image_size_ok(blob: bytes, max_pixels: int) -> str | None:
+    """None when ``blob`` is an image Pillow reads whose header claims at most
+    ``max_pixels``; else what is wrong with it (the header alone is read, so a
+    decompression bomb costs nothing)."""
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(blob)) as img:
+                width, height = img.size
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning):
+        return f"the image claims more than the {max_pixels:,} pixels hsr reads"
+    except UnidentifiedImageError:
+        return "not an image Pillow can identify"
+    except (OSError, ValueError, SyntaxError, struct.error) as exc:
+        return f"not a readable image ({type(exc).__name__}: {exc})"
+    if width * height > max_pixels:
+        return (f"the image is {width}x{height} pixels, more than the {max_pixels:,} hsr "
+                f"reads")
+    return None
