@@ -40,6 +40,38 @@ def _number(value, what, where) -> float:
     return float(value)
 
 
+def _pixels(value, what, where) -> int:
+    """An image side: a whole number (an integral float is taken) in 1..MAX_SIZE."""
+    from ..geometry.viewport import MAX_SIZE
+
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            pass
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or not math.isfinite(value) or value != int(value)
+            or not 1 <= value <= MAX_SIZE):
+        raise CameraError(f"{where}: {what} must be a whole number of pixels in "
+                          f"1..{MAX_SIZE}, got {value!r}")
+    return int(value)
+
+
+def _positive(value, what, where) -> float:
+    value = _number(value, what, where)
+    if not value > 0:
+        raise CameraError(f"{where}: {what} must be > 0, got {value!r}")
+    return value
+
+
+def _angle(value, what, where) -> float:
+    """A field of view in radians, in (0, pi)."""
+    value = _number(value, what, where)
+    if not 0.0 < value < math.pi:
+        raise CameraError(f"{where}: {what} must be in (0, pi) radians, got {value!r}")
+    return value
+
+
 def read_transforms(path, near: float = 0.1, far: float = 100.0):
     """Cameras of a NeRF-style ``transforms.json``: ``(cameras, file_paths, (w, h))``.
 
@@ -63,18 +95,15 @@ def read_transforms(path, near: float = 0.1, far: float = 100.0):
         if not isinstance(frame, dict):
             raise CameraError(f"{where}: not an object")
         keys = {**doc, **frame}
-        try:
-            w, h = int(keys["w"]), int(keys["h"])
-        except (KeyError, TypeError, ValueError):
-            raise CameraError(f"{where}: needs integer 'w' and 'h'") from None
-        if w < 1 or h < 1:
-            raise CameraError(f"{where}: w and h must be positive, got {w}x{h}")
+        if "w" not in keys or "h" not in keys:
+            raise CameraError(f"{where}: needs integer 'w' and 'h'")
+        w, h = _pixels(keys["w"], "w", where), _pixels(keys["h"], "h", where)
         if "fl_x" in keys:
-            fx = _number(keys["fl_x"], "fl_x", where)
-            fy = _number(keys.get("fl_y", fx), "fl_y", where)
+            fx = _positive(keys["fl_x"], "fl_x", where)
+            fy = _positive(keys.get("fl_y", fx), "fl_y", where)
         elif "camera_angle_x" in keys:
-            fx = 0.5 * w / math.tan(_number(keys["camera_angle_x"], "camera_angle_x", where) / 2)
-            fy = (0.5 * h / math.tan(_number(keys["camera_angle_y"], "camera_angle_y", where) / 2)
+            fx = 0.5 * w / math.tan(_angle(keys["camera_angle_x"], "camera_angle_x", where) / 2)
+            fy = (0.5 * h / math.tan(_angle(keys["camera_angle_y"], "camera_angle_y", where) / 2)
                   if "camera_angle_y" in keys else fx)
         else:
             raise CameraError(f"{where}: needs 'fl_x' or 'camera_angle_x'")
@@ -171,8 +200,10 @@ def read_colmap(folder, near: float = 0.1, far: float = 100.0):
             raise CameraError(f"{where}: camera model {model} has lens distortion or is not a "
                               f"pinhole; hsr renders {' and '.join(COLMAP_MODELS)} only "
                               f"(undistort the images with COLMAP first)")
+        if parts[0] in intrinsics:
+            raise CameraError(f"{where}: camera {parts[0]} is defined twice")
+        w, h = _pixels(parts[2], "WIDTH", where), _pixels(parts[3], "HEIGHT", where)
         try:
-            w, h = int(parts[2]), int(parts[3])
             params = [float(p) for p in parts[4:]]
         except ValueError:
             raise CameraError(f"{where}: bad number in {line.strip()[:60]!r}") from None
@@ -180,12 +211,16 @@ def read_colmap(folder, near: float = 0.1, far: float = 100.0):
         if len(params) != want:
             raise CameraError(f"{where}: {model} takes {want} parameters, got {len(params)}")
         fx, fy, cx, cy = (params[0], params[0], *params[1:]) if want == 3 else params
+        for value, what in ((fx, "focal length"), (fy, "focal length")):
+            _positive(value, what, where)
+        for value, what in ((cx, "cx"), (cy, "cy")):
+            _number(value, what, where)
         intrinsics[parts[0]] = (fx, fy, cx, cy, w, h)
     path = os.path.join(folder, "images.txt")
     lines = [(n, line) for n, line in enumerate(
         _read_text(path, "COLMAP images file").splitlines(), 1)
         if not line.startswith("#")]
-    cameras, names, sizes = [], [], []
+    cameras, names, sizes, ids = [], [], [], set()
     k = 0
     while k < len(lines):
         lineno, line = lines[k]
@@ -202,6 +237,11 @@ def read_colmap(folder, near: float = 0.1, far: float = 100.0):
             t = np.array([float(v) for v in parts[5:8]])
         except ValueError:
             raise CameraError(f"{where}: bad number in {line.strip()[:60]!r}") from None
+        if parts[0] in ids:
+            raise CameraError(f"{where}: image {parts[0]} is listed twice")
+        ids.add(parts[0])
+        if not all(math.isfinite(v) for v in q) or not np.isfinite(t).all():
+            raise CameraError(f"{where}: the pose has a NaN or infinite value")
         if parts[8] not in intrinsics:
             raise CameraError(f"{where}: camera {parts[8]} is not in cameras.txt")
         fx, fy, cx, cy, w, h = intrinsics[parts[8]]
