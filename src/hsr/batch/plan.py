@@ -10,6 +10,8 @@ import math
 import os
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import HsrError, RenderError
 from ..scene.camera import Camera
 
@@ -186,6 +188,38 @@ def model_stems(models) -> dict:
 def output_path(out_dir, stem, output, view) -> str:
     """``OUT/<stem>/<output>/<view:04d><ext>``."""
     return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")
+
+
+# What each output holds: (dtype, trailing shape) of its array.
+OUTPUT_ARRAYS = {"color": ("uint8", (3,)), "window_depth": ("float32", ()),
+                 "eye_depth": ("float32", ()), "distance": ("float32", ()),
+                 "normals": ("float32", (3,)), "ids": ("int32", ()),
+                 "object_ids": ("int32", ())}
+
+
+def output_complete(path: str, output: str, size) -> bool:
+    """Whether the file ``path`` is a whole ``output`` of a ``size`` view, as a resumed
+    batch must know before it skips the view: a PNG that decodes to the size in RGB, an
+    NPY whose header gives the shape and dtype and whose data is all there. A file cut
+    short by a killed process, of another size, or not of its kind is not complete
+    (writes are atomic, so this only happens to files changed by something else)."""
+    width, height = size
+    dtype, trailing = OUTPUT_ARRAYS[output]
+    try:
+        if not os.path.isfile(path):
+            return False
+        if OUTPUTS[output][0] == ".png":
+            from PIL import Image
+
+            with Image.open(path) as img:
+                if img.size != (width, height) or img.mode != "RGB":
+                    return False
+                img.load()  # the whole stream: a cut file fails here
+            return True
+        array = np.load(path, mmap_mode="r", allow_pickle=False)  # fails on short data
+        return array.shape == (height, width) + trailing and array.dtype == np.dtype(dtype)
+    except (OSError, ValueError, SyntaxError, EOFError):  # unreadable: render it again
+        return False
 
 
 # Rough costs on one core of this project's machine, for sizing tasks only (ratios matter,

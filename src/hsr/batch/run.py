@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 from ..errors import OutputError
 from ..parallel import progress_bar
-from .plan import (FORMATS, BatchError, check_outputs, check_size, group_views, model_stems,
-                   output_path, parse_views, probe_options)
+from .plan import (FORMATS, OUTPUT_ARRAYS, BatchError, check_outputs, check_size, group_views,
+                   model_stems, output_complete, output_path, parse_views, probe_options)
 
 __all__ = ["render_views", "BatchResult", "local_cluster"]
 
@@ -252,7 +252,7 @@ def _todo(out, stem, count, size, outputs, fmt, resume) -> list:
     if not resume:
         return list(range(count))
     return [v for v in range(count)
-            if not all(os.path.exists(output_path(out, stem, o, v)) for o in outputs)]
+            if not all(output_complete(output_path(out, stem, o, v), o, size) for o in outputs)]
 
 
 def _describe(out, stem, cameras, size, outputs, fmt) -> None:
@@ -285,29 +285,58 @@ def _describe(out, stem, cameras, size, outputs, fmt) -> None:
 def _prepare_zarr(out, stem, count, size, outputs, resume) -> list:
     """One Zarr v3 store per model: an array per output, (views, H, W[, C]) with one view
     per chunk, a ``done`` mark per view (the cameras are added by :func:`_describe`).
-    ``resume`` keeps a matching store and returns the views not marked done."""
+    ``resume`` keeps a matching store and returns the views not marked done, and those
+    marked done whose chunks do not all read back (a chunk cut short or removed: every
+    chunk is written, background ones too, so a missing one is a loss)."""
     import zarr
 
     width, height = size
     path = os.path.join(out, f"{stem}.zarr")
     n = count  # views
     if resume and os.path.isdir(path):
-        group = zarr.open_group(path, mode="r")
-        if "done" in group and group["done"].shape == (n,) \
-                and all(o in group for o in outputs):
-            done = group["done"][:]
-            return [v for v in range(n) if not done[v]]
+        try:
+            return _zarr_todo(path, zarr.open_group(path, mode="r"), n, size, outputs)
+        except Exception:  # noqa: BLE001 - a store that does not open is started afresh
+            pass
     group = zarr.open_group(path, mode="w", zarr_format=3)
-    shapes = {"color": ((3,), "uint8"), "normals": ((3,), "float32"),
-              "ids": ((), "int32"), "object_ids": ((), "int32")}
     for name in outputs:
-        extra, dtype = shapes.get(name, ((), "float32"))
+        dtype, extra = OUTPUT_ARRAYS[name]
         fill = {"ids": -1, "object_ids": -1}.get(name, 0)
         group.create_array(name, shape=(n, height, width) + extra,
                            chunks=(1, height, width) + extra, dtype=dtype, fill_value=fill)
     group.create_array("done", shape=(n,), chunks=(1,), dtype="uint8", fill_value=0)
     group.attrs["size"] = [width, height]
     return list(range(n))
+
+
+def _zarr_todo(store, group, n, size, outputs) -> list:
+    """The views of a resumed store still to render (see :func:`_prepare_zarr`); raises
+    when the store is not the one this job writes (then it is made anew)."""
+    width, height = size
+    if "done" not in group or group["done"].shape != (n,) or not all(
+            o in group and group[o].shape == (n, height, width) + OUTPUT_ARRAYS[o][1]
+            for o in outputs):
+        raise BatchError("a different store")
+    done = group["done"][:]
+    todo = []
+    for v in range(n):
+        if done[v] and all(_chunk_reads(store, group[o], o, v) for o in outputs):
+            continue
+        todo.append(v)
+    return todo
+
+
+def _chunk_reads(store: str, array, name: str, view: int) -> bool:
+    """Whether view ``view``'s chunk of the output array ``name`` (``array``) in the
+    store folder ``store`` is there as a file and decodes."""
+    key = array.metadata.encode_chunk_key((view,) + (0,) * (array.ndim - 1))
+    if not os.path.isfile(os.path.join(store, name, *key.split("/"))):
+        return False
+    try:
+        array[view]
+    except Exception:  # noqa: BLE001 - a codec error of a cut chunk
+        return False
+    return True
 
 
 def _write_manifest(result, spec, size, outputs, fmt, options) -> None:

@@ -174,7 +174,9 @@ def _write_zarr(store, view, arrays) -> None:
 
     group = zarr.open_group(store, mode="r+")
     for name, array in arrays.items():
-        group[name][view] = array
+        # Every chunk is written, one of background alone too (zarr skips chunks equal to
+        # the fill value by default), so that a resumed run can tell a lost chunk.
+        group[name].with_config({"write_empty_chunks": True})[view] = array
     group["done"][view] = 1
 
 

@@ -226,11 +226,14 @@ def check_gltf_nodes(header: dict, label: str) -> None:
     """Refuse a node graph that is not a forest of strict trees (glTF 2.0, section 3.5.3:
     no node has two parents, none is its own ancestor), that is deeper than
     :data:`MAX_NODE_DEPTH`, or whose children, matrix or TRS values are malformed
-    (an index out of range, a count other than 16 / 3 / 4, a value that is not a finite
+    (a child or mesh index out of range, a count other than 16 / 3 / 4, a value that is not a finite
     number). Raises :class:`MeshError` naming the node."""
     nodes = _list(header, "nodes", label)
+    meshes = _list(header, "meshes", label)
     parent = {}
     for k, node in enumerate(nodes):
+        if "mesh" in node:
+            _index(node["mesh"], len(meshes), f"node {k}'s mesh", label)
         children = node.get("children", [])
         if not isinstance(children, list):
             raise MeshError(f"{label}: node {k}: children must be a list of node indices")

@@ -52,7 +52,7 @@ def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
         return read_obj(path, max_bytes=max_bytes)
     loaded, header = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _single(_scene_from_trimesh(loaded, header, os.path.basename(path)), path)
+        return _single(_file_scene(loaded, header, path), path)
     return from_trimesh(loaded, os.path.basename(path))
 
 
@@ -76,8 +76,20 @@ def load_scene(source, max_bytes: int = MAX_MESH_BYTES) -> Scene:
     path = os.fspath(source)
     loaded, header = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _scene_from_trimesh(loaded, header, os.path.basename(path))
+        return _file_scene(loaded, header, path)
     return Scene([from_trimesh(loaded, os.path.basename(path))])
+
+
+def _file_scene(loaded, header, path: str) -> Scene:
+    """:func:`_scene_from_trimesh` of a file's trimesh scene; trimesh's scene graph fails
+    in its own ways on files its loader let through, each a :class:`MeshError` here."""
+    try:
+        return _scene_from_trimesh(loaded, header, os.path.basename(path))
+    except HsrError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - third-party code on untrusted data
+        raise MeshError(f"{path}: cannot read its node tree ({type(exc).__name__}: "
+                        f"{exc})") from None
 
 
 def _single(scene: Scene, what: str) -> Mesh:
