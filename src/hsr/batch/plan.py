@@ -163,7 +163,11 @@ def check_outputs(outputs) -> tuple:
     """The output names, checked (at least one, no repeats, each known)."""
     if isinstance(outputs, str):
         outputs = [o for o in outputs.split(",") if o]
-    outputs = tuple(outputs)
+    try:
+        outputs = tuple(outputs)
+    except TypeError:
+        raise BatchError(f"outputs must be names from {', '.join(OUTPUTS)} (a list or a "
+                         f"comma-separated string), got {outputs!r}") from None
     unknown = [o for o in outputs if o not in OUTPUTS]
     if not outputs or unknown or len(set(outputs)) != len(outputs):
         raise BatchError(f"outputs must be distinct names from {', '.join(OUTPUTS)}; "
@@ -197,6 +201,9 @@ OUTPUT_ARRAYS = {"color": ("uint8", (3,)), "window_depth": ("float32", ()),
                  "object_ids": ("int32", ())}
 
 
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+
+
 def output_complete(path: str, output: str, size) -> bool:
     """Whether the file ``path`` is a whole ``output`` of a ``size`` view, as a resumed
     batch must know before it skips the view: a PNG that decodes to the size in RGB, an
@@ -211,6 +218,10 @@ def output_complete(path: str, output: str, size) -> bool:
         if OUTPUTS[output][0] == ".png":
             from PIL import Image
 
+            with open(path, "rb") as fh:  # a PNG ends with its IEND chunk (PNG spec 5.6)
+                fh.seek(max(0, os.path.getsize(path) - len(_PNG_END)))
+                if fh.read() != _PNG_END:
+                    return False
             with Image.open(path) as img:
                 if img.size != (width, height) or img.mode != "RGB":
                     return False
