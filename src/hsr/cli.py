@@ -274,6 +274,8 @@ def _add_prune_parser(sub, ALGORITHMS, CullMode, DepthFunc, FrontFace):
     p.add_argument("model", metavar="MODEL", help="mesh file (OBJ, PLY, STL, OFF, glTF/GLB)")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="the pruned model: " + ", ".join(MESH_FORMATS))
+    p.add_argument("--force", action="store_true", help="replace OUT (and an OBJ's .mtl "
+                   "and textures) if they exist; OUT may never be MODEL itself")
     g = p.add_argument_group("decision")
     g.add_argument("--views", action="append", metavar="SPEC",
                    help="auto (outside views added in rounds until a round changes "
@@ -318,17 +320,25 @@ def _cmd_prune(args) -> int:
     import time
 
     from .scene.load import load_scene
-    from .scene.write import write_mesh
+    from .scene.write import check_new, planned_files, write_mesh
     from .visibility.count import cameras_for
-    from .visibility.prune import decide, split_auto, subset_scene, unsettled, verify
+    from .visibility.prune import (MAX_VERIFY, decide, split_auto, subset_scene, unsettled,
+                                   verify)
 
     start = time.perf_counter()
+    _check_prune_output(args)
+    _check_threads(args)
+    if not 0 <= args.verify <= MAX_VERIFY:  # checked by verify() too, but after the work
+        raise CliError(f"--verify must be a number of views in 0..{MAX_VERIFY}, got "
+                       f"{args.verify}")
     if args.size != "auto":
         try:
             args.size = int(args.size)
         except ValueError:
             raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
     scene = load_scene(args.model)
+    if not args.force:  # the .mtl and textures beside an OBJ, known once it is loaded
+        check_new(planned_files(scene, args.output), "--force")
     auto, fixed = split_auto(args.views or ["auto"])
     # The cameras once, before any connection: a bad --views fails at once.
     cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []
@@ -346,7 +356,7 @@ def _cmd_prune(args) -> int:
             client.close()
     kept = np.flatnonzero(decision.keep)
     pruned = subset_scene(scene, decision.keep)
-    written = write_mesh(pruned, args.output)
+    written = write_mesh(pruned, args.output, overwrite=args.force)
     seconds = time.perf_counter() - start
     width, height = decision.size
     if not decision.converged:
@@ -367,6 +377,27 @@ def _cmd_prune(args) -> int:
               f"changed ({report['percent']:.4f}%) over {report['views']} random outside "
               f"views at {width}x{height}")
     return 0
+
+
+def _check_threads(args) -> None:
+    if args.threads is not None and args.threads < 1:
+        raise CliError(f"--threads must be >= 1, got {args.threads}")
+
+
+def _check_prune_output(args) -> None:
+    """Before any work: OUT is never MODEL (nor a link to it), and an OUT that exists is
+    replaced only with --force."""
+    from .scene.files import check_output
+    from .scene.write import MESH_FORMATS, check_new
+
+    check_output(args.output, MESH_FORMATS)
+    if os.path.realpath(args.output) == os.path.realpath(args.model) or (
+            os.path.exists(args.output) and os.path.exists(args.model)
+            and os.path.samefile(args.output, args.model)):  # a hard link too
+        raise CliError(f"-o {args.output} is MODEL itself: write the pruned model to "
+                       f"another file")
+    if not args.force:
+        check_new([args.output], "--force")
 
 
 def _cmd_view(args) -> int:
@@ -654,8 +685,7 @@ def _setup(args):
                         polygon_offset=(_floats(args.polygon_offset, 2, "--polygon-offset")
                                         if args.polygon_offset else (0.0, 0.0)))
     background = _color(args.background, "--background")
-    if args.threads is not None and args.threads < 1:
-        raise CliError(f"--threads must be >= 1, got {args.threads}")
+    _check_threads(args)
     return scene, camera, width, height, state, background, _options(args.option)
 
 

@@ -36,11 +36,24 @@ def split_range(n: int, parts: int) -> np.ndarray:
     return np.array([k * n // parts for k in range(parts + 1)], dtype=np.int64)
 
 
+def check_threads(threads) -> None:
+    """Raise :class:`~hsr.errors.RenderError` unless ``threads`` is None (all of numba's)
+    or a positive integer (0 is refused: it is not "all")."""
+    import numpy as np
+
+    from .errors import RenderError
+
+    if threads is not None and (isinstance(threads, bool) or not isinstance(
+            threads, (int, np.integer)) or threads < 1):
+        raise RenderError(f"threads must be a positive integer or None, got {threads!r}")
+
+
 class Workers:
     """A few threads for one render. ``threads`` defaults to numba's thread count
     (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``)."""
 
     def __init__(self, threads: int | None = None):
+        check_threads(threads)
         self.threads = max(1, int(threads or numba.get_num_threads()))
         self._pool = None
 

@@ -26,7 +26,7 @@ from .geometry.viewport import MAX_SIZE, check_memory, check_size
 from .lines.raster import HiddenLine, as_hidden_line
 from .lines.raster import check as check_lines
 from .lines.raster import draw_hidden_lines, fill_state, polygon_edges
-from .parallel import Workers, Workspace
+from .parallel import Workers, Workspace, check_threads
 from .scene.camera import Camera
 from .scene.mesh import as_scene, instance_of
 from .scene.views import default as default_view
@@ -263,9 +263,7 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
                         ("textures", textures), ("color", color)):
         if not isinstance(value, (bool, np.bool_)):
             raise RenderError(f"{name} must be True or False, got {value!r}")
-    if threads is not None and (isinstance(threads, bool) or not isinstance(
-            threads, (int, np.integer)) or threads < 1):
-        raise RenderError(f"threads must be a positive integer or None, got {threads!r}")
+    check_threads(threads)
     if workspace is not None and not isinstance(workspace, Workspace):
         raise RenderError(f"workspace must be an hsr.Workspace, got {type(workspace).__name__}")
     if workspace is not None and threads is not None and threads != workspace.threads:

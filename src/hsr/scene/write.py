@@ -21,18 +21,21 @@ from ..errors import OutputError
 from .files import check_output
 from .mesh import Scene, as_scene, normal_matrix
 
-__all__ = ["write_mesh", "MESH_FORMATS"]
+__all__ = ["write_mesh", "planned_files", "check_new", "MESH_FORMATS"]
 
 MESH_FORMATS = (".obj", ".ply", ".glb")
 
 
-def write_mesh(scene, path) -> list:
+def write_mesh(scene, path, overwrite: bool = False) -> list:
     """Write ``scene`` (a Scene, Mesh, ...) to ``path`` (.obj, .ply or .glb). Returns the
-    files written (an OBJ's .mtl and texture too). Raises
-    :class:`~hsr.errors.OutputError` for another extension or a folder that cannot be
-    written."""
+    files written (an OBJ's .mtl and texture too). A file that exists already (the
+    model's, or one of an OBJ's .mtl and textures) is replaced only with ``overwrite``.
+    Raises :class:`~hsr.errors.OutputError` for another extension, a folder that cannot
+    be written, or a file that exists without ``overwrite``."""
     scene = as_scene(scene)
     path = check_output(os.fspath(path), MESH_FORMATS)
+    if not overwrite:
+        check_new(planned_files(scene, path))
     ext = os.path.splitext(path)[1].lower()
     try:
         if ext == ".obj":
@@ -44,6 +47,41 @@ def write_mesh(scene, path) -> list:
         return [path]
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None
+
+
+def planned_files(scene, path) -> list:
+    """The files :func:`write_mesh` writes for ``scene`` at ``path``: the model, and for
+    an OBJ its .mtl and the textures beside it."""
+    path = os.fspath(path)
+    if os.path.splitext(path)[1].lower() != ".obj":
+        return [path]
+    folder, stem = os.path.dirname(path) or ".", os.path.splitext(os.path.basename(path))[0]
+    names = _texture_names(as_scene(scene), stem)
+    return [path, os.path.join(folder, f"{stem}.mtl")] + [os.path.join(folder, n)
+                                                          for n in names.values()]
+
+
+def check_new(paths, flag: str = "overwrite=True") -> None:
+    """Raise :class:`OutputError` for the first of ``paths`` that exists (anything at
+    all: a file, a folder, a link), naming ``flag`` as the way to replace it."""
+    for p in paths:
+        if os.path.lexists(p):
+            raise OutputError(f"{p} exists; hsr replaces it only when asked ({flag})")
+
+
+def _texture_names(scene: Scene, stem: str) -> dict:
+    """Texture (a path, or the id of an array) -> its file name beside an OBJ named
+    ``stem``, in the order the instances first use them."""
+    names = {}
+    for inst in scene.instances:
+        texture = inst.mesh.texture
+        if texture is None:
+            continue
+        key = texture if isinstance(texture, str) else id(texture)
+        if key not in names:
+            ext = os.path.splitext(texture)[1] if isinstance(texture, str) else ".png"
+            names[key] = f"{stem}_{len(names)}{ext}"
+    return names
 
 
 def _world(inst):
@@ -63,11 +101,12 @@ def _write_obj(scene: Scene, path: str) -> list:
     colour) pair, the textures copied (or saved as PNG) beside it."""
     folder, stem = os.path.dirname(path) or ".", os.path.splitext(os.path.basename(path))[0]
     written, materials, textures = [path], {}, {}
+    names = _texture_names(scene, stem)
     lines, base_v, base_vt, base_vn = [f"mtllib {stem}.mtl\n"], 1, 1, 1
     for inst in scene.instances:
         mesh = inst.mesh
         positions, normals = _world(inst)
-        tex_name = _texture_file(mesh.texture, folder, stem, textures, written)
+        tex_name = _texture_file(mesh.texture, folder, names, textures, written)
         lines.append(f"o {_token(inst.name)}\n")
         lines += [f"v {x!r} {y!r} {z!r}\n" for x, y, z in positions.tolist()]
         if mesh.corner_uv is not None:
@@ -110,19 +149,18 @@ def _token(name: str) -> str:
     return "_".join(str(name).split()) or "object"
 
 
-def _texture_file(texture, folder, stem, textures, written):
+def _texture_file(texture, folder, names, textures, written):
     """The file name (beside the OBJ) of a mesh's texture, copied or saved once."""
     if texture is None:
         return None
     key = texture if isinstance(texture, str) else id(texture)
     if key not in textures:
+        name = names[key]
         if isinstance(texture, str):
-            name = f"{stem}_{len(textures)}{os.path.splitext(texture)[1]}"
             shutil.copyfile(texture, os.path.join(folder, name))
         else:
             from PIL import Image
 
-            name = f"{stem}_{len(textures)}.png"
             Image.fromarray(np.asarray(texture, dtype=np.uint8)).save(os.path.join(folder,
                                                                                    name))
         textures[key] = name

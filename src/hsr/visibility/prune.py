@@ -209,6 +209,10 @@ def _check_rule(level, keep_neighbors, min_pixels) -> None:
     _check_int("keep_neighbors", keep_neighbors, 0, MAX_RINGS)
 
 
+# Most random views verify renders (each costs two renders of the whole scene).
+MAX_VERIFY = 100_000
+
+
 def _check_int(name: str, value, low: int, high: int | None = None) -> None:
     """Refuse ``value`` unless it is an integer (not a bool) in ``low..high``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low \
@@ -310,7 +314,7 @@ def verify(original, pruned, kept, count: int = 100, size=512, *, seed: int = 0,
     if kept.shape != (pruned.n_faces,):
         raise VisibilityError(f"kept must list the pruned scene's {pruned.n_faces} faces, "
                               f"got shape {kept.shape}")
-    _check_int("verify count", count, 0)
+    _check_int("verify count", count, 0, MAX_VERIFY)
     width, height = check_size(size)
     rng = np.random.default_rng(seed)
     directions = rng.normal(size=(count, 3))
