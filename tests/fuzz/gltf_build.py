@@ -9,6 +9,7 @@ import copy
 import io
 import json
 import struct
+import zlib
 
 import numpy as np
 from PIL import Image
@@ -94,3 +95,13 @@ def write_gltf(folder, header, blob, name="model.gltf", bin_name="model.bin") ->
     path = folder / name
     path.write_text(json.dumps(header))
     return str(path)
+
+
+def bomb_png(width=100_000, height=100_000) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` pixels over a few bytes of data."""
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0"))
+            + chunk(b"IEND", b""))

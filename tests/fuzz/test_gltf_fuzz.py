@@ -26,20 +26,10 @@ from hypothesis import strategies as st
 import hsr
 
 from . import scaled
-from .gltf_build import BOX_POSITIONS, parts, png_bytes, write_glb, write_gltf
+from .gltf_build import BOX_POSITIONS, bomb_png, parts, png_bytes, write_glb, write_gltf
 from .guards import time_limit, touched, watch_opens
 
 HEADER, BLOB = parts()
-
-
-def bomb_png(width=100_000, height=100_000) -> bytes:
-    """A PNG whose header claims ``width`` x ``height`` pixels over a few bytes of data."""
-    def chunk(kind, data):
-        return (struct.pack(">I", len(data)) + kind + data
-                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
-    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\0"))
-            + chunk(b"IEND", b""))
 
 
 def data_uri(blob: bytes, kind="application/octet-stream") -> str:
@@ -255,6 +245,8 @@ def test_the_unmutated_files_load_as_two_textured_instances(folders):
 @example(edit_list=[("uri", ("buffer", "fifo"))], form="gltf")
 @example(edit_list=[("uri", ("buffer", "link.bin"))], form="glb")
 @example(edit_list=[("cycle", ((1, [0]),))], form="glb")
+@example(edit_list=[("uri", ("buffer", ["x"]))], form="glb")
+@example(edit_list=[("set", (("nodes", 0, "mesh"), -1))], form="glb")
 @example(edit_list=[("deep", (3000,))], form="glb")
 @example(edit_list=[("image", ("bomb",))], form="glb")
 @example(edit_list=[("index", (3, 65535))], form="glb")

@@ -27,6 +27,23 @@ def _wrap(index, size, wrap):
     return np.clip(index, 0, size - 1)
 
 
+# Beyond this a coordinate times a texture side may not fit the int64 texel index.
+_FAR_UV = 2.0 ** 20
+
+
+def _reduced(uv: np.ndarray, wrap: str) -> np.ndarray:
+    """``uv`` with coordinates far outside [0, 1] brought back: GL_REPEAT uses only their
+    fractional part and GL_CLAMP_TO_EDGE only their side, so no texel changes, and
+    ordinary coordinates are left exactly as they are."""
+    far = np.abs(uv) > _FAR_UV
+    if not far.any():
+        return uv
+    uv = uv.copy()
+    uv[far] = (uv[far] - np.floor(uv[far]) if wrap == "repeat"
+               else np.clip(uv[far], -1.0, 2.0))
+    return uv
+
+
 def sample(texture: np.ndarray, uv: np.ndarray, filter: str = "bilinear",
            wrap: str = "repeat") -> np.ndarray:
     """(K, 3) float64 colours (0..255) of ``texture`` (from :func:`hsr.scene.images.load_texture`) at
@@ -34,6 +51,7 @@ def sample(texture: np.ndarray, uv: np.ndarray, filter: str = "bilinear",
     check_choice(filter, FILTERS, "texture filter")
     check_choice(wrap, WRAPS, "texture wrap")
     height, width = texture.shape[:2]
+    uv = _reduced(uv, wrap)
     s = uv[:, 0] * width
     t = uv[:, 1] * height
     if filter == "nearest":

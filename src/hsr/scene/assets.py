@@ -73,6 +73,9 @@ class FolderResolver:
         return path
 
     def get(self, uri) -> bytes:
+        if not isinstance(uri, str):
+            raise MeshError(f"{self.label}: a file reference must be a non-empty string, "
+                            f"got {uri!r}")
         if uri in self._read:
             return self._read[uri]
         if isinstance(uri, str) and uri.startswith("data:"):

@@ -163,8 +163,11 @@ def make_app(library: Library):
         Route("/api/command", job(do_command)),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
     ]
-    return Starlette(routes=routes, exception_handlers={404: not_found, 405: not_found,
-                                                        500: server_error})
+    app = Starlette(routes=routes, exception_handlers={404: not_found, 405: not_found,
+                                                       500: server_error})
+    # "/api/render/" is a 404 like any other unknown path, not a redirect to the API.
+    app.router.redirect_slashes = False
+    return app
 
 
 def serve(models=(), host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True,
