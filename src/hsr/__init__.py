@@ -33,6 +33,8 @@ from .scene.mesh import Instance, Mesh, Scene
 from .scene.write import write_mesh
 from . import visibility
 from .visibility import prune
+from .visibility import (RayHits, RayScene, visibility_matrix, visible_faces, visible_points,
+                         visible_vertices)
 
 __version__ = "0.1.0"
 
@@ -42,5 +44,6 @@ __all__ = [
     "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "batch", "bsp",
     "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
-    "Workspace", "write_mesh", "write_transforms",
+    "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
+    "visible_vertices", "visible_points", "visibility_matrix",
 ]

@@ -39,8 +39,6 @@ def split_range(n: int, parts: int) -> np.ndarray:
 def check_threads(threads) -> None:
     """Raise :class:`~hsr.errors.RenderError` unless ``threads`` is None (all of numba's)
     or a positive integer (0 is refused: it is not "all")."""
-    import numpy as np
-
     from .errors import RenderError
 
     if threads is not None and (isinstance(threads, bool) or not isinstance(

@@ -1,0 +1,166 @@
+"""Arbitrary rays against a scene's BVH (:mod:`hsr.algorithms.bvh`): the nearest hit, any
+hit, or every hit, for rays ``origin + t * direction`` with ``t`` in ``[t_min, t_max]``
+(units of the direction's length, as Embree and Open3D count them).
+
+The triangle test is the ray caster's watertight one (Woop, Benthin & Wald 2013): an edge
+shared by two triangles gives exactly opposite edge values in both, so no ray slips
+through a closed mesh. A ray exactly on a shared edge or vertex meets every triangle
+there; the nearest-hit and any-hit queries keep that (a hit is a hit), but counting must
+see the surface once, so :func:`_owns` breaks the tie as a rasterizer's top-left rule
+does: on a zero edge value, the triangle owns the point only when that edge, in the
+ray's own 2-D frame and with the triangle's winding made counter-clockwise there, points
+one way (up, or right when level). The neighbour across the edge walks it the other way,
+so exactly one of the two owns it; at a vertex, exactly one triangle of a fan around it.
+A ray that grazes a silhouette edge meets two triangles of opposite facing, which then
+walk the edge the same way: both or neither count, and parity is kept.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .bvh import _box_entry, _intersect
+
+__all__ = ["trace_range", "NEAREST", "ANY", "COUNT"]
+
+NEAREST, ANY, COUNT = 0, 1, 2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _edge_owned(px, py, qx, qy):
+    """Whether the triangle owns the points on its edge P -> Q (counter-clockwise
+    winding in the ray's 2-D frame): edges going up, or right when level."""
+    return qy > py or (qy == py and qx > px)
+
+
+@njit(cache=True, nogil=True)
+def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
+    """With one or two zero edge values (the ray through an edge or a vertex of
+    triangle ``f``): whether ``f`` counts the hit (see the module notes). The 2-D
+    corners are computed exactly as :func:`hsr.algorithms.bvh._intersect` does, so the
+    zero tests see the same numbers."""
+    az = tris[f, 0, kz] - okz
+    bz = tris[f, 1, kz] - okz
+    cz = tris[f, 2, kz] - okz
+    ax = tris[f, 0, kx] - okx - sx * az
+    ay = tris[f, 0, ky] - oky - sy * az
+    bx = tris[f, 1, kx] - okx - sx * bz
+    by = tris[f, 1, ky] - oky - sy * bz
+    cx = tris[f, 2, kx] - okx - sx * cz
+    cy = tris[f, 2, ky] - oky - sy * cz
+    u = cx * by - cy * bx  # edge B -> C
+    v = ax * cy - ay * cx  # edge C -> A
+    w = bx * ay - by * ax  # edge A -> B
+    if u + v + w < 0.0:  # walk the edges the other way: counter-clockwise in 2-D
+        if u == 0.0 and not _edge_owned(cx, cy, bx, by):
+            return False
+        if v == 0.0 and not _edge_owned(ax, ay, cx, cy):
+            return False
+        if w == 0.0 and not _edge_owned(bx, by, ax, ay):
+            return False
+        return True
+    if u == 0.0 and not _edge_owned(bx, by, cx, cy):
+        return False
+    if v == 0.0 and not _edge_owned(cx, cy, ax, ay):
+        return False
+    if w == 0.0 and not _edge_owned(ax, ay, bx, by):
+        return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, child_box,
+                child_ref, root_box, root_ref, tree_depth, out_t, out_face, out_uv,
+                out_count):
+    """Rays ``lo .. hi - 1``. ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss),
+    ``out_face`` (-1) and ``out_uv`` (the weights of corners 1 and 2); :data:`ANY`
+    writes ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the
+    number of hits in ``out_count``. ``t_min`` / ``t_max`` are per ray. Equal nearest
+    distances go to the lower face id, so the answer does not depend on the walk (nor
+    on how rays are split between threads). Returns the triangle tests made."""
+    stack_ref = np.empty(tree_depth + 2, dtype=np.int64)
+    stack_count = np.empty(tree_depth + 2, dtype=np.int64)
+    stack_t = np.empty(tree_depth + 2)
+    tests = 0
+    for i in range(lo, hi):
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        t0, t1 = t_min[i], t_max[i]
+        # Woop et al.: kz the dominant axis; swapping kx, ky keeps the winding.
+        ad = (abs(dx), abs(dy), abs(dz))
+        kz = 0
+        if ad[1] > ad[kz]:
+            kz = 1
+        if ad[2] > ad[kz]:
+            kz = 2
+        kx, ky = (kz + 1) % 3, (kz + 2) % 3
+        dk = (dx, dy, dz)
+        if dk[kz] < 0.0:
+            kx, ky = ky, kx
+        sz = 1.0 / dk[kz]
+        sx, sy = dk[kx] * sz, dk[ky] * sz
+        ok = (ox, oy, oz)
+        okx, oky, okz = ok[kx], ok[ky], ok[kz]
+        inv_dx = 1.0 / dx if dx != 0.0 else np.inf
+        inv_dy = 1.0 / dy if dy != 0.0 else np.inf
+        inv_dz = 1.0 / dz if dz != 0.0 else np.inf
+        best_t, best_f, bu, bv = np.inf, -1, 0.0, 0.0
+        count = 0
+        bound = t1  # no box entered beyond it can hold a hit that matters
+        done = False
+        if leaf_face.shape[0] > 0:
+            stack_ref[0], stack_count[0] = root_ref[0], root_ref[1]
+            stack_t[0] = _box_entry(root_box[0], root_box[1], root_box[2], root_box[3],
+                                    root_box[4], root_box[5], ox, oy, oz, inv_dx, inv_dy,
+                                    inv_dz)
+            top = 1
+            while top > 0 and not done:
+                top -= 1
+                # A missed box enters at +inf: dropped even when the bound is +inf.
+                if stack_t[top] > bound or stack_t[top] == np.inf:
+                    continue
+                ref, n = stack_ref[top], stack_count[top]
+                if n > 0:  # a leaf: slots ref .. ref + n - 1
+                    for k in range(ref, ref + n):
+                        tests += 1
+                        t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
+                                                sz, 0, True, dx, dy, dz)
+                        if not (t0 <= t <= t1):
+                            continue
+                        if mode == 1:
+                            count = 1
+                            done = True
+                            break
+                        if mode == 2:
+                            if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
+                                    tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+                                count += 1
+                            continue
+                        f = leaf_face[k]
+                        if t < best_t or (t == best_t and f < best_f):
+                            best_t, best_f, bu, bv = t, f, v, w
+                            bound = t
+                    continue
+                tl = _box_entry(child_box[ref, 0], child_box[ref, 1], child_box[ref, 2],
+                                child_box[ref, 3], child_box[ref, 4], child_box[ref, 5],
+                                ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                tr = _box_entry(child_box[ref, 6], child_box[ref, 7], child_box[ref, 8],
+                                child_box[ref, 9], child_box[ref, 10], child_box[ref, 11],
+                                ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                near = 0 if tl <= tr else 2
+                far = 2 - near
+                stack_ref[top], stack_count[top] = child_ref[ref, far], child_ref[ref, far + 1]
+                stack_t[top] = max(tl, tr)
+                stack_ref[top + 1] = child_ref[ref, near]
+                stack_count[top + 1] = child_ref[ref, near + 1]
+                stack_t[top + 1] = min(tl, tr)
+                top += 2
+        if mode == 0:
+            out_t[i] = best_t
+            out_face[i] = best_f
+            out_uv[i, 0] = bu
+            out_uv[i, 1] = bv
+        else:
+            out_count[i] = count
+    return tests

@@ -1,0 +1,334 @@
+"""Visibility queries, one call each: which faces a camera shows
+(:func:`visible_faces`), which vertices or arbitrary points it sees
+(:func:`visible_vertices`, :func:`visible_points`), and the faces x views table of pixel
+counts for many cameras, with how well each view sees each face
+(:func:`visibility_matrix`).
+
+Why vertices and points are tested with rays and not looked up in a depth buffer: a
+vertex on a silhouette or a crease lies on the edge between a face that shows and one
+that does not, and its pixel centre (x + 0.5, y + 0.5) is generally not where the vertex
+projects, so the buffer holds the depth of whatever covers that pixel centre, maybe a
+face behind the silhouette, or the near face of a crease a hair in front. Any tolerance
+on that comparison misjudges some vertices. The exact question is geometric: does the
+open segment from the eye to the point meet a surface? :meth:`hsr.RayScene.occluded`
+answers it exactly (watertight triangle test); the segment is shortened by ``tolerance``
+of its length at the point's end, so the point's own faces do not hide it.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from ..scene.mesh import as_scene
+from .count import VisibilityError, cameras_for, check_size
+from .rays import RayScene
+
+__all__ = ["visible_faces", "visible_vertices", "visible_points", "visibility_matrix",
+           "project_points", "VisibilityMatrix", "scene_vertices"]
+
+
+def _camera(camera):
+    from ..scene.camera import Camera
+
+    if not isinstance(camera, Camera):
+        raise VisibilityError(f"camera must be an hsr.Camera, got {type(camera).__name__}")
+    return camera
+
+
+def _scene(scene):
+    from ..scene.load import load_scene
+    import os
+
+    if isinstance(scene, RayScene):
+        return scene.scene
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(scene)
+    return as_scene(scene)
+
+
+def visible_faces(scene, camera, width: int, height: int, **render_options):
+    """``(face_ids, pixel_counts)``: the global ids (ascending, int64) of the faces that
+    own at least one pixel centre of ``camera``'s ``width`` x ``height`` image, and how
+    many (int64): exactly what :func:`hsr.render` shows, with the same
+    ``render_options`` (``cull``, ``depth_func``, ``algorithm``, ...).
+
+    Raises what :func:`hsr.render` raises."""
+    from ..render import render
+
+    frame = render(_scene(scene), _camera(camera), width, height, color=False,
+                   **render_options)
+    ids = frame.face_id[frame.face_id >= 0]
+    faces, counts = np.unique(ids, return_counts=True)
+    return faces.astype(np.int64), counts.astype(np.int64)
+
+
+def scene_vertices(scene) -> np.ndarray:
+    """(V, 3) float64 world positions of every vertex of every instance, in scene order
+    (instance 0's vertices, then instance 1's, ...), as :func:`visible_vertices` numbers
+    them."""
+    scene = _scene(scene)
+    parts = [inst.mesh.positions @ inst.model[:3, :3].T + inst.model[:3, 3]
+             for inst in scene.instances]
+    return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+
+def project_points(camera, points, width: int, height: int, convention: str = "hsr"):
+    """``(pixels, in_frustum)`` for (N, 3) world ``points``: (N, 2) float64 window
+    coordinates and (N,) bool.
+
+    ``convention="hsr"``: x right, y down, pixel (x, y) centred at (x + 0.5, y + 0.5)
+    (the top-left pixel covers [0, 1) x [0, 1)); ``"opencv"``: pixel centres on
+    integers, i.e. hsr's minus 0.5 (what ``cv2.projectPoints`` returns for
+    ``camera.to_opencv(width, height)``). ``in_frustum``: the point lies inside the view
+    volume (the image rectangle between the near and far planes); points behind the
+    camera get NaN pixels."""
+    from ..geometry.viewport import check_size as check_image
+
+    camera = _camera(camera)
+    check_image(width, height)
+    if convention not in ("hsr", "opencv"):
+        raise VisibilityError(f"convention must be 'hsr' or 'opencv', got {convention!r}")
+    points = _points(points)
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    pos_clip = points @ view_proj[:3, :3].T + view_proj[:3, 3]
+    w_clip = points @ view_proj[3, :3] + view_proj[3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ndc = pos_clip / w_clip[:, None]
+    front = w_clip > 0
+    inside = front & np.all(np.abs(pos_clip) <= w_clip[:, None], axis=1)
+    xy_window = np.empty((len(points), 2))
+    xy_window[:, 0] = (ndc[:, 0] + 1.0) * 0.5 * width
+    xy_window[:, 1] = (1.0 - ndc[:, 1]) * 0.5 * height
+    xy_window[~front] = np.nan
+    if convention == "opencv":
+        xy_window -= 0.5
+    return xy_window, inside
+
+
+def _points(points) -> np.ndarray:
+    try:
+        array = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise VisibilityError(f"points must be an (N, 3) array of numbers ({exc})") from None
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise VisibilityError(f"points must have shape (N, 3), got {array.shape}")
+    if len(array) == 0:
+        raise VisibilityError("points is empty: give at least one point")
+    if not np.isfinite(array).all():
+        k = int(np.argmax(~np.isfinite(array).all(axis=1)))
+        raise VisibilityError(f"points must be finite; point {k} is {array[k].tolist()}")
+    return array
+
+
+def _check_tolerance(tolerance) -> float:
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float, np.floating)) \
+            or not 0.0 <= tolerance < 1.0:
+        raise VisibilityError(f"tolerance must be a number in [0, 1), got {tolerance!r}")
+    return float(tolerance)
+
+
+def _segments_clear(rays: RayScene, camera, points, tolerance, progress) -> np.ndarray:
+    """(N,) bool: the segment from the eye (orthographic: from the point's foot on the
+    plane of the eye) to each point, cut ``tolerance`` of its length short of the
+    point, meets no surface."""
+    if camera.is_orthographic:
+        forward = camera.forward
+        depth = (points - np.asarray(camera.eye, dtype=np.float64)) @ forward
+        origins = points - depth[:, None] * forward
+    else:
+        origins = np.broadcast_to(np.asarray(camera.eye, dtype=np.float64), points.shape)
+    directions = points - origins
+    clear = np.ones(len(points), dtype=bool)
+    # A point at the eye has no segment to block.
+    real = directions.any(axis=1)
+    if real.any():
+        clear[real] = ~rays.occluded(origins[real], directions[real], 0.0, 1.0 - tolerance,
+                                     progress=progress)
+    return clear
+
+
+def visible_vertices(scene, camera, width: int, height: int, tolerance: float = 1e-4,
+                     progress: bool | None = None) -> np.ndarray:
+    """(V,) bool over the scene's vertices (:func:`scene_vertices` order: instances in
+    scene order, each mesh's vertices in its order): the vertex lies inside
+    ``camera``'s view volume for a ``width`` x ``height`` image, and the open segment
+    from the eye to it, shortened by ``tolerance`` of its length, hits no surface (see
+    the module notes for why this is a ray test and not a depth-buffer lookup).
+
+    ``scene``: a Mesh, Scene, path, or a :class:`~hsr.RayScene` (its BVH is reused, the
+    fast way to ask about many cameras). Geometry between the eye and the near plane
+    counts as occluding here (the render clips it). Raises
+    :class:`~hsr.visibility.VisibilityError` for a bad camera, size or tolerance."""
+    rays = scene if isinstance(scene, RayScene) else RayScene(_scene(scene))
+    return visible_points(rays, camera, scene_vertices(rays.scene), width, height,
+                          tolerance, progress=progress)[1]
+
+
+def visible_points(scene, camera, points, width: int, height: int, tolerance: float = 1e-4,
+                   convention: str = "hsr", progress: bool | None = None):
+    """``(pixels, visible)`` for (N, 3) world ``points`` (a point cloud to colour from a
+    photo, landmarks, sensor positions): pixels (N, 2) float64 in ``convention`` (see
+    :func:`project_points`: ``"hsr"`` x right, y down, pixel (x, y) centred at
+    (x + 0.5, y + 0.5); ``"opencv"`` the same minus 0.5, as ``cv2.projectPoints``), and
+    visible (N,) bool: inside the view volume and not hidden, by the segment test of
+    :func:`visible_vertices`. Raises :class:`~hsr.visibility.VisibilityError` for an
+    empty or malformed point set, a bad camera, size or tolerance."""
+    tolerance = _check_tolerance(tolerance)
+    pixels, inside = project_points(camera, points, width, height, convention)
+    points = _points(points)
+    rays = scene if isinstance(scene, RayScene) else RayScene(_scene(scene))
+    visible = np.zeros(len(points), dtype=bool)
+    if inside.any():
+        visible[inside] = _segments_clear(rays, camera, points[inside], tolerance, progress)
+    return pixels, visible
+
+
+class VisibilityMatrix:
+    """What :func:`visibility_matrix` returns: ``counts``, a
+    ``scipy.sparse.csr_matrix`` (n_faces x n_views, int64) of the pixels where each
+    face is visible in each view; with quality terms, ``cosine`` and ``distance``, csr
+    matrices of the same pattern holding each (face, view)'s mean cosine between the
+    face's normal (as wound) and the direction to the eye, and mean distance from the eye
+    (world units), over its pixels; and ``cameras``, the views' cameras."""
+
+    def __init__(self, counts, cameras, cosine=None, distance=None):
+        self.counts, self.cameras, self.cosine, self.distance = counts, cameras, cosine, distance
+
+    @property
+    def shape(self):
+        return self.counts.shape
+
+    def best_view(self) -> np.ndarray:
+        """(n_faces,) int64: for each face the view that sees it best, -1 where none
+        does: the most pixels, or with quality terms the most pixels times the mean
+        cosine (texturing's common score: projected area)."""
+        score = self.counts.astype(np.float64)
+        if self.cosine is not None:
+            score = score.multiply(self.cosine.maximum(0.0)).tocsr()
+        best = np.asarray(score.argmax(axis=1)).ravel()
+        seen = np.asarray(score.max(axis=1).todense()).ravel() > 0
+        return np.where(seen, best, -1).astype(np.int64)
+
+
+def _view_columns(scene, camera, width, height, options, quality, workspace):
+    """One view: (faces, counts[, cosine sums, distance sums]) of the faces it shows."""
+    from ..render import render
+
+    frame = render(scene, camera, width, height, color=False, workspace=workspace,
+                   **options)
+    face_id = frame.face_id.ravel()
+    shown = face_id >= 0
+    ids = face_id[shown]
+    faces, inverse, counts = np.unique(ids, return_inverse=True, return_counts=True)
+    if not quality:
+        return faces, counts
+    normals = frame.normals.reshape(-1, 3)[shown].astype(np.float64)
+    distance = frame.distance.ravel()[shown].astype(np.float64)
+    towards_eye = -_pixel_rays(camera, width, height)[shown]
+    cosine = np.einsum("ij,ij->i", normals, towards_eye)
+    return (faces, counts, np.bincount(inverse, cosine, len(faces)),
+            np.bincount(inverse, distance, len(faces)))
+
+
+def _pixel_rays(camera, width, height) -> np.ndarray:
+    """(H * W, 3) unit world directions of the rays through the pixel centres."""
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    inv = np.linalg.inv(view_proj)
+    x_ndc = (np.arange(width) + 0.5) * 2.0 / width - 1.0
+    y_ndc = 1.0 - (np.arange(height) + 0.5) * 2.0 / height
+    xx, yy = np.meshgrid(x_ndc, y_ndc)
+    ends = []
+    for z in (-1.0, 1.0):
+        h = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, z), np.ones(xx.size)], 1) @ inv.T
+        ends.append(h[:, :3] / h[:, 3:])
+    d = ends[1] - ends[0]
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def view_group_columns(scene, cameras, width, height, options, quality) -> list:
+    """A Dask task (and the local loop): the columns of a group of views, one thread."""
+    from ..parallel import Workspace
+
+    with Workspace(1) as workspace:
+        return [_view_columns(scene, cam, width, height, options, quality, workspace)
+                for cam in cameras]
+
+
+def visibility_matrix(scene, views, size=512, *, client=None, quality: bool = False,
+                      near: float = 0.1, far: float = 100.0, progress: bool | None = None,
+                      **render_options) -> VisibilityMatrix:
+    """The faces x views table of visible pixel counts (a :class:`VisibilityMatrix`,
+    ``.counts`` a ``scipy.sparse.csr_matrix``), for ``views`` as
+    :func:`~hsr.visibility.face_visibility` takes them (``sphere:N``, ``hemisphere:N``,
+    ``orbit:N``, a transforms.json or COLMAP folder, cameras, or a list of these) at
+    ``size`` (``R`` or ``(W, H)``), rendered with ``render_options``. Column ``j`` is
+    ``np.bincount(render(scene, cameras[j], W, H).face_id)`` over the faces; the row sums
+    are :func:`~hsr.visibility.face_visibility`. ``quality``: also the mean cosine and
+    mean distance per (face, view) (see :class:`VisibilityMatrix`), for texturing's view
+    selection. ``client``: a ``distributed.Client``; one task per group of views, only
+    the sparse columns come back.
+
+    Raises :class:`~hsr.visibility.VisibilityError` for bad views or size, and what
+    :func:`hsr.render` raises for bad render options."""
+    import scipy.sparse
+
+    from ..parallel import progress_bar
+    from ..render import render
+    from .count import VIEWS_PER_TASK, _check_opaque
+
+    scene = _scene(scene)
+    _check_opaque(scene)
+    width, height = check_size(size)
+    if not isinstance(quality, (bool, np.bool_)):
+        raise VisibilityError(f"quality must be True or False, got {quality!r}")
+    for name in ("into", "counts", "hidden_line", "color", "workspace", "threads"):
+        if name in render_options:
+            raise VisibilityError(f"{name} is not an option of visibility_matrix")
+    cameras = cameras_for(scene, views, width / height, near, far)
+    render(scene, cameras[0], 1, 1, threads=1, **render_options)  # bad options: now
+    if progress is None:
+        progress = sys.stderr.isatty()
+    columns = [None] * len(cameras)
+    with progress_bar(progress, len(cameras), "visibility") as bar:
+        if client is None:
+            for j, cam in enumerate(cameras):
+                columns[j] = view_group_columns(scene, [cam], width, height, render_options,
+                                                quality)[0]
+                bar.update(1)
+        else:
+            from distributed import as_completed
+
+            shared = client.scatter(scene, broadcast=True, hash=False)
+            workers = max(1, sum(w.get("nthreads", 1) for w in
+                                 client.scheduler_info().get("workers", {}).values()))
+            per_task = max(1, min(VIEWS_PER_TASK, math.ceil(len(cameras) / (4 * workers))))
+            futures = {client.submit(view_group_columns, shared, cameras[k:k + per_task],
+                                     width, height, render_options, quality,
+                                     pure=False): k
+                       for k in range(0, len(cameras), per_task)}
+            for future in as_completed(list(futures)):
+                k = futures.pop(future)
+                group = future.result()
+                columns[k:k + len(group)] = group
+                bar.update(len(group))
+                future.release()
+    n_faces = scene.n_faces
+
+    def matrix(part, dtype):
+        data = np.concatenate([c[part] for c in columns]).astype(dtype)
+        rows = np.concatenate([c[0] for c in columns]).astype(np.int64)
+        cols = np.repeat(np.arange(len(columns)), [len(c[0]) for c in columns])
+        return scipy.sparse.csr_matrix((data, (rows, cols)), shape=(n_faces, len(columns)))
+
+    counts = matrix(1, np.int64)
+    if not quality:
+        return VisibilityMatrix(counts, cameras)
+    # Means: the sums over each (face, view)'s pixels divided by its count, on the same
+    # sparsity pattern (every stored count is >= 1).
+    cosine, distance = matrix(2, np.float64), matrix(3, np.float64)
+    for m in (cosine, distance):
+        m.data /= counts.data
+    return VisibilityMatrix(counts, cameras, cosine, distance)
