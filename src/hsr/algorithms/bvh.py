@@ -521,11 +521,25 @@ def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     t0x, t1x = (x0 - ox) * inv_dx, (x1 - ox) * inv_dx
     t0y, t1y = (y0 - oy) * inv_dy, (y1 - oy) * inv_dy
     t0z, t1z = (z0 - oz) * inv_dz, (z1 - oz) * inv_dz
+    # 0 * inf is NaN: a ray parallel to a slab (inv = inf) whose origin lies on one of
+    # its planes. The box is closed, so the ray lies inside that slab for every t; min and
+    # max would pass the NaN on or drop it depending on argument order (a box beside the
+    # origin of an axis-aligned ray was missed), so each plane's NaN is made the bound
+    # that keeps the slab open: -inf for the low plane, +inf for the high one.
+    if t0x != t0x:
+        t0x = -np.inf
+    if t1x != t1x:
+        t1x = np.inf
+    if t0y != t0y:
+        t0y = -np.inf
+    if t1y != t1y:
+        t1y = np.inf
+    if t0z != t0z:
+        t0z = -np.inf
+    if t1z != t1z:
+        t1z = np.inf
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
-    # NaN from 0 * inf (origin on a slab plane, ray parallel) must not reject the box.
-    if t_in != t_in or t_out != t_out:
-        return 0.0
     if t_in > t_out * (1.0 + 4e-16) + 1e-300:
         return np.inf
     return t_in

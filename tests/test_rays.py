@@ -1,0 +1,247 @@
+"""``hsr.RayScene`` (issue #33) against independent references: Embree (through
+``embreex``; float32, so distances are compared with a relative tolerance) on 200k random
+rays at a shared model, and a brute-force NumPy ray/triangle test (Moller-Trumbore in
+float64, written here) on small meshes; the inside/outside parity of closed meshes with
+rays aimed exactly at edges and vertices; determinism across thread counts; and bad
+input refused with a RayError. (Open3D's RaycastingScene is the benchmark's peer,
+``benchmarks/bench_rays.py``: too heavy for the test extra.)"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import hsr
+from hsr.visibility import RayError
+
+embreex = pytest.importorskip("embreex")
+
+
+def brute_force(tris, origins, directions, t_min=0.0, t_max=np.inf):
+    """(nearest t, face, u, v, all hits count) per ray, Moller-Trumbore in float64 over
+    every triangle (a hit at an edge counts for each triangle there)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    n = len(origins)
+    best_t = np.full(n, np.inf)
+    best_f = np.full(n, -1)
+    best_uv = np.zeros((n, 2))
+    count = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        p = np.cross(directions[i], e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        ok = det != 0
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        s = origins[i] - a
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        v = (q @ directions[i]) * inv
+        t = np.einsum("ij,ij->i", e2, q) * inv
+        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= t_min) & (t <= t_max)
+        count[i] = hit.sum()
+        if hit.any():
+            f = np.flatnonzero(hit)[np.argmin(t[hit])]
+            best_t[i], best_f[i], best_uv[i] = t[f], f, (u[f], v[f])
+    return best_t, best_f, best_uv, count
+
+
+def random_rays(bounds, n, rng, outside_share=0.5):
+    """Origins inside the box and outside it (up to its size away), random directions of
+    random lengths."""
+    lo, hi = bounds
+    size = hi - lo
+    inside = rng.uniform(lo, hi, (n, 3))
+    outside = rng.uniform(lo - size, hi + size, (n, 3))
+    origins = np.where(rng.random((n, 1)) < outside_share, outside, inside)
+    directions = rng.normal(size=(n, 3)) * rng.uniform(0.1, 10.0, (n, 1))
+    return origins, directions
+
+
+@pytest.fixture(scope="module")
+def bunny(models_dir):
+    return hsr.load(os.path.join(models_dir, "stanford-bunny.obj"))
+
+
+def test_cast_agrees_with_embree_on_200k_random_rays(bunny):
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+
+    rng = np.random.default_rng(7)
+    origins, directions = random_rays(bunny.bounds(), 200_000, rng)
+    hits = hsr.RayScene(bunny).cast(origins, directions)
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, bunny.positions[bunny.faces].astype(np.float32))
+    ref = scene.run(origins.astype(np.float32), directions.astype(np.float32), output=1)
+    ref_face = np.where(ref["geomID"] >= 0, ref["primID"], -1)
+    ref_t = np.where(ref_face >= 0, ref["tfar"].astype(np.float64), np.inf)
+    assert 0.05 < hits.hit.mean() < 0.95  # both kinds of ray are there
+    same_hit = (ref_face >= 0) == hits.hit
+    assert same_hit.mean() >= 0.9998, same_hit.mean()
+    both = (ref_face >= 0) & hits.hit
+    rel = np.abs(hits.t[both] - ref_t[both]) / np.maximum(hits.t[both], 1e-300)
+    assert np.median(rel) <= 1e-6, np.median(rel)
+    other_face = both & (ref_face != hits.face_id)
+    # A different face only where Embree's distance ties ours (float32 rounding).
+    assert (rel[other_face[both]] <= 1e-4).all()
+    assert other_face.mean() < 1e-3
+    # The hit point rebuilt from the barycentrics lies on the ray.
+    corners = bunny.positions[bunny.faces[hits.face_id[both]]]
+    u, v = hits.barycentric[both, 0:1], hits.barycentric[both, 1:2]
+    rebuilt = (1 - u - v) * corners[:, 0] + u * corners[:, 1] + v * corners[:, 2]
+    on_ray = origins[both] + hits.t[both, None] * directions[both]
+    size = np.linalg.norm(np.subtract(*bunny.bounds()[::-1]))
+    assert np.abs(rebuilt - on_ray).max() <= 1e-5 * size
+    # Normals: unit, as wound.
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    np.testing.assert_allclose(hits.normal[both], n / np.linalg.norm(n, axis=1)[:, None],
+                               atol=1e-12)
+    assert (hits.object_id[both] == 0).all() and (hits.object_id[~hits.hit] == -1).all()
+
+
+def _soup(rng, n):
+    centers = rng.uniform(-1, 1, (n, 1, 3))
+    return centers + rng.normal(scale=0.4, size=(n, 3, 3))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 40),
+       t_min=st.sampled_from([0.0, 0.0, 0.3]), t_max=st.sampled_from([np.inf, 2.0, 0.5]))
+def test_cast_occluded_count_equal_brute_force_on_random_soups(seed, n, t_min, t_max):
+    rng = np.random.default_rng(seed)
+    tris = _soup(rng, n)
+    mesh = hsr.Mesh(tris.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    origins, directions = random_rays((tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)),
+                                      200, rng)
+    rays = hsr.RayScene(mesh, threads=1)
+    hits = rays.cast(origins, directions, t_min, t_max)
+    t, f, uv, count = brute_force(tris, origins, directions, t_min, t_max)
+    np.testing.assert_array_equal(hits.face_id, f)
+    np.testing.assert_allclose(hits.t[f >= 0], t[f >= 0], rtol=1e-9)
+    np.testing.assert_allclose(hits.barycentric[f >= 0], uv[f >= 0], atol=1e-9)
+    np.testing.assert_array_equal(rays.occluded(origins, directions, t_min, t_max), f >= 0)
+    np.testing.assert_array_equal(rays.count(origins, directions, t_min, t_max), count)
+
+
+def _closed_meshes():
+    """A cube (two triangles a side, diagonals both ways), an octahedron and a
+    subdivided icosphere: closed, consistently wound."""
+    import trimesh
+
+    cube = trimesh.creation.box(extents=(2, 2, 2))
+    faces = np.array(cube.faces)
+    faces[::4] = faces[::4][:, [1, 2, 0]]  # other diagonals on some sides: same surface
+    octa = hsr.Mesh([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                    [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5],
+                     [3, 1, 5], [0, 3, 5]])
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    return {"cube": hsr.Mesh(cube.vertices, faces), "octahedron": octa,
+            "icosphere": hsr.Mesh(ico.vertices, ico.faces)}
+
+
+@pytest.mark.parametrize("name", ["cube", "octahedron", "icosphere"])
+def test_count_parity_through_edges_and_vertices(name):
+    """From inside a closed mesh every ray crosses it an odd number of times, from
+    outside an even number, including rays aimed exactly at its vertices and the
+    midpoints of its edges (where two or more triangles meet the ray)."""
+    mesh = _closed_meshes()[name]
+    rays = hsr.RayScene(mesh)
+    verts = mesh.positions
+    edges = {tuple(sorted((int(a), int(b)))) for f in mesh.faces for a, b in
+             ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    mids = np.array([(verts[a] + verts[b]) / 2 for a, b in edges])
+    targets = np.concatenate([verts, mids])
+    rng = np.random.default_rng(3)
+    inside = np.concatenate([np.zeros((1, 3)), rng.uniform(-0.2, 0.2, (20, 3))])
+    for o in inside:
+        counts = rays.count(o, targets - o)
+        assert (counts % 2 == 1).all(), (o, targets[counts % 2 == 0], counts[counts % 2 == 0])
+        assert rays.occluded(o, targets - o).all()
+    # From outside, along the same lines (through a vertex or edge midpoint and the
+    # centre): the ray enters and leaves.
+    far = targets * 3.0
+    counts = rays.count(far, -targets)
+    assert (counts % 2 == 0).all() and (counts >= 2).all(), counts
+    # Exactly once each through an exact vertex / edge from the centre of the cube and
+    # octahedron (every coordinate exact in binary).
+    if name != "icosphere":
+        assert (rays.count(np.zeros(3), targets) == 1).all()
+        hits = rays.cast(np.zeros(3), targets)
+        np.testing.assert_allclose(hits.t, 1.0)
+    o, d = random_rays(mesh.bounds(), 2000, rng)
+    _, _, _, brute = brute_force(mesh.positions[mesh.faces], o, d)
+    np.testing.assert_array_equal(rays.count(o, d), brute)
+
+
+def test_results_do_not_depend_on_threads_or_chunks(bunny):
+    rng = np.random.default_rng(11)
+    origins, directions = random_rays(bunny.bounds(), 30_000, rng)
+    one = hsr.RayScene(bunny, threads=1).cast(origins, directions)
+    two = hsr.RayScene(bunny, threads=2).cast(origins, directions)
+    part = hsr.RayScene(bunny, threads=2).cast(origins[:777], directions[:777])
+    for field in ("t", "face_id", "object_id", "barycentric", "normal"):
+        np.testing.assert_array_equal(getattr(one, field), getattr(two, field))
+        np.testing.assert_array_equal(getattr(one, field)[:777], getattr(part, field))
+
+
+def test_concurrent_queries_on_one_scene(bunny):
+    from concurrent.futures import ThreadPoolExecutor
+
+    rays = hsr.RayScene(bunny)
+    rng = np.random.default_rng(2)
+    batches = [random_rays(bunny.bounds(), 5000, rng) for _ in range(8)]
+    alone = [rays.cast(o, d).face_id for o, d in batches]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda od: rays.cast(*od).face_id, batches))
+    for a, b in zip(alone, together):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_scene_of_instances_numbers_faces_and_objects_globally():
+    cube = hsr.scenes.cube()
+    scene = hsr.Scene().add(cube, name="a").add(cube, np.array(
+        [[1, 0, 0, 5], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]), name="b")
+    rays = hsr.RayScene(scene)
+    hits = rays.cast([[0, 0, 10], [5, 0, 10], [10, 0, 10]], [[0, 0, -1]] * 3)
+    assert hits.object_id.tolist() == [0, 1, -1]
+    assert hits.face_id[1] >= cube.n_faces and hits.face_id[0] < cube.n_faces
+    np.testing.assert_allclose(hits.t[:2], 10 - cube.positions[:, 2].max())
+    np.testing.assert_allclose(hits.normal[:2], [[0, 0, 1], [0, 0, 1]])
+    # Any float dtype, a shared origin, directions of any length.
+    h32 = rays.cast(np.float32([0, 0, 10]), np.float32([[0, 0, -2]]))
+    assert h32.t[0] == pytest.approx(hits.t[0] / 2)
+
+
+@pytest.mark.parametrize("origins, directions, kw, message", [
+    (np.zeros((2, 3)), np.zeros((3, 3)), {}, "origins must have shape"),
+    (np.zeros((2, 2)), np.ones((2, 2)), {}, "directions must have shape (N, 3)"),
+    ([[np.nan, 0, 0]], [[0, 0, 1]], {}, "origins must be finite; ray 0"),
+    ([[0, 0, 0]], [[0, 0, np.inf]], {}, "directions must be finite"),
+    ([[0, 0, 0], [0, 0, 0]], [[0, 0, 1], [0, 0, 0]], {}, "ray 1 is (0, 0, 0)"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"t_min": 2.0, "t_max": 1.0}, "t_min must not exceed t_max"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"t_min": -1.0}, "t_min must be >= 0"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"t_max": np.nan}, "t_max must not be NaN"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"t_max": [1.0, 2.0]}, "t_max must be a number or an array"),
+    ([["a", 0, 0]], [[0, 0, 1]], {}, "origins must be real numbers"),
+    (np.array([[True, False, True]]), [[0, 0, 1]], {}, "origins must be real numbers"),
+])
+def test_bad_rays_are_refused(origins, directions, kw, message):
+    rays = hsr.RayScene(hsr.scenes.cube())
+    for query in (rays.cast, rays.occluded, rays.count):
+        with pytest.raises(RayError) as info:
+            query(origins, directions, **kw)
+        assert message in str(info.value)
+    assert issubclass(RayError, hsr.HsrError)
+
+
+def test_empty_queries_and_bad_scenes():
+    rays = hsr.RayScene(hsr.scenes.cube())
+    assert len(rays.cast(np.zeros((0, 3)), np.zeros((0, 3)))) == 0
+    assert rays.count(np.zeros((0, 3)), np.zeros((0, 3))).shape == (0,)
+    with pytest.raises(hsr.MeshError):
+        hsr.RayScene("missing.obj")
+    with pytest.raises(hsr.HsrError):
+        hsr.RayScene(hsr.scenes.cube(), threads=0)
