@@ -204,12 +204,15 @@ class VisibilityMatrix:
     def best_view(self) -> np.ndarray:
         """(n_faces,) int64: for each face the view that sees it best, -1 where none
         does: the most pixels, or with quality terms the most pixels times the mean
-        cosine (texturing's common score: projected area)."""
-        score = self.counts.astype(np.float64)
+        cosine (texturing's common score: projected area), falling back to the most
+        pixels for a face that every view sees from behind."""
+        pixels = self.counts.astype(np.float64)
+        best = np.asarray(pixels.argmax(axis=1)).ravel()
         if self.cosine is not None:
-            score = score.multiply(self.cosine.maximum(0.0)).tocsr()
-        best = np.asarray(score.argmax(axis=1)).ravel()
-        seen = np.asarray(score.max(axis=1).todense()).ravel() > 0
+            score = pixels.multiply(self.cosine.maximum(0.0)).tocsr()
+            front = np.asarray(score.max(axis=1).todense()).ravel() > 0
+            best = np.where(front, np.asarray(score.argmax(axis=1)).ravel(), best)
+        seen = np.diff(self.counts.indptr) > 0
         return np.where(seen, best, -1).astype(np.int64)
 
 
