@@ -192,3 +192,57 @@ def test_bad_queries_are_refused(call, message):
     with pytest.raises(hsr.HsrError) as info:
         call(mesh, cam)
     assert message in str(info.value)
+
+
+def test_cli_visibility_writes_what_the_library_computes(diablo, models_dir, tmp_path,
+                                                         capsys):
+    from hsr.cli import main
+
+    model = os.path.join(models_dir, "diablo3_pose.obj")
+    out = tmp_path / "faces.npz"
+    assert main(["visibility", model, "--views", "sphere:4", "--size", "64x48", "-o",
+                 str(out), "--quality"]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("4 views at 64x48: faces visible per view min") and "\n" not in line
+    data = np.load(out)
+    vm = hsr.visibility_matrix(diablo, "sphere:4", (64, 48), quality=True)
+    coo = vm.counts.tocoo()
+    np.testing.assert_array_equal(data["face"], coo.row)
+    np.testing.assert_array_equal(data["view"], coo.col)
+    np.testing.assert_array_equal(data["pixels"], coo.data)
+    np.testing.assert_allclose(data["cosine"], vm.cosine.tocoo().data)
+    csv = tmp_path / "vertices.csv"
+    assert main(["visibility", model, "--views", "sphere:4", "--size", "64x48", "--what",
+                 "vertices", "-o", str(csv), "--quiet"]) == 0
+    rows = np.loadtxt(csv, delimiter=",", skiprows=1, dtype=np.int64)
+    rays = hsr.RayScene(diablo)
+    for j, cam in enumerate(vm.cameras):
+        np.testing.assert_array_equal(rows[rows[:, 1] == j, 0],
+                                      np.flatnonzero(hsr.visible_vertices(rays, cam, 64, 48)))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--views", "sphere:4", "-o", "{tmp}/x.txt"], "unknown extension"),
+    (["--views", "sphere:0", "-o", "{tmp}/x.npz"], "N must be"),
+    (["--views", "sphere:4", "--what", "edges", "-o", "{tmp}/x.npz"], "--what must be"),
+    (["--views", "sphere:4", "--what", "points:{tmp}/bad.npy", "-o", "{tmp}/x.npz"],
+     "not a .npy array"),
+    (["--views", "sphere:4", "--what", "points:{tmp}/empty.npy", "-o", "{tmp}/x.npz"],
+     "points is empty"),
+    (["--views", "sphere:4", "--what", "vertices", "--scheduler", "tcp://127.0.0.1:1",
+      "-o", "{tmp}/x.npz"], "--scheduler goes with --what faces"),
+    (["--views", "sphere:4", "--size", "0x3", "-o", "{tmp}/x.npz"], "--size"),
+    (["--views", "{tmp}/missing.json", "-o", "{tmp}/x.npz"], "missing.json"),
+    (["--views", "sphere:4", "-o", "{tmp}/exists.npz"], "exists"),
+])
+def test_cli_visibility_refuses_bad_input(models_dir, tmp_path, capsys, args, message):
+    from hsr.cli import main
+
+    (tmp_path / "bad.npy").write_bytes(b"not numpy")
+    np.save(tmp_path / "empty.npy", np.zeros((0, 3)))
+    (tmp_path / "exists.npz").write_bytes(b"mine")
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    assert main(["visibility", os.path.join(models_dir, "spot.obj"), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("hsr: error: ") and message in err[0], err
+    assert (tmp_path / "exists.npz").read_bytes() == b"mine"

@@ -18,6 +18,7 @@ of its length at the point's end, so the point's own faces do not hide it.
 from __future__ import annotations
 
 import math
+import os
 import sys
 
 import numpy as np
@@ -26,7 +27,7 @@ from ..scene.mesh import as_scene
 from .count import VisibilityError, cameras_for, check_size
 from .rays import RayScene
 
-__all__ = ["visible_faces", "visible_vertices", "visible_points", "visibility_matrix",
+__all__ = ["write_visibility", "visible_faces", "visible_vertices", "visible_points", "visibility_matrix",
            "project_points", "VisibilityMatrix", "scene_vertices"]
 
 
@@ -40,7 +41,6 @@ def _camera(camera):
 
 def _scene(scene):
     from ..scene.load import load_scene
-    import os
 
     if isinstance(scene, RayScene):
         return scene.scene
@@ -335,3 +335,78 @@ def visibility_matrix(scene, views, size=512, *, client=None, quality: bool = Fa
     for m in (cosine, distance):
         m.data /= counts.data
     return VisibilityMatrix(counts, cameras, cosine, distance)
+
+
+def write_visibility(scene, cameras, size, what: str, points, out: str, *, quality=False,
+                     tolerance=1e-4, client=None, progress=None, **render_options) -> str:
+    """``hsr visibility``: compute ``what`` (``faces``, ``vertices`` or ``points``) for
+    every camera and write ``out``; returns the summary line.
+
+    ``.npz``: ``face``, ``view``, ``pixels`` (COO triplets of the faces x views matrix,
+    with ``cosine`` and ``distance`` when ``quality``) and ``shape``; or ``visible``
+    (N, views) bool for vertices and points, with ``pixels`` (views, N, 2) in hsr's
+    window convention for points. ``.csv``: one row per visible pair: ``face,view,pixels``
+    (``,cosine,distance``), ``vertex,view``, or ``point,view,x,y``."""
+    width, height = size
+    ext = os.path.splitext(out)[1].lower()
+    n_views = len(cameras)
+    if what == "faces":
+        vm = visibility_matrix(scene, cameras, size, client=client, quality=quality,
+                               progress=progress, **render_options)
+        coo = vm.counts.tocoo()
+        columns = {"face": coo.row.astype(np.int64), "view": coo.col.astype(np.int64),
+                   "pixels": coo.data.astype(np.int64)}
+        if quality:
+            columns["cosine"] = vm.cosine.tocoo().data
+            columns["distance"] = vm.distance.tocoo().data
+        per_view = np.diff(vm.counts.tocsc().indptr)
+        total, noun = scene.n_faces, "faces"
+    else:
+        rays = RayScene(scene)
+        targets = scene_vertices(scene) if what == "vertices" else _points(points)
+        visible = np.zeros((len(targets), n_views), dtype=bool)
+        pixels = np.zeros((n_views, len(targets), 2))
+        for j, cam in enumerate(cameras):
+            pixels[j], visible[:, j] = visible_points(rays, cam, targets, width, height,
+                                                      tolerance, progress=False)
+        per_view = visible.sum(axis=0)
+        total, noun = len(targets), what
+        index, view = np.nonzero(visible)
+        key = "vertex" if what == "vertices" else "point"
+        columns = {key: index.astype(np.int64), "view": view.astype(np.int64)}
+        if what == "points":
+            columns["x"], columns["y"] = pixels[view, index, 0], pixels[view, index, 1]
+    _write_table(out, ext, columns, what, (total, n_views),
+                 None if what == "faces" else visible,
+                 pixels if what == "points" else None)
+    low, mid, high = (int(per_view.min()), float(np.median(per_view)), int(per_view.max()))
+    return (f"{n_views} views at {width}x{height}: {noun} visible per view min {low:,} / "
+            f"median {mid:,.0f} / max {high:,} of {total:,}; wrote {out}")
+
+
+def _write_table(out, ext, columns, what, shape, visible, pixels) -> None:
+    from ..errors import OutputError
+
+    tmp = f"{out}.partial{ext}"
+    try:
+        if ext == ".npz":
+            arrays = dict(columns, shape=np.asarray(shape))
+            if visible is not None:
+                arrays = {"visible": visible, "shape": np.asarray(shape)}
+                if pixels is not None:
+                    arrays["pixels"] = pixels
+            np.savez_compressed(tmp, **arrays)
+        else:
+            names = list(columns)
+            table = np.column_stack([columns[n] for n in names]) if len(columns[names[0]]) \
+                else np.zeros((0, len(names)))
+            formats = ["%d" if np.issubdtype(columns[n].dtype, np.integer) else "%.9g"
+                       for n in names]
+            np.savetxt(tmp, table, fmt=formats, delimiter=",", header=",".join(names),
+                       comments="")
+        os.replace(tmp, out)
+    except OSError as exc:
+        raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
