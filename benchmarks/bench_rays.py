@@ -1,0 +1,158 @@
+"""Time ``hsr.RayScene`` against Open3D's RaycastingScene and Embree (embreex) on the
+same rays, in one run; and ``hsr.visible_vertices`` of the bunny.
+
+    pip install -e ".[bench]"
+    python benchmarks/bench_rays.py [MODEL ...] [--rays 1000000] [--repeat 3] [--rounds 3]
+
+MODEL is a mesh file or ``terrain:N`` (default: the bunny and a 1M-face terrain). Two
+ray sets per model: ``random``, origins uniform in the box grown by half its size on
+each side and directions uniform on the sphere; ``primary``, one ray per pixel centre of
+a framed 1000 x 1000 view (from the eye, directions to the far plane). Timed: the plain
+public calls with their defaults, the inputs prepared outside the timer: hsr
+``RayScene.cast`` / ``occluded`` / ``count`` (float64 in, every output), Open3D
+``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
+(INTERSECT with output, OCCLUDED) on float32. Builds: hsr's ``RayScene(mesh)`` (after a
+first one that compiles), Open3D's ``add_triangles`` plus the first query (it commits
+its scene lazily), Embree's likewise. Each query runs in blocks of ``--repeat`` that
+alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
+(below 1: hsr is faster). Runs on demand, never in the test suite; a missing peer is
+left out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+from common import peak_gb, timings
+
+import hsr
+
+MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
+
+
+def load(spec):
+    kind, _, count = spec.partition(":")
+    if kind == "terrain" and count:
+        scene, _ = hsr.scenes.terrain(int(float(count)))
+        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
+    return hsr.load(spec), os.path.basename(spec)
+
+
+def ray_sets(mesh, n, rng):
+    lo, hi = mesh.bounds()
+    pad = (hi - lo) / 2
+    origins = rng.uniform(lo - pad, hi + pad, (n, 3))
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    side = int(round(np.sqrt(n)))
+    cam = hsr.Camera.frame(mesh.bounds())
+    view_proj = cam.projection_matrix(1.0) @ cam.view_matrix
+    inv = np.linalg.inv(view_proj)
+    xs = (np.arange(side) + 0.5) / side * 2 - 1
+    gx, gy = np.meshgrid(xs, -xs)
+    far = np.c_[gx.ravel(), gy.ravel(), np.ones(side * side), np.ones(side * side)] @ inv.T
+    far = far[:, :3] / far[:, 3:]
+    eye = np.broadcast_to(np.asarray(cam.eye, dtype=np.float64), far.shape).copy()
+    return {"random": (origins, directions), "primary": (eye, far - eye)}
+
+
+def open3d_peer(mesh):
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
+    t0 = time.perf_counter()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(mesh.positions.astype(np.float32)),
+                        o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    scene.cast_rays(o3d.core.Tensor(np.zeros((1, 6), np.float32)))  # commits the scene
+    build = 1e3 * (time.perf_counter() - t0)
+
+    def queries(o, d):
+        rays = o3d.core.Tensor(np.concatenate([o, d], 1).astype(np.float32))
+        return {"cast": lambda: scene.cast_rays(rays),
+                "occluded": lambda: scene.test_occlusions(rays),
+                "count": lambda: scene.count_intersections(rays)}
+    return build, queries
+
+
+def embree_peer(mesh):
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError:
+        return None
+    t0 = time.perf_counter()
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, mesh.positions[mesh.faces].astype(np.float32))
+    scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+    build = 1e3 * (time.perf_counter() - t0)
+
+    def queries(o, d):
+        o32, d32 = o.astype(np.float32), d.astype(np.float32)
+        return {"cast": lambda: scene.run(o32, d32, output=1),
+                "occluded": lambda: scene.run(o32, d32, query="OCCLUDED")}
+    return build, queries
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("models", nargs="*", default=[
+        os.path.join(MODELS, "stanford-bunny.obj"), "terrain:1000000"])
+    parser.add_argument("--rays", type=int, default=1_000_000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args(argv)
+    rng = np.random.default_rng(0)
+    print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "
+          "| Embree ms | hsr / Embree |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    builds = []
+    for spec in args.models:
+        mesh, label = load(spec)
+        hsr.RayScene(mesh)  # compiles
+        t0 = time.perf_counter()
+        rays = hsr.RayScene(mesh)
+        hsr_build = 1e3 * (time.perf_counter() - t0)
+        peers = {"Open3D": open3d_peer(mesh), "Embree": embree_peer(mesh)}
+        builds.append((label, mesh.n_faces, hsr_build,
+                       *(f"{p[0]:.0f}" if p else "-" for p in peers.values())))
+        for kind, (o, d) in ray_sets(mesh, args.rays, rng).items():
+            mine = {"cast": lambda: rays.cast(o, d), "occluded": lambda: rays.occluded(o, d),
+                    "count": lambda: rays.count(o, d)}
+            theirs = {name: p[1](o, d) if p else {} for name, p in peers.items()}
+            for query, fn in mine.items():
+                fns = [fn] + [q[query] for q in theirs.values() if query in q]
+                measured = iter(timings(fns, args.repeat, args.rounds))
+                lo, med = next(measured)
+                cells = []
+                for name in peers:
+                    if query not in theirs[name]:
+                        cells += ["-", "-"]
+                        continue
+                    plo, pmed = next(measured)
+                    cells += [f"{plo:.1f} / {pmed:.1f}", f"{lo / plo:.2f} / {med / pmed:.2f}"]
+                print(f"| {label} | {mesh.n_faces:,} | {len(o):,} {kind} | {query} | "
+                      f"{lo:.1f} / {med:.1f} | {' | '.join(cells)} |", flush=True)
+    print()
+    print("| model | faces | build ms: hsr | Open3D | Embree |")
+    print("|---|---|---|---|---|")
+    for label, faces, mine, o3d_ms, embree_ms in builds:
+        print(f"| {label} | {faces:,} | {mine:.0f} | {o3d_ms} | {embree_ms} |")
+    # visible_vertices of the bunny: 35k vertices, warm, the RayScene built beforehand.
+    bunny = hsr.load(os.path.join(MODELS, "stanford-bunny.obj"))
+    rays = hsr.RayScene(bunny)
+    cam = hsr.views.default(bunny, 4 / 3)
+    (lo, med), = timings([lambda: hsr.visible_vertices(rays, cam, 800, 600)], args.repeat,
+                         args.rounds)
+    print(f"\nvisible_vertices, bunny ({len(bunny.positions):,} vertices, RayScene reused): "
+          f"{lo:.1f} / {med:.1f} ms (min / median); peak RSS {peak_gb():.2f} GB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
