@@ -406,12 +406,13 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                 inv_dx = 1.0 / dx if dx != 0.0 else np.inf
                 inv_dy = 1.0 / dy if dy != 0.0 else np.inf
                 inv_dz = 1.0 / dz if dz != 0.0 else np.inf
+                careful = dx == 0.0 or dy == 0.0 or dz == 0.0
                 # The stack holds (reference, count, entry t) of boxes the ray enters;
                 # an entry is dropped when a hit nearer than its box is found meanwhile.
                 stack_ref[0], stack_count[0] = root_ref[0], root_ref[1]
                 stack_t[0] = _box_entry(root_box[0], root_box[1], root_box[2], root_box[3],
                                         root_box[4], root_box[5], ox, oy, oz, inv_dx,
-                                        inv_dy, inv_dz)
+                                        inv_dy, inv_dz, careful)
                 top = 1
                 while top > 0:
                     top -= 1
@@ -435,10 +436,10 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                     # An inner node: both children's boxes are in its record.
                     tl = _box_entry(child_box[ref, 0], child_box[ref, 1], child_box[ref, 2],
                                     child_box[ref, 3], child_box[ref, 4], child_box[ref, 5],
-                                    ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                                    ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
                     tr = _box_entry(child_box[ref, 6], child_box[ref, 7], child_box[ref, 8],
                                     child_box[ref, 9], child_box[ref, 10], child_box[ref, 11],
-                                    ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                                    ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
                     # Both children go on the stack, the nearer last (walked first); a
                     # missed one (t = inf) is dropped when popped.
                     near = 0 if tl <= tr else 2
@@ -515,9 +516,10 @@ def _unproject(m, x, y, z):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz):
+def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz, careful):
     """Ray parameter where the ray enters the box [x0, x1] x [y0, y1] x [z0, z1] (inf
-    when it misses): the slab test (Kay and Kajiya 1986)."""
+    when it misses): the slab test (Kay and Kajiya 1986). ``careful``: the ray has a
+    zero direction component (see below); other rays skip those checks."""
     t0x, t1x = (x0 - ox) * inv_dx, (x1 - ox) * inv_dx
     t0y, t1y = (y0 - oy) * inv_dy, (y1 - oy) * inv_dy
     t0z, t1z = (z0 - oz) * inv_dz, (z1 - oz) * inv_dz
@@ -526,18 +528,19 @@ def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     # max would pass the NaN on or drop it depending on argument order (a box beside the
     # origin of an axis-aligned ray was missed), so each plane's NaN is made the bound
     # that keeps the slab open: -inf for the low plane, +inf for the high one.
-    if t0x != t0x:
-        t0x = -np.inf
-    if t1x != t1x:
-        t1x = np.inf
-    if t0y != t0y:
-        t0y = -np.inf
-    if t1y != t1y:
-        t1y = np.inf
-    if t0z != t0z:
-        t0z = -np.inf
-    if t1z != t1z:
-        t1z = np.inf
+    if careful:
+        if t0x != t0x:
+            t0x = -np.inf
+        if t1x != t1x:
+            t1x = np.inf
+        if t0y != t0y:
+            t0y = -np.inf
+        if t1y != t1y:
+            t1y = np.inf
+        if t0z != t0z:
+            t0z = -np.inf
+        if t1z != t1z:
+            t1z = np.inf
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
     if t_in > t_out * (1.0 + 4e-16) + 1e-300:

@@ -22,7 +22,7 @@ from numba import njit
 
 from .bvh import _box_entry, _intersect
 
-__all__ = ["trace_range", "NEAREST", "ANY", "COUNT"]
+__all__ = ["trace_range", "check_rays", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
 
@@ -71,14 +71,23 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
 
 @njit(cache=True, nogil=True)
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, child_box,
-                child_ref, root_box, root_ref, tree_depth, out_t, out_face, out_uv,
-                out_count):
+                child_ref, root_box, root_ref, tree_depth, face_offsets, out_t, out_face,
+                out_object, out_uv, out_normal, out_count):
     """Rays ``lo .. hi - 1``. ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss),
-    ``out_face`` (-1) and ``out_uv`` (the weights of corners 1 and 2); :data:`ANY`
+    ``out_face`` (-1), ``out_object`` (the instance whose faces start at or before the
+    face in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and
+    ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY`
     writes ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the
     number of hits in ``out_count``. ``t_min`` / ``t_max`` are per ray. Equal nearest
     distances go to the lower face id, so the answer does not depend on the walk (nor
-    on how rays are split between threads). Returns the triangle tests made."""
+    on how rays are split between threads). Returns the triangle tests made.
+
+    The walk is ordered and pushes only what it must: at an inner node both children's
+    boxes are tested from the node's own record; a child whose box the ray misses (or
+    enters beyond the current bound) is dropped at once, one entered child is walked
+    next without a stack operation, and of two the nearer is walked next and the other
+    pushed with its entry distance, to be dropped when popped if a hit nearer than it
+    has been found meanwhile."""
     stack_ref = np.empty(tree_depth + 2, dtype=np.int64)
     stack_count = np.empty(tree_depth + 2, dtype=np.int64)
     stack_t = np.empty(tree_depth + 2)
@@ -105,62 +114,123 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         inv_dx = 1.0 / dx if dx != 0.0 else np.inf
         inv_dy = 1.0 / dy if dy != 0.0 else np.inf
         inv_dz = 1.0 / dz if dz != 0.0 else np.inf
-        best_t, best_f, bu, bv = np.inf, -1, 0.0, 0.0
+        # A ray parallel to an axis needs the slab test's NaN care (see _box_entry).
+        careful = dx == 0.0 or dy == 0.0 or dz == 0.0
+        best_t, best_f, best_k, bu, bv = np.inf, -1, -1, 0.0, 0.0
         count = 0
-        bound = t1  # no box entered beyond it can hold a hit that matters
-        done = False
-        if leaf_face.shape[0] > 0:
-            stack_ref[0], stack_count[0] = root_ref[0], root_ref[1]
-            stack_t[0] = _box_entry(root_box[0], root_box[1], root_box[2], root_box[3],
-                                    root_box[4], root_box[5], ox, oy, oz, inv_dx, inv_dy,
-                                    inv_dz)
-            top = 1
-            while top > 0 and not done:
-                top -= 1
-                # A missed box enters at +inf: dropped even when the bound is +inf.
-                if stack_t[top] > bound or stack_t[top] == np.inf:
-                    continue
-                ref, n = stack_ref[top], stack_count[top]
-                if n > 0:  # a leaf: slots ref .. ref + n - 1
-                    for k in range(ref, ref + n):
-                        tests += 1
-                        t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                sz, 0, True, dx, dy, dz)
-                        if not (t0 <= t <= t1):
-                            continue
-                        if mode == 1:
-                            count = 1
-                            done = True
-                            break
-                        if mode == 2:
-                            if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
-                                    tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-                                count += 1
-                            continue
-                        f = leaf_face[k]
-                        if t < best_t or (t == best_t and f < best_f):
-                            best_t, best_f, bu, bv = t, f, v, w
-                            bound = t
-                    continue
+        # No box entered beyond the bound can hold a hit that matters; a finite bound,
+        # so that a missed box (entered at +inf) always fails the test.
+        bound = min(t1, 1.7976931348623157e308)
+        top = 0
+        ref, n = root_ref[0], root_ref[1]
+        walking = leaf_face.shape[0] > 0 and _box_entry(
+            root_box[0], root_box[1], root_box[2], root_box[3], root_box[4], root_box[5],
+            ox, oy, oz, inv_dx, inv_dy, inv_dz, careful) <= bound
+        while walking:
+            if n == 0:  # an inner node: both children's boxes are in its record
                 tl = _box_entry(child_box[ref, 0], child_box[ref, 1], child_box[ref, 2],
                                 child_box[ref, 3], child_box[ref, 4], child_box[ref, 5],
-                                ox, oy, oz, inv_dx, inv_dy, inv_dz)
+                                ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
                 tr = _box_entry(child_box[ref, 6], child_box[ref, 7], child_box[ref, 8],
                                 child_box[ref, 9], child_box[ref, 10], child_box[ref, 11],
-                                ox, oy, oz, inv_dx, inv_dy, inv_dz)
-                near = 0 if tl <= tr else 2
-                far = 2 - near
-                stack_ref[top], stack_count[top] = child_ref[ref, far], child_ref[ref, far + 1]
-                stack_t[top] = max(tl, tr)
-                stack_ref[top + 1] = child_ref[ref, near]
-                stack_count[top + 1] = child_ref[ref, near + 1]
-                stack_t[top + 1] = min(tl, tr)
-                top += 2
+                                ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
+                enter_l, enter_r = tl <= bound, tr <= bound
+                if enter_l and enter_r:
+                    near = 0 if tl <= tr else 2
+                    far = 2 - near
+                    stack_ref[top], stack_count[top] = child_ref[ref, far], child_ref[ref, far + 1]
+                    stack_t[top] = max(tl, tr)
+                    top += 1
+                    ref, n = child_ref[ref, near], child_ref[ref, near + 1]
+                    continue
+                if enter_l or enter_r:
+                    side = 0 if enter_l else 2
+                    ref, n = child_ref[ref, side], child_ref[ref, side + 1]
+                    continue
+            else:  # a leaf: slots ref .. ref + n - 1
+                for k in range(ref, ref + n):
+                    tests += 1
+                    t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
+                                            sz, 0, True, dx, dy, dz)
+                    if not (t0 <= t <= t1):
+                        continue
+                    if mode == 1:
+                        count = 1
+                        walking = False
+                        break
+                    if mode == 2:
+                        if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
+                                tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+                            count += 1
+                        continue
+                    f = leaf_face[k]
+                    if t < best_t or (t == best_t and f < best_f):
+                        best_t, best_f, best_k, bu, bv = t, f, k, v, w
+                        bound = t
+                if not walking:
+                    break
+            # The next box still worth entering, from the stack.
+            walking = False
+            while top > 0:
+                top -= 1
+                if stack_t[top] <= bound:
+                    ref, n = stack_ref[top], stack_count[top]
+                    walking = True
+                    break
         if mode == 0:
             out_t[i] = best_t
             out_face[i] = best_f
             out_uv[i, 0] = bu
             out_uv[i, 1] = bv
+            _hit_record(tris, best_k, best_f, face_offsets, out_object, out_normal, i)
         else:
             out_count[i] = count
     return tests
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
+    """The object and the unit normal (as wound) of the hit in slot ``k`` (face ``f``),
+    or -1 and 0 for a miss (k < 0)."""
+    if k < 0:
+        out_object[i] = -1
+        out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+        return
+    # The instance: the last offset at or below f (binary search).
+    a, b = 0, face_offsets.shape[0] - 1
+    while b - a > 1:
+        m = (a + b) // 2
+        if face_offsets[m] <= f:
+            a = m
+        else:
+            b = m
+    out_object[i] = a
+    e1x, e1y, e1z = tris[k, 1, 0] - tris[k, 0, 0], tris[k, 1, 1] - tris[k, 0, 1], tris[k, 1, 2] - tris[k, 0, 2]
+    e2x, e2y, e2z = tris[k, 2, 0] - tris[k, 0, 0], tris[k, 2, 1] - tris[k, 0, 1], tris[k, 2, 2] - tris[k, 0, 2]
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz)
+    out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm
+
+
+@njit(cache=True, nogil=True)
+def check_rays(origins, directions, t_min, t_max):
+    """(problem, ray) of the first bad ray in one pass, (0, -1) when all are good.
+    Problems: 1 an origin not finite, 2 a direction not finite, 3 a zero direction,
+    4 t_min NaN or infinite, 5 t_max NaN, 6 t_min < 0, 7 t_min > t_max."""
+    for i in range(origins.shape[0]):
+        for a in range(3):
+            if not np.isfinite(origins[i, a]):
+                return 1, i
+            if not np.isfinite(directions[i, a]):
+                return 2, i
+        if directions[i, 0] == 0.0 and directions[i, 1] == 0.0 and directions[i, 2] == 0.0:
+            return 3, i
+        if not np.isfinite(t_min[i]):
+            return 4, i
+        if t_max[i] != t_max[i]:
+            return 5, i
+        if t_min[i] < 0.0:
+            return 6, i
+        if t_min[i] > t_max[i]:
+            return 7, i
+    return 0, -1

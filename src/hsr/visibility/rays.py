@@ -96,11 +96,6 @@ class RayScene:
         self.threads = threads
         self.bvh = build(self.scene)
         self.face_offsets = self.scene.face_offsets()
-        # Corners by face id (the BVH keeps them in leaf order) for normals; faces
-        # without area are never hit, so their rows are never read.
-        slot = np.zeros(self.bvh.n_faces, dtype=np.int64)
-        slot[self.bvh.tri_index] = np.arange(len(self.bvh.tri_index))
-        self._slot = slot
 
     @property
     def n_faces(self) -> int:
@@ -119,20 +114,12 @@ class RayScene:
         distances go to the lower face id. Raises :class:`RayError` for bad input."""
         origins, directions, t0, t1 = self._rays(origins, directions, t_min, t_max)
         n = len(origins)
-        out_t = np.empty(n)
-        out_face = np.empty(n, dtype=np.int32)
-        out_uv = np.empty((n, 2))
-        self._run(0, origins, directions, t0, t1, (out_t, out_face, out_uv,
+        hits = RayHits(np.empty(n), np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int32),
+                       np.empty((n, 2)), np.empty((n, 3)))
+        self._run(0, origins, directions, t0, t1, (hits.t, hits.face_id, hits.object_id,
+                                                    hits.barycentric, hits.normal,
                                                     np.empty(0, np.int32)), progress)
-        hit = out_face >= 0
-        object_id = np.full(n, -1, dtype=np.int32)
-        object_id[hit] = np.searchsorted(self.face_offsets, out_face[hit], side="right") - 1
-        normal = np.zeros((n, 3))
-        if hit.any():
-            corners = self.bvh.corners[self._slot[out_face[hit]]]
-            cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-            normal[hit] = cross / np.linalg.norm(cross, axis=1, keepdims=True)
-        return RayHits(out_t, out_face, object_id, out_uv, normal)
+        return hits
 
     def occluded(self, origins, directions, t_min=0.0, t_max=np.inf,
                  progress: bool | None = None) -> np.ndarray:
@@ -153,7 +140,8 @@ class RayScene:
         origins, directions, t0, t1 = self._rays(origins, directions, t_min, t_max)
         out = np.empty(len(origins), dtype=np.int32)
         self._run(mode, origins, directions, t0, t1,
-                  (np.empty(0), np.empty(0, np.int32), np.empty((0, 2)), out), progress)
+                  (np.empty(0), np.empty(0, np.int32), np.empty(0, np.int32), np.empty((0, 2)),
+                   np.empty((0, 3)), out), progress)
         return out
 
     def _run(self, mode, origins, directions, t0, t1, outputs, progress):
@@ -170,40 +158,30 @@ class RayScene:
             workers.run(trace_range, split_range(n, max(1, -(-n // CHUNK))), origins,
                         directions, t0, t1, mode, bvh.corners, bvh.tri_index,
                         bvh.child_box, bvh.child_ref, bvh.root_box, bvh.root_ref,
-                        bvh.depth, *outputs,
+                        bvh.depth, self.face_offsets, *outputs,
                         on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
 
     @staticmethod
     def _rays(origins, directions, t_min, t_max):
         """(origins, directions, t_min, t_max) as contiguous float64 arrays of N rays."""
+        from ..algorithms.rays import check_rays
+
         origins, directions = _broadcast(origins, directions)
         n = len(directions)
-        if not np.isfinite(origins).all():
-            raise RayError(f"origins must be finite; ray {_first(~np.isfinite(origins))} "
-                           f"is not")
-        if not np.isfinite(directions).all():
-            raise RayError(f"directions must be finite; ray "
-                           f"{_first(~np.isfinite(directions))} is not")
-        zero = ~directions.any(axis=1)
-        if zero.any():
-            raise RayError(f"directions must be non-zero; ray {int(np.argmax(zero))} is "
-                           f"(0, 0, 0)")
         t0 = _interval(t_min, n, "t_min")
         t1 = _interval(t_max, n, "t_max")
-        if np.isinf(t0).any():
-            raise RayError("t_min must be finite")
-        if (t0 < 0).any():
-            raise RayError(f"t_min must be >= 0; ray {int(np.argmax(t0 < 0))} has "
-                           f"{float(t0[np.argmax(t0 < 0)])!r}")
-        if (t0 > t1).any():
-            k = int(np.argmax(t0 > t1))
-            raise RayError(f"t_min must not exceed t_max; ray {k} has t_min {t0[k]!r} > "
-                           f"t_max {t1[k]!r}")
+        problem, k = check_rays(origins, directions, t0, t1)
+        if problem:
+            raise RayError({
+                1: f"origins must be finite; ray {k} is not",
+                2: f"directions must be finite; ray {k} is not",
+                3: f"directions must be non-zero; ray {k} is (0, 0, 0)",
+                4: f"t_min must be finite; ray {k} has {t0[k]!r}",
+                5: f"t_max must not be NaN; ray {k} has it",
+                6: f"t_min must be >= 0; ray {k} has {t0[k]!r}",
+                7: f"t_min must not exceed t_max; ray {k} has t_min {t0[k]!r} > "
+                   f"t_max {t1[k]!r}"}[problem])
         return origins, directions, t0, t1
-
-
-def _first(bad: np.ndarray) -> int:
-    return int(np.argmax(bad.reshape(len(bad), -1).any(axis=1)))
 
 
 def _real(values, what: str) -> np.ndarray:
@@ -242,6 +220,4 @@ def _interval(value, n: int, what: str) -> np.ndarray:
     if array.shape != (n,):
         raise RayError(f"{what} must be a number or an array of shape ({n},), got "
                        f"{array.shape}")
-    if np.isnan(array).any():
-        raise RayError(f"{what} must not be NaN")
     return np.ascontiguousarray(array)
