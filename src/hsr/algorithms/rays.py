@@ -20,11 +20,71 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import _box_entry, _intersect
+from .bvh import _box_entry, _down32, _intersect, _up32
 
-__all__ = ["trace_range", "check_rays", "NEAREST", "ANY", "COUNT"]
+__all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
+# The lane of a one-bit mask of four lanes.
+_LOW_BIT = np.array([0, 0, 1, 0, 2, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0], dtype=np.int64)
+
+
+@njit(cache=True, nogil=True)
+def widen(node_min, node_max, node_left, node_start, node_count):
+    """The binary BVH collapsed into a 4-wide one (each wide node takes the two children
+    of a binary node and, while it has room, replaces the inner child of largest surface
+    area by that child's two children: Wald et al. 2008, "Getting rid of packets").
+    Returns (box, ref, count, depth): box (W, 24) float32, the four children's boxes as
+    lanes [lo_x x4, lo_y x4, lo_z x4, hi_x x4, hi_y x4, hi_z x4] rounded outwards (an empty
+    lane's box lies at +inf, so every ray misses it); ref, count (W, 4) int64: count > 0
+    a leaf's first slot and size, 0 a wide node's index, -1 an empty lane; depth the
+    deepest wide level. The root must be an inner node."""
+    n = node_left.shape[0]
+    box = np.full((max(n, 1), 24), np.inf, dtype=np.float32)
+    ref = np.zeros((max(n, 1), 4), dtype=np.int64)
+    count = np.full((max(n, 1), 4), -1, dtype=np.int64)
+    todo_node = np.empty(n + 1, dtype=np.int64)  # binary node -> its wide node, to fill
+    todo_wide = np.empty(n + 1, dtype=np.int64)
+    todo_level = np.empty(n + 1, dtype=np.int64)
+    todo_node[0], todo_wide[0], todo_level[0] = 0, 0, 0
+    top, n_wide, depth = 1, 1, 0
+    kids = np.empty(4, dtype=np.int64)
+    while top > 0:
+        top -= 1
+        b, w, level = todo_node[top], todo_wide[top], todo_level[top]
+        depth = max(depth, level)
+        kids[0], kids[1] = node_left[b], node_left[b] + 1
+        m = 2
+        while m < 4:
+            pick, best = -1, -1.0
+            for j in range(m):
+                c = kids[j]
+                if node_left[c] >= 0:
+                    dx = node_max[c, 0] - node_min[c, 0]
+                    dy = node_max[c, 1] - node_min[c, 1]
+                    dz = node_max[c, 2] - node_min[c, 2]
+                    area = dx * dy + dy * dz + dz * dx
+                    if area > best:
+                        pick, best = j, area
+            if pick < 0:
+                break
+            c = kids[pick]
+            kids[pick] = node_left[c]
+            kids[m] = node_left[c] + 1
+            m += 1
+        for lane in range(m):
+            c = kids[lane]
+            for a in range(3):
+                box[w, 4 * a + lane] = _down32(node_min[c, a])
+                box[w, 12 + 4 * a + lane] = _up32(node_max[c, a])
+            if node_left[c] < 0:
+                ref[w, lane], count[w, lane] = node_start[c], node_count[c]
+            else:
+                ref[w, lane], count[w, lane] = n_wide, 0
+                todo_node[top], todo_wide[top], todo_level[top] = c, n_wide, level + 1
+                top += 1
+                n_wide += 1
+    return box[:n_wide].copy(), ref[:n_wide].copy(), count[:n_wide].copy(), depth
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -70,27 +130,31 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
 
 
 @njit(cache=True, nogil=True)
-def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, child_box,
-                child_ref, root_box, root_ref, tree_depth, face_offsets, out_t, out_face,
-                out_object, out_uv, out_normal, out_count):
-    """Rays ``lo .. hi - 1``. ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss),
+def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, wide_box,
+                wide_ref, wide_count, root_ref, root_count, wide_depth, face_offsets, out_t,
+                out_face, out_object, out_uv, out_normal, out_count):
+    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`widen` (the root a wide
+    node when ``root_count`` is 0, else a leaf of ``root_count`` slots from
+    ``root_ref``). ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss),
     ``out_face`` (-1), ``out_object`` (the instance whose faces start at or before the
     face in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and
-    ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY`
-    writes ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the
-    number of hits in ``out_count``. ``t_min`` / ``t_max`` are per ray. Equal nearest
-    distances go to the lower face id, so the answer does not depend on the walk (nor
-    on how rays are split between threads). Returns the triangle tests made.
+    ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY` writes
+    ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the number of
+    hits in ``out_count``. ``t_min`` / ``t_max`` are per ray. Equal nearest distances go
+    to the lower face id, so the answer does not depend on the walk (nor on how rays are
+    split between threads). Returns the triangle tests made.
 
-    The walk is ordered and pushes only what it must: at an inner node both children's
-    boxes are tested from the node's own record; a child whose box the ray misses (or
-    enters beyond the current bound) is dropped at once, one entered child is walked
-    next without a stack operation, and of two the nearer is walked next and the other
-    pushed with its entry distance, to be dropped when popped if a hit nearer than it
-    has been found meanwhile."""
-    stack_ref = np.empty(tree_depth + 2, dtype=np.int64)
-    stack_count = np.empty(tree_depth + 2, dtype=np.int64)
-    stack_t = np.empty(tree_depth + 2)
+    The walk is ordered: at a wide node the four boxes are tested in one branch-free
+    loop (the compiler runs the lanes side by side); boxes the ray misses or enters
+    beyond the current bound are dropped, the nearest entered one is walked next and
+    the others pushed farthest first with their entry distances, each dropped when
+    popped if a hit nearer than it has been found meanwhile."""
+    size = 3 * wide_depth + 4
+    stack_ref = np.empty(size, dtype=np.int64)
+    stack_count = np.empty(size, dtype=np.int64)
+    stack_t = np.empty(size)
+    entry = np.empty(4)
+    order = np.empty(4, dtype=np.int64)
     tests = 0
     for i in range(lo, hi):
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
@@ -122,30 +186,45 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         # so that a missed box (entered at +inf) always fails the test.
         bound = min(t1, 1.7976931348623157e308)
         top = 0
-        ref, n = root_ref[0], root_ref[1]
-        walking = leaf_face.shape[0] > 0 and _box_entry(
-            root_box[0], root_box[1], root_box[2], root_box[3], root_box[4], root_box[5],
-            ox, oy, oz, inv_dx, inv_dy, inv_dz, careful) <= bound
+        ref, n = root_ref, root_count
+        walking = leaf_face.shape[0] > 0
         while walking:
-            if n == 0:  # an inner node: both children's boxes are in its record
-                tl = _box_entry(child_box[ref, 0], child_box[ref, 1], child_box[ref, 2],
-                                child_box[ref, 3], child_box[ref, 4], child_box[ref, 5],
-                                ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
-                tr = _box_entry(child_box[ref, 6], child_box[ref, 7], child_box[ref, 8],
-                                child_box[ref, 9], child_box[ref, 10], child_box[ref, 11],
-                                ox, oy, oz, inv_dx, inv_dy, inv_dz, careful)
-                enter_l, enter_r = tl <= bound, tr <= bound
-                if enter_l and enter_r:
-                    near = 0 if tl <= tr else 2
-                    far = 2 - near
-                    stack_ref[top], stack_count[top] = child_ref[ref, far], child_ref[ref, far + 1]
-                    stack_t[top] = max(tl, tr)
-                    top += 1
-                    ref, n = child_ref[ref, near], child_ref[ref, near + 1]
+            if n == 0:  # a wide node: its four children's boxes are in its record
+                if careful:
+                    for lane in range(4):
+                        t_in, t_out = _lane_span(wide_box, ref, lane, ox, oy, oz, inv_dx,
+                                                 inv_dy, inv_dz)
+                        hit = t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound
+                        entry[lane] = t_in if hit else np.inf
+                else:
+                    _lanes(wide_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry)
+                # The entered lanes as a bit mask (no branch per lane); one entered lane,
+                # the common case past the top levels, is walked at once.
+                mask = ((entry[0] < np.inf) | ((entry[1] < np.inf) << 1)
+                        | ((entry[2] < np.inf) << 2) | ((entry[3] < np.inf) << 3))
+                if mask != 0 and mask & (mask - 1) == 0:
+                    lane = _LOW_BIT[mask]
+                    ref, n = wide_ref[ref, lane], wide_count[ref, lane]
                     continue
-                if enter_l or enter_r:
-                    side = 0 if enter_l else 2
-                    ref, n = child_ref[ref, side], child_ref[ref, side + 1]
+                # Several: nearest first (insertion sort of at most four).
+                m = 0
+                for lane in range(4):
+                    if mask >> lane & 1:
+                        j = m
+                        while j > 0 and entry[order[j - 1]] > entry[lane]:
+                            order[j] = order[j - 1]
+                            j -= 1
+                        order[j] = lane
+                        m += 1
+                if m > 0:
+                    for j in range(m - 1, 0, -1):
+                        lane = order[j]
+                        stack_ref[top] = wide_ref[ref, lane]
+                        stack_count[top] = wide_count[ref, lane]
+                        stack_t[top] = entry[lane]
+                        top += 1
+                    lane = order[0]
+                    ref, n = wide_ref[ref, lane], wide_count[ref, lane]
                     continue
             else:  # a leaf: slots ref .. ref + n - 1
                 for k in range(ref, ref + n):
@@ -186,6 +265,53 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         else:
             out_count[i] = count
     return tests
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lanes(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry):
+    """``entry[lane]``: where the ray enters each of wide node ``w``'s four boxes, +inf
+    when it misses one or enters it beyond ``bound``. The slab test of
+    :func:`hsr.algorithms.bvh._box_entry` for rays with no zero direction component
+    (no 0 * inf), written without branches so the four lanes run side by side."""
+    for lane in range(4):
+        t0x = (np.float64(box[w, lane]) - ox) * inv_dx
+        t1x = (np.float64(box[w, 12 + lane]) - ox) * inv_dx
+        t0y = (np.float64(box[w, 4 + lane]) - oy) * inv_dy
+        t1y = (np.float64(box[w, 16 + lane]) - oy) * inv_dy
+        t0z = (np.float64(box[w, 8 + lane]) - oz) * inv_dz
+        t1z = (np.float64(box[w, 20 + lane]) - oz) * inv_dz
+        t_in = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
+        t_out = min(min(max(t0x, t1x), max(t0y, t1y)), max(t0z, t1z))
+        hit = (t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound)
+        entry[lane] = t_in if hit else np.inf
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lane_span(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
+    """(t_in, t_out) of the ray through lane ``lane``'s box of wide node ``w``, for a
+    ray with a zero direction component: 0 * inf (the ray in a slab's plane) is NaN,
+    and the closed slab holds such a ray for every t (see _box_entry)."""
+    t0x = (np.float64(box[w, lane]) - ox) * inv_dx
+    t1x = (np.float64(box[w, 12 + lane]) - ox) * inv_dx
+    t0y = (np.float64(box[w, 4 + lane]) - oy) * inv_dy
+    t1y = (np.float64(box[w, 16 + lane]) - oy) * inv_dy
+    t0z = (np.float64(box[w, 8 + lane]) - oz) * inv_dz
+    t1z = (np.float64(box[w, 20 + lane]) - oz) * inv_dz
+    if t0x != t0x:
+        t0x = -np.inf
+    if t1x != t1x:
+        t1x = np.inf
+    if t0y != t0y:
+        t0y = -np.inf
+    if t1y != t1y:
+        t1y = np.inf
+    if t0z != t0z:
+        t0z = -np.inf
+    if t1z != t1z:
+        t1z = np.inf
+    t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
+    t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
+    return t_in, t_out
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -87,6 +87,7 @@ class RayScene:
 
     def __init__(self, scene, threads: int | None = None):
         from ..algorithms.bvh import build
+        from ..algorithms.rays import widen
         from ..scene.load import load_scene
 
         check_threads(threads)
@@ -96,6 +97,15 @@ class RayScene:
         self.threads = threads
         self.bvh = build(self.scene)
         self.face_offsets = self.scene.face_offsets()
+        bvh = self.bvh
+        if bvh.node_left[0] >= 0:  # the walk's 4-wide layout (a one-leaf tree stays one)
+            self._wide = widen(bvh.node_min, bvh.node_max, bvh.node_left, bvh.node_start,
+                               bvh.node_count)
+            self._root = (0, 0)
+        else:
+            self._wide = (np.full((1, 24), np.inf, np.float32), np.zeros((1, 4), np.int64),
+                          np.full((1, 4), -1, np.int64), 0)
+            self._root = (int(bvh.node_start[0]), int(bvh.node_count[0]))
 
     @property
     def n_faces(self) -> int:
@@ -155,10 +165,11 @@ class RayScene:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
+            box, ref, count, depth = self._wide
             workers.run(trace_range, split_range(n, max(1, -(-n // CHUNK))), origins,
-                        directions, t0, t1, mode, bvh.corners, bvh.tri_index,
-                        bvh.child_box, bvh.child_ref, bvh.root_box, bvh.root_ref,
-                        bvh.depth, self.face_offsets, *outputs,
+                        directions, t0, t1, mode, bvh.corners, bvh.tri_index, box, ref,
+                        count, self._root[0], self._root[1], depth, self.face_offsets,
+                        *outputs,
                         on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
 
     @staticmethod
