@@ -21,6 +21,20 @@ def need(condition: bool, reason: str):
         pytest.skip(reason)
 
 
+def require(module: str):
+    """The module, imported; skipped locally when it is missing, a failure in CI (where
+    the test extra installs every module the tests import)."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        reason = f"{module} is not installed ({exc}): pip install -e '.[test]'"
+        if IN_CI:
+            pytest.fail(f"required in CI: {reason}", pytrace=False)
+        pytest.skip(reason, allow_module_level=True)
+
+
 @pytest.fixture(scope="session")
 def models_dir():
     need(os.path.isdir(MODELS_DIR), f"shared models not found at {MODELS_DIR}")

@@ -11,11 +11,12 @@ import os
 
 import numpy as np
 import pytest
+from conftest import require
 
 import hsr
 from hsr.visibility import VisibilityError, face_visibility
 
-cv2 = pytest.importorskip("cv2")
+cv2 = require("cv2")
 
 W, H = 320, 240
 

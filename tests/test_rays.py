@@ -12,13 +12,14 @@ import os
 
 import numpy as np
 import pytest
+from conftest import require
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hsr
 from hsr.visibility import RayError
 
-embreex = pytest.importorskip("embreex")
+embreex = require("embreex")
 
 
 def brute_force(tris, origins, directions, t_min=0.0, t_max=np.inf):

@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import require
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from PIL import Image
@@ -25,8 +26,8 @@ from hsr.batch import render_views
 from . import scaled
 from .guards import time_limit
 
-distributed = pytest.importorskip("distributed")
-pytest.importorskip("zarr")
+distributed = require("distributed")
+require("zarr")
 
 SIZE = (24, 18)
 VIEWS = "orbit:3"

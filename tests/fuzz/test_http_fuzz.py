@@ -19,14 +19,15 @@ import urllib.parse
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
+from conftest import require
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from . import scaled
 
-pytest.importorskip("starlette")
-uvicorn = pytest.importorskip("uvicorn")
-psutil = pytest.importorskip("psutil")
+require("starlette")
+uvicorn = require("uvicorn")
+psutil = require("psutil")
 
 from hsr.viewer.frames import Library  # noqa: E402
 from hsr.viewer.params import CONTROLS  # noqa: E402
