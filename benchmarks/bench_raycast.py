@@ -25,7 +25,7 @@ import sys
 import time
 
 import numpy as np
-from common import agreement_percent, timings
+from common import agreement_percent, load_model, timings
 
 import hsr
 import hsr.algorithms.bvh as rc
@@ -47,15 +47,6 @@ def rays(camera, width, height):
     far = np.c_[ndc, ones, ones] @ inv.T
     origin = near[:, :3] / near[:, 3:]
     return origin, far[:, :3] / far[:, 3:] - origin
-
-
-def load(spec):
-    """(mesh, label)."""
-    kind, _, count = spec.partition(":")
-    if kind == "terrain" and count:
-        scene, _ = hsr.scenes.terrain(int(float(count)))
-        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
-    return hsr.load(spec), os.path.basename(spec)
 
 
 def embree_peer(tris, origin, direction):
@@ -111,7 +102,7 @@ def main(argv=None):
           "Embree / Open3D |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for spec in args.models:
-        mesh, label = load(spec)
+        mesh, label = load_model(spec)
         cam = hsr.Camera.frame(mesh.bounds())
         rc.build(mesh)  # compiles
         tree = rc.build(mesh)

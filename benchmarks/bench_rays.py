@@ -27,19 +27,11 @@ import sys
 import time
 
 import numpy as np
-from common import peak_gb, timings
+from common import load_model, peak_gb, timings
 
 import hsr
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
-
-
-def load(spec):
-    kind, _, count = spec.partition(":")
-    if kind == "terrain" and count:
-        scene, _ = hsr.scenes.terrain(int(float(count)))
-        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
-    return hsr.load(spec), os.path.basename(spec)
 
 
 def ray_sets(mesh, n, rng):
@@ -113,7 +105,7 @@ def main(argv=None):
     print("|---|---|---|---|---|---|---|---|---|")
     builds = []
     for spec in args.models:
-        mesh, label = load(spec)
+        mesh, label = load_model(spec)
         hsr.RayScene(mesh)  # compiles
         t0 = time.perf_counter()
         rays = hsr.RayScene(mesh)

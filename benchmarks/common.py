@@ -54,3 +54,17 @@ def progress(items, desc):
 
         return tqdm(items, desc=desc, leave=False)
     return items
+
+
+def load_model(spec):
+    """(mesh, label) of a mesh file or ``terrain:N`` (the generated grid of N
+    triangles)."""
+    import os
+
+    import hsr
+
+    kind, _, count = spec.partition(":")
+    if kind == "terrain" and count:
+        scene, _ = hsr.scenes.terrain(int(float(count)))
+        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
+    return hsr.load(spec), os.path.basename(spec)

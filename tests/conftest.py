@@ -1,3 +1,4 @@
+import contextlib
 import os
 import sys
 
@@ -87,3 +88,61 @@ def against_zbuffer(mesh, algorithm, width, height, **kwargs):
         b = hsr.render(mesh, cam, width, height, algorithm=algorithm, **kwargs)
         covered = (a.face_id >= 0) | (b.face_id >= 0)
         yield a, b, float((a.face_id == b.face_id)[covered].mean())
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def viewer_server(library):
+    """``hsr view``'s app for ``library`` on a free port of 127.0.0.1, served by uvicorn
+    on a thread of this process: yields the port."""
+    import threading
+    import time
+
+    import uvicorn
+
+    from hsr.viewer.server import make_app
+
+    port = free_port()
+    srv = uvicorn.Server(uvicorn.Config(make_app(library), host="127.0.0.1", port=port,
+                                        log_level="critical", access_log=False))
+    thread = threading.Thread(target=srv.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 30
+    while not srv.started and time.time() < deadline:
+        time.sleep(0.05)
+    assert srv.started
+    try:
+        yield port
+    finally:
+        srv.should_exit = True
+        thread.join(10)
+
+
+def run_cli(args):
+    """(exit code, stderr lines) of ``hsr ARGS`` in this process, stdout dropped,
+    warnings raised as errors."""
+    import io
+    import warnings
+
+    from hsr.cli import main
+
+    err = io.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stderr(err), \
+            contextlib.redirect_stdout(io.StringIO()):
+        warnings.simplefilter("error")
+        code = main(args)
+    return code, err.getvalue().strip().splitlines()
+
+
+def assert_one_line_or_success(args, code, lines):
+    """The CLI's promise: exit 0, or 2 with exactly one line starting ``hsr: error:``."""
+    assert code in (0, 2), (args, code, lines)
+    if code == 2:
+        assert len(lines) == 1 and lines[0].startswith("hsr: error: "), (args, lines)

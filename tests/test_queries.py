@@ -14,7 +14,7 @@ import pytest
 from conftest import require
 
 import hsr
-from hsr.visibility import VisibilityError, face_visibility
+from hsr.visibility import face_visibility
 
 cv2 = require("cv2")
 

@@ -6,9 +6,6 @@ render the picture it means."""
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
 import os
 import subprocess
 import sys
@@ -18,19 +15,9 @@ import numpy as np
 import pytest
 
 import hsr
-from hsr.cli import main
+from conftest import run_cli
 
 CASES = os.path.join(os.path.dirname(__file__), "cases")
-
-
-def run_cli(args):
-    """(exit code, stderr lines) of ``hsr ARGS`` in this process, warnings as errors."""
-    err = io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stderr(err), \
-            contextlib.redirect_stdout(io.StringIO()):
-        warnings.simplefilter("error")
-        code = main(args)
-    return code, err.getvalue().strip().splitlines()
 
 
 # --- the command line: options named, size checked before it is used -----------------

@@ -8,8 +8,6 @@ import os
 import shlex
 import shutil
 import socket
-import threading
-import time
 import urllib.error
 import urllib.parse
 import urllib.request
@@ -20,23 +18,16 @@ import pytest
 from PIL import Image
 
 import hsr
-from conftest import need
+from conftest import need, viewer_server
 from hsr.cli import main
 
 pytest.importorskip("starlette")
-uvicorn = pytest.importorskip("uvicorn")
+pytest.importorskip("uvicorn")
 
 from hsr.viewer.frames import Library  # noqa: E402
 from hsr.viewer.params import CONTROLS, orbit_camera, parse  # noqa: E402
-from hsr.viewer.server import make_app  # noqa: E402
 
 W, H = 160, 120
-
-
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -45,19 +36,8 @@ def server(models_dir):
     and the built-in scenes."""
     library = Library([os.path.join(models_dir, "spot.obj"),
                        os.path.join(models_dir, "stanford-bunny.obj")])
-    port = _free_port()
-    config = uvicorn.Config(make_app(library), host="127.0.0.1", port=port,
-                            log_level="warning", access_log=False)
-    srv = uvicorn.Server(config)
-    thread = threading.Thread(target=srv.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 30
-    while not srv.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert srv.started
-    yield f"http://127.0.0.1:{port}", library
-    srv.should_exit = True
-    thread.join(10)
+    with viewer_server(library) as port:
+        yield f"http://127.0.0.1:{port}", library
 
 
 def get(base, path, **params):

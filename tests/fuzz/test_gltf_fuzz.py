@@ -16,7 +16,6 @@ import copy
 import os
 import struct
 import warnings
-import zlib
 
 import numpy as np
 import pytest

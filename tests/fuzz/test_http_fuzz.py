@@ -12,26 +12,22 @@ import http.client
 import json
 import os
 import random
-import socket
-import threading
-import time
 import urllib.parse
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from conftest import require
+from conftest import require, viewer_server
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from . import scaled
 
 require("starlette")
-uvicorn = require("uvicorn")
+require("uvicorn")
 psutil = require("psutil")
 
 from hsr.viewer.frames import Library  # noqa: E402
 from hsr.viewer.params import CONTROLS  # noqa: E402
-from hsr.viewer.server import make_app  # noqa: E402
 
 SECRET = "hsr-fuzz-secret-7c1e"
 ENDPOINTS = ["/api/render", "/api/stats", "/api/pick", "/api/explain", "/api/command",
@@ -45,33 +41,16 @@ TRAVERSALS = ["/static/../../secret.txt", "/static/%2e%2e/%2e%2e/secret.txt",
               "/static/SECRETLINK", "/api/%72ender", "/api/render/", "/API/RENDER"]
 
 
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """The viewer on 127.0.0.1 in this process, with a model file whose folder holds a
-    secret beside it (and one above the static folder's reach)."""
+    secret beside it."""
     folder = tmp_path_factory.mktemp("served")
     (folder / "secret.txt").write_text(SECRET)
     model = folder / "tri.obj"
     model.write_text("v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n")
-    library = Library([str(model)])
-    port = _free_port()
-    srv = uvicorn.Server(uvicorn.Config(make_app(library), host="127.0.0.1", port=port,
-                                        log_level="critical", access_log=False))
-    thread = threading.Thread(target=srv.run, daemon=True)
-    thread.start()
-    deadline = time.time() + 30
-    while not srv.started and time.time() < deadline:
-        time.sleep(0.05)
-    assert srv.started
-    yield "127.0.0.1", port
-    srv.should_exit = True
-    thread.join(10)
+    with viewer_server(Library([str(model)])) as port:
+        yield "127.0.0.1", port
 
 
 def request(server, method, target, timeout=120):

@@ -6,17 +6,14 @@ and a refused run writes nothing."""
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import io
 import os
-import warnings
 
 from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 import hsr
-from hsr.cli import main
+from conftest import assert_one_line_or_success, run_cli
 
 from . import scaled
 from .guards import time_limit
@@ -84,17 +81,11 @@ def test_prune_options_and_outputs(tmp_path_factory, data, target, force):
         args += ["--size", "16"]
     if force:
         args.append("--force")
-    err = io.StringIO()
-    with warnings.catch_warnings(), contextlib.redirect_stderr(err), \
-            contextlib.redirect_stdout(io.StringIO()), time_limit(120):
-        warnings.simplefilter("error")
-        code = main(args)
-    lines = err.getvalue().strip().splitlines()
+    with time_limit(120):
+        code, lines = run_cli(args)
     event(f"{target} force={force}: exit {code}")
-    assert code in (0, 2), (args, code, lines)
-    if code == 2:
-        assert len(lines) == 1 and lines[0].startswith("hsr: error: "), (args, lines)
-    else:
+    assert_one_line_or_success(args, code, lines)
+    if code == 0:
         assert all(not line.startswith("hsr: error") for line in lines), lines
     # The input is never changed; other files only when asked.
     assert _digest(model) == before["model.obj"]

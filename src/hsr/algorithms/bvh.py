@@ -312,6 +312,41 @@ def _sweep(bin_lo, bin_hi, bin_n, first, step, cost, shift):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def ray_frame(ox, oy, oz, dx, dy, dz):
+    """The ray's frame for :func:`_intersect` (Woop, Benthin & Wald 2013): kz the axis
+    of the direction's largest component, kx and ky the others (swapped when that
+    component is negative, which keeps the winding), the shear (sx, sy, sz) that makes
+    the ray the +z axis, and the origin's coordinates on the permuted axes."""
+    ad = (abs(dx), abs(dy), abs(dz))
+    kz = 0
+    if ad[1] > ad[kz]:
+        kz = 1
+    if ad[2] > ad[kz]:
+        kz = 2
+    kx, ky = (kz + 1) % 3, (kz + 2) % 3
+    dk = (dx, dy, dz)
+    if dk[kz] < 0.0:
+        kx, ky = ky, kx
+    sz = 1.0 / dk[kz]
+    sx, sy = dk[kx] * sz, dk[ky] * sz
+    ok = (ox, oy, oz)
+    return kx, ky, kz, sx, sy, sz, ok[kx], ok[ky], ok[kz]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def open_slabs(t0x, t1x, t0y, t1y, t0z, t1z):
+    """The six slab distances with each NaN made the bound that keeps its slab open
+    (-inf for a low plane, +inf for a high one). 0 * inf is NaN: a ray parallel to a
+    slab (inv = inf) whose origin lies on one of its planes; the box is closed, so the
+    ray lies inside that slab for every t, and min and max would pass the NaN on or
+    drop it depending on argument order (a box beside the origin of an axis-aligned ray
+    was missed)."""
+    return (-np.inf if t0x != t0x else t0x, np.inf if t1x != t1x else t1x,
+            -np.inf if t0y != t0y else t0y, np.inf if t1y != t1y else t1y,
+            -np.inf if t0z != t0z else t0z, np.inf if t1z != t1z else t1z)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
                dz):
     """Woop-Benthin-Wald watertight ray/triangle test (``ok*`` are the ray origin's
@@ -375,21 +410,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
             ox, oy, oz = _unproject(inv_view_proj, x_ndc, y_ndc, -1.0)
             fx, fy, fz = _unproject(inv_view_proj, x_ndc, y_ndc, 1.0)
             dx, dy, dz = fx - ox, fy - oy, fz - oz
-            # Woop et al.: kz = dominant axis, keep winding with the swap of kx, ky.
-            ad = (abs(dx), abs(dy), abs(dz))
-            kz = 0
-            if ad[1] > ad[kz]:
-                kz = 1
-            if ad[2] > ad[kz]:
-                kz = 2
-            kx, ky = (kz + 1) % 3, (kz + 2) % 3
-            dk = (dx, dy, dz)
-            if dk[kz] < 0.0:
-                kx, ky = ky, kx
-            sz = 1.0 / dk[kz]
-            sx, sy = dk[kx] * sz, dk[ky] * sz
-            ok = (ox, oy, oz)
-            okx, oky, okz = ok[kx], ok[ky], ok[kz]
+            kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
             # Clip z and w are linear along the ray: z_clip(t) = zc0 + t zc1, same for w.
             zc0 = view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz + view_proj[2, 3]
             zc1 = view_proj[2, 0] * dx + view_proj[2, 1] * dy + view_proj[2, 2] * dz
@@ -523,24 +544,8 @@ def _box_entry(x0, y0, z0, x1, y1, z1, ox, oy, oz, inv_dx, inv_dy, inv_dz, caref
     t0x, t1x = (x0 - ox) * inv_dx, (x1 - ox) * inv_dx
     t0y, t1y = (y0 - oy) * inv_dy, (y1 - oy) * inv_dy
     t0z, t1z = (z0 - oz) * inv_dz, (z1 - oz) * inv_dz
-    # 0 * inf is NaN: a ray parallel to a slab (inv = inf) whose origin lies on one of
-    # its planes. The box is closed, so the ray lies inside that slab for every t; min and
-    # max would pass the NaN on or drop it depending on argument order (a box beside the
-    # origin of an axis-aligned ray was missed), so each plane's NaN is made the bound
-    # that keeps the slab open: -inf for the low plane, +inf for the high one.
     if careful:
-        if t0x != t0x:
-            t0x = -np.inf
-        if t1x != t1x:
-            t1x = np.inf
-        if t0y != t0y:
-            t0y = -np.inf
-        if t1y != t1y:
-            t1y = np.inf
-        if t0z != t0z:
-            t0z = -np.inf
-        if t1z != t1z:
-            t1z = np.inf
+        t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
     if t_in > t_out * (1.0 + 4e-16) + 1e-300:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import _box_entry, _down32, _intersect, _up32
+from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame
 
 __all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
 
@@ -160,21 +160,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
         t0, t1 = t_min[i], t_max[i]
-        # Woop et al.: kz the dominant axis; swapping kx, ky keeps the winding.
-        ad = (abs(dx), abs(dy), abs(dz))
-        kz = 0
-        if ad[1] > ad[kz]:
-            kz = 1
-        if ad[2] > ad[kz]:
-            kz = 2
-        kx, ky = (kz + 1) % 3, (kz + 2) % 3
-        dk = (dx, dy, dz)
-        if dk[kz] < 0.0:
-            kx, ky = ky, kx
-        sz = 1.0 / dk[kz]
-        sx, sy = dk[kx] * sz, dk[ky] * sz
-        ok = (ox, oy, oz)
-        okx, oky, okz = ok[kx], ok[ky], ok[kz]
+        kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
         inv_dx = 1.0 / dx if dx != 0.0 else np.inf
         inv_dy = 1.0 / dy if dy != 0.0 else np.inf
         inv_dz = 1.0 / dz if dz != 0.0 else np.inf
@@ -297,18 +283,7 @@ def _lane_span(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     t1y = (np.float64(box[w, 16 + lane]) - oy) * inv_dy
     t0z = (np.float64(box[w, 8 + lane]) - oz) * inv_dz
     t1z = (np.float64(box[w, 20 + lane]) - oz) * inv_dz
-    if t0x != t0x:
-        t0x = -np.inf
-    if t1x != t1x:
-        t1x = np.inf
-    if t0y != t0y:
-        t0y = -np.inf
-    if t1y != t1y:
-        t1y = np.inf
-    if t0z != t0z:
-        t0z = -np.inf
-    if t1z != t1z:
-        t1z = np.inf
+    t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
     return t_in, t_out
