@@ -12,7 +12,8 @@ single-threaded worker process per core; one process of all the threads; one wor
 all the threads inside this process), each warmed first as the loop's process is; and
 from cold, the ``hsr batch`` command (its default cluster) against the loop as a script. The
 overhead is the share of the workers' wall time spent outside the tasks (each task
-measures itself: its model's load, its cameras, its views' render + write). Runs on demand, never as part of the test suite.
+measures itself: its model's load, its cameras, its views' render + write). Runs on demand,
+never as part of the test suite.
 """
 
 from __future__ import annotations

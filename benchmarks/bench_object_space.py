@@ -11,10 +11,9 @@ import argparse
 import os
 import sys
 
-from common import agreement_percent, peak_gb, timed
-
 import hsr
 import hsr.algorithms.bsp_tree as bsp
+from common import agreement_percent, peak_gb, timed
 
 
 def main(argv=None):

@@ -25,10 +25,10 @@ import sys
 import time
 
 import numpy as np
-from common import agreement_percent, load_model, timings
 
 import hsr
 import hsr.algorithms.bvh as rc
+from common import agreement_percent, load_model, timings
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 

@@ -27,9 +27,9 @@ import sys
 import time
 
 import numpy as np
-from common import load_model, peak_gb, timings
 
 import hsr
+from common import load_model, peak_gb, timings
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 

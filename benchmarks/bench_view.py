@@ -6,7 +6,8 @@ hsr.render itself takes in the same run as the peer.
     python benchmarks/bench_view.py [--requests 60] [--size 800x600] [--browser]
 
 ``--browser`` also drags the page in headless Chromium for three seconds and reports the
-frames per second it shows (``--screenshot FILE`` saves the page afterwards). Runs on demand, never as part of the test suite.
+frames per second it shows (``--screenshot FILE`` saves the page afterwards). Runs on demand,
+never as part of the test suite.
 """
 
 from __future__ import annotations

@@ -36,9 +36,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from common import block_ms, peak_gb, progress, timings  # noqa: E402
-
 import hsr  # noqa: E402
+from common import block_ms, peak_gb, progress, timings  # noqa: E402
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 DEFAULT_MODELS = [os.path.join(MODELS, name) for name in ("african_head.obj", "spot.obj",

@@ -13,9 +13,8 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from gl_reference import GLRenderer, cameras_for, compare_gl  # noqa: E402
-
 import hsr  # noqa: E402
+from gl_reference import GLRenderer, cameras_for, compare_gl  # noqa: E402
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 

@@ -5,15 +5,15 @@ import os
 
 import numpy as np
 import pytest
-from conftest import against_zbuffer, coplanar_soup
-from reference import ambiguous_pixels, compare, reference_render
 from test_zbuffer_reference import small_scene
 
 import hsr
 import hsr.algorithms.bvh as rc
+from conftest import against_zbuffer, coplanar_soup
 from hsr import scenes
 from hsr.algorithms import ALGORITHMS
 from hsr.algorithms.fragments import face_barycentrics
+from reference import ambiguous_pixels, compare, reference_render
 
 W, H = 96, 72
 # Algorithms that must equal the reference wherever a pixel centre is not on an edge.

@@ -4,12 +4,12 @@ formulas written out here, not from hsr's shading code."""
 
 import numpy as np
 import pytest
-from reference import reference_render
 
 import hsr
 from hsr.appearance.fog import Fog, parse_fog
 from hsr.appearance.texture import sample
 from hsr.scene.images import checkerboard, load_texture
+from reference import reference_render
 
 W, H = 120, 90
 

@@ -5,10 +5,10 @@ visible face in world space."""
 
 import numpy as np
 import pytest
-from reference import unproject, world_triangles
 
 import hsr
 from hsr import scenes
+from reference import unproject, world_triangles
 
 W, H = 64, 48
 

@@ -5,9 +5,9 @@ import os
 import numba
 import numpy as np
 import pytest
-from conftest import coplanar_soup
 
 import hsr
+from conftest import coplanar_soup
 from hsr import scenes
 
 

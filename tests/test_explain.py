@@ -7,11 +7,10 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import need
 from PIL import Image
-from reference import ambiguous_pixels, reference_render, world_triangles
 
 import hsr
+from conftest import need
 from hsr import scenes
 from hsr.explain.views import (
     VIEWS,
@@ -23,6 +22,7 @@ from hsr.explain.views import (
     window_depth,
     ybuffer,
 )
+from reference import ambiguous_pixels, reference_render, world_triangles
 
 W, H = 96, 72
 

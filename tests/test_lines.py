@@ -6,12 +6,12 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from reference import occluded, reference_render, unproject
 
 import hsr
 from hsr import scenes
 from hsr.lines.raster import HiddenLine
 from hsr.lines.vector import hidden_lines, join_polylines, merge_collinear, write_lines_svg
+from reference import occluded, reference_render, unproject
 
 W, H = 160, 120
 

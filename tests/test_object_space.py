@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from conftest import against_zbuffer
-from reference import ambiguous_pixels, reference_render
 from test_zbuffer_reference import small_scene
 
 import hsr
 import hsr.algorithms.bsp_tree as bsp
+from conftest import against_zbuffer
 from hsr import scenes
+from reference import ambiguous_pixels, reference_render
 
 W, H = 96, 72
 

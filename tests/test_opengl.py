@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 import pytest
-from conftest import MODELS_DIR
-from gl_reference import cameras_for, compare_gl
 
 import hsr
+from conftest import MODELS_DIR
+from gl_reference import cameras_for, compare_gl
 
 MODEL_FILES = sorted(glob.glob(os.path.join(MODELS_DIR, "*.obj")))
 MODEL_NAMES = [os.path.basename(p) for p in MODEL_FILES] or ["(no shared models)"]

@@ -11,9 +11,9 @@ import os
 
 import numpy as np
 import pytest
-from conftest import require
 
 import hsr
+from conftest import require
 from hsr.visibility import face_visibility
 
 cv2 = require("cv2")

@@ -12,11 +12,11 @@ import os
 
 import numpy as np
 import pytest
-from conftest import require
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hsr
+from conftest import require
 from hsr.visibility import RayError
 
 embreex = require("embreex")

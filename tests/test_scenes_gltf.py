@@ -4,7 +4,6 @@ shared meshes, several primitives, a node tree); every loaded scene is compared 
 same scene assembled by hand with ``Scene.add``, and colours with values computed here."""
 
 import json
-import os
 import struct
 
 import numpy as np

@@ -6,10 +6,10 @@ import itertools
 
 import numpy as np
 import pytest
-from reference import ambiguous_pixels, reference_render
 
 import hsr
 from hsr import scenes
+from reference import ambiguous_pixels, reference_render
 
 W, H = 64, 48
 FUNCS = ["never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always"]

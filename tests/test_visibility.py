@@ -13,8 +13,17 @@ from hypothesis import strategies as st
 
 import hsr
 from hsr.cli import main
-from hsr.visibility import (VisibilityError, auto_size, decide, face_visibility, grow_rings,
-                            keep_faces, object_visibility, prune, verify)
+from hsr.visibility import (
+    VisibilityError,
+    auto_size,
+    decide,
+    face_visibility,
+    grow_rings,
+    keep_faces,
+    object_visibility,
+    prune,
+    verify,
+)
 from hsr.visibility.prune import MAX_RINGS
 from reference import ambiguous_pixels, reference_render
 

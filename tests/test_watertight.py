@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from reference import ambiguous_pixels, reference_render
 
 import hsr
 from hsr import scenes
+from reference import ambiguous_pixels, reference_render
 
 
 def random_direction(rng):

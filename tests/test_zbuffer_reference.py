@@ -3,11 +3,11 @@ on every pixel whose centre is not on an edge, depth within float32 rounding."""
 
 import numpy as np
 import pytest
-from reference import ambiguous_pixels, compare, reference_render
 
 import hsr
 from hsr import scenes
 from hsr.algorithms.fragments import face_barycentrics
+from reference import ambiguous_pixels, compare, reference_render
 
 W, H = 96, 72
 FUNCS = ["never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always"]

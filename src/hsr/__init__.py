@@ -14,10 +14,10 @@ transparency) and :mod:`hsr.lines` (polygon modes, hidden lines, SVG) -> :func:`
 -> :mod:`hsr.explain` (views, compare, report) -> :mod:`hsr.cli`.
 """
 
+from . import batch, visibility
 from .algorithms import ALGORITHMS, bsp, raycast
 from .appearance.fog import Fog
 from .appearance.shading import Look
-from . import batch
 from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
 from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
 from .lines.raster import HiddenLine
@@ -31,10 +31,15 @@ from .scene.camera_files import read_colmap, read_transforms, write_transforms
 from .scene.load import load, load_scene
 from .scene.mesh import Instance, Mesh, Scene
 from .scene.write import write_mesh
-from . import visibility
-from .visibility import prune
-from .visibility import (RayHits, RayScene, visibility_matrix, visible_faces, visible_points,
-                         visible_vertices)
+from .visibility import (
+    RayHits,
+    RayScene,
+    prune,
+    visibility_matrix,
+    visible_faces,
+    visible_points,
+    visible_vertices,
+)
 
 __version__ = "0.1.0"
 

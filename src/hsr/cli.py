@@ -407,8 +407,7 @@ def _cmd_prune(args) -> int:
     from .scene.load import load_scene
     from .scene.write import check_new, planned_files, write_mesh
     from .visibility.count import cameras_for
-    from .visibility.prune import (MAX_VERIFY, decide, split_auto, subset_scene, unsettled,
-                                   verify)
+    from .visibility.prune import MAX_VERIFY, decide, split_auto, subset_scene, unsettled, verify
 
     start = time.perf_counter()
     _check_prune_output(args)

@@ -16,16 +16,21 @@ from .algorithms.fragments import Fragments
 from .algorithms.hiz import object_bounds
 from .appearance import buffers
 from .appearance.fog import Fog
-from .appearance.shading import (Look, ShadeContext, as_look, check_background, paint_faces,
-                                 shade_visible)
+from .appearance.shading import (
+    Look,
+    ShadeContext,
+    as_look,
+    check_background,
+    paint_faces,
+    shade_visible,
+)
 from .appearance.transparency import check_order, transparent_mask, transparent_pass
 from .errors import RenderError
 from .geometry.stage import prepare
 from .geometry.state import RenderState
 from .geometry.viewport import MAX_SIZE, check_memory, check_size
-from .lines.raster import HiddenLine, as_hidden_line
+from .lines.raster import HiddenLine, as_hidden_line, draw_hidden_lines, fill_state, polygon_edges
 from .lines.raster import check as check_lines
-from .lines.raster import draw_hidden_lines, fill_state, polygon_edges
 from .parallel import Workers, Workspace, check_threads
 from .scene.camera import Camera
 from .scene.mesh import as_scene, instance_of

@@ -15,12 +15,12 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import require
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
 import hsr
+from conftest import require
 from hsr.batch import render_views
 
 from . import scaled
@@ -159,8 +159,8 @@ def test_resume_renders_every_corrupted_view_again(client, model, tmp_path_facto
     stem = "box"
     for name, view, how in damage:
         if fmt == "files":
-            _damage_file(str(out / stem / name / f"{view:04d}{'.png' if name == 'color' else '.npy'}"),
-                         how, rng)
+            ext = ".png" if name == "color" else ".npy"
+            _damage_file(str(out / stem / name / f"{view:04d}{ext}"), how, rng)
         else:
             _damage_zarr(str(out / f"{stem}.zarr"), name, view, how, rng)
     with warnings.catch_warnings(), time_limit(120):

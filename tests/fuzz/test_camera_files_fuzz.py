@@ -38,8 +38,8 @@ TRANSFORMS = {"w": 32, "h": 24, "fl_x": 30.0, "fl_y": 30.0, "cx": 16.0, "cy": 12
                           "transform_matrix": [[0, 0, 1, 4], [0, 1, 0, 0], [-1, 0, 0, 0],
                                                [0, 0, 0, 1]]}]}
 CAMERAS_TXT = ["# Camera list", "1 PINHOLE 32 24 30 30 16 12", "2 SIMPLE_PINHOLE 40 30 35 20 15"]
-IMAGES_TXT = ["# Image list", "1 1 0 0 0 0 0 4 1 a.png", "", "2 0.7071068 0 0.7071068 0 0 0 4 2 b.png",
-              "10 20 1"]
+IMAGES_TXT = ["# Image list", "1 1 0 0 0 0 0 4 1 a.png", "",
+              "2 0.7071068 0 0.7071068 0 0 0 4 2 b.png", "10 20 1"]
 _TOKENS = ["0", "-1", "1", "0.5", "nan", "inf", "-inf", "1e300", "1e9", "1000000000", "x", "",
            "PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "SIMPLE_RADIAL", "RADIAL", "1", "2", "3",
            "0 0 0 0", "1.5", "a.png", "#", "\t"]

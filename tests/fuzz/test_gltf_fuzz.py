@@ -37,7 +37,8 @@ def data_uri(blob: bytes, kind="application/octet-stream") -> str:
 
 # The URIs a hostile or broken file may name; "@SECRET" is the absolute path of a file
 # outside the model's folder, "link.bin" a symbolic link to it, "fifo" a named pipe.
-HOSTILE_URIS = ["../outside/secret.bin", "%2e%2e/outside/secret.bin", "%2E%2E%2Foutside%2Fsecret.bin",
+HOSTILE_URIS = ["../outside/secret.bin", "%2e%2e/outside/secret.bin",
+                "%2E%2E%2Foutside%2Fsecret.bin",
                 "..\\outside\\secret.bin", "sub/../../outside/secret.bin", "@SECRET",
                 "file:///etc/passwd", "/etc/passwd", "/dev/zero", "/dev/stdin", "link.bin",
                 "fifo", "sub", "", "   ", "missing.bin", "nul\x00.bin", "C:\\Windows\\x.bin",

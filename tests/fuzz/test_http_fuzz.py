@@ -16,9 +16,10 @@ import urllib.parse
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from conftest import require, viewer_server
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+
+from conftest import require, viewer_server
 
 from . import scaled
 
@@ -141,7 +142,8 @@ def test_memory_stays_bounded_under_500_requests_from_20_threads(server):
         kind = rng.random()
         if kind < 0.6:
             target = (f"/api/render?scene={rng.choice(['cubes', 'tri.obj', 'glass'])}"
-                      f"&w={rng.randint(16, 96)}&h={rng.randint(12, 72)}&az={rng.uniform(-180, 180):.3f}"
+                      f"&w={rng.randint(16, 96)}&h={rng.randint(12, 72)}"
+                      f"&az={rng.uniform(-180, 180):.3f}"
                       f"&algorithm={rng.choice(['zbuffer', 'raycast', 'scanline'])}")
         elif kind < 0.8:
             target = f"/api/render?w={'9' * rng.randint(1, 3000)}"

@@ -7,9 +7,9 @@ import warnings
 import numpy as np
 from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
-from reference import ambiguous_pixels, reference_render
 
 import hsr
+from reference import ambiguous_pixels, reference_render
 
 from . import scaled
 
@@ -37,9 +37,11 @@ def cameras(draw):
     far = near * draw(st.sampled_from([2.0, 50.0, 50.0, 1e4, 1e4, 2.0 ** 24, 1e9]))
     if draw(st.booleans()):
         return dict(kind="ortho", eye=eye, target=target,
-                    height=draw(st.sampled_from([1e-12, 0.5, 4.0, 4.0, 8.0, 50.0])), near=-near, far=far)
+                    height=draw(st.sampled_from([1e-12, 0.5, 4.0, 4.0, 8.0, 50.0])),
+                    near=-near, far=far)
     return dict(kind="persp", eye=eye, target=target,
-                fov=draw(st.sampled_from([1e-8, 10.0, 45.0, 60.0, 60.0, 90.0, 120.0, 179.0])), near=near, far=far)
+                fov=draw(st.sampled_from([1e-8, 10.0, 45.0, 60.0, 60.0, 90.0, 120.0, 179.0])),
+                near=near, far=far)
 
 
 states = st.fixed_dictionaries(dict(

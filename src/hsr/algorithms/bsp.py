@@ -1,5 +1,6 @@
 """BSP-tree visibility (Fuchs, Kedem & Naylor 1980): build once in world space
-(:mod:`hsr.algorithms.bsp_tree`), then for each view walk the tree back to front and paint through the
+(:mod:`hsr.algorithms.bsp_tree`), then for each view walk the tree back to front and paint
+through the
 shared fill with no depth test; or walk it front to back and fill only pixels not yet
 covered (a coverage mask), which writes each pixel once."""
 
@@ -16,8 +17,7 @@ from ..scene.mesh import Mesh, Scene
 from . import bsp_tree
 from .bsp_tree import BSPTree, build  # build: hsr.bsp.build
 from .fragments import Fragments
-from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
-                      refuse_unsupported)
+from .support import Needs, apply_clear_depth, refuse_unless_nearest_wins, refuse_unsupported
 
 __all__ = ["NAME", "OPTIONS", "check", "resolve", "build", "BSPTree"]
 

@@ -412,9 +412,11 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
             dx, dy, dz = fx - ox, fy - oy, fz - oz
             kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
             # Clip z and w are linear along the ray: z_clip(t) = zc0 + t zc1, same for w.
-            zc0 = view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz + view_proj[2, 3]
+            zc0 = (view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz
+                   + view_proj[2, 3])
             zc1 = view_proj[2, 0] * dx + view_proj[2, 1] * dy + view_proj[2, 2] * dz
-            wc0 = view_proj[3, 0] * ox + view_proj[3, 1] * oy + view_proj[3, 2] * oz + view_proj[3, 3]
+            wc0 = (view_proj[3, 0] * ox + view_proj[3, 1] * oy + view_proj[3, 2] * oz
+                   + view_proj[3, 3])
             wc1 = view_proj[3, 0] * dx + view_proj[3, 1] * dy + view_proj[3, 2] * dz
             # Hits are ranked as the z-buffer ranks fragments: by float32 window depth,
             # equal depths by submission order (coplanar faces resolve alike).
@@ -577,7 +579,8 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
                  bvh.depth)
     # Many row chunks, handed out as threads free up: rays cost unevenly across the image.
     tests = workers.run(
-        _cast_rows, split_range(height, 8 * workers.threads), triangles, inv, view_proj, width, height, 0.5 * (far - near),
+        _cast_rows, split_range(height, 8 * workers.threads), triangles, inv, view_proj,
+        width, height, 0.5 * (far - near),
         0.5 * (far + near), cull_code, state.front_face.value == "ccw",
         state.depth_func.value == "lequal", np.asarray(camera.eye, dtype=np.float64),
         camera.is_orthographic, camera.forward, bvh is not None, *nodes, face, depth,

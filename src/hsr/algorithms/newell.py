@@ -38,8 +38,7 @@ from ..geometry.state import DepthFunc, RenderState
 from ..parallel import Workers, run_with_progress
 from ..raster.fill import rasterize
 from .fragments import Fragments
-from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
-                      refuse_unsupported)
+from .support import Needs, apply_clear_depth, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "newell"
 # Accepted keys of render(..., options=...) and what each takes.

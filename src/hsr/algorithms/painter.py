@@ -17,8 +17,7 @@ from ..parallel import Workers
 from ..raster.fill import rasterize
 from . import zbuffer
 from .fragments import Fragments
-from .support import (Needs, apply_clear_depth, refuse_unless_nearest_wins,
-                      refuse_unsupported)
+from .support import Needs, apply_clear_depth, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "painter"
 KEYS = ("max", "centroid", "min")

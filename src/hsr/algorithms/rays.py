@@ -306,8 +306,12 @@ def _hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
         else:
             b = m
     out_object[i] = a
-    e1x, e1y, e1z = tris[k, 1, 0] - tris[k, 0, 0], tris[k, 1, 1] - tris[k, 0, 1], tris[k, 1, 2] - tris[k, 0, 2]
-    e2x, e2y, e2z = tris[k, 2, 0] - tris[k, 0, 0], tris[k, 2, 1] - tris[k, 0, 1], tris[k, 2, 2] - tris[k, 0, 2]
+    e1x = tris[k, 1, 0] - tris[k, 0, 0]
+    e1y = tris[k, 1, 1] - tris[k, 0, 1]
+    e1z = tris[k, 1, 2] - tris[k, 0, 2]
+    e2x = tris[k, 2, 0] - tris[k, 0, 0]
+    e2y = tris[k, 2, 1] - tris[k, 0, 1]
+    e2z = tris[k, 2, 2] - tris[k, 0, 2]
     nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     norm = np.sqrt(nx * nx + ny * ny + nz * nz)
     out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm

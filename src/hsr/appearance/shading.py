@@ -28,9 +28,9 @@ from ..scene.mesh import instance_of, normal_matrix
 from .fog import Fog
 from .texture import FILTERS, WRAPS, sample
 
-__all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look", "ShadeContext", "shade_fragments", "face_colors",
-           "paint_faces", "shade_depth", "face_random_colors", "linear_eye_depth",
-           "vertex_normals", "as_look", "check_background", "shade_visible"]
+__all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look", "ShadeContext",
+           "shade_fragments", "face_colors", "paint_faces", "shade_depth", "face_random_colors",
+           "linear_eye_depth", "vertex_normals", "as_look", "check_background", "shade_visible"]
 
 SHADING_MODES = ("flat", "gouraud", "normal", "random", "depth")
 LIGHTS = ("headlight", "studio")
@@ -376,7 +376,7 @@ class ShadeContext:
     _normals: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        for k, inst in enumerate(self.scene.instances):
+        for inst in self.scene.instances:
             if _textured(self.look, inst.mesh) and inst.mesh.corner_uv is None:
                 raise RenderError(f"{inst.mesh.name}: has a texture but not every face has "
                                   f"texture coordinates (OBJ vt); use textures=False "

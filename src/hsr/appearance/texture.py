@@ -46,7 +46,8 @@ def _reduced(uv: np.ndarray, wrap: str) -> np.ndarray:
 
 def sample(texture: np.ndarray, uv: np.ndarray, filter: str = "bilinear",
            wrap: str = "repeat") -> np.ndarray:
-    """(K, 3) float64 colours (0..255) of ``texture`` (from :func:`hsr.scene.images.load_texture`) at
+    """(K, 3) float64 colours (0..255) of ``texture`` (from
+    :func:`hsr.scene.images.load_texture`) at
     (K, 2) texture coordinates ``uv``."""
     check_choice(filter, FILTERS, "texture filter")
     check_choice(wrap, WRAPS, "texture wrap")

@@ -7,8 +7,8 @@ from .plan import OUTPUTS, BatchError, parse_views
 
 def render_views(*args, **kwargs):
     """See :func:`hsr.batch.run.render_views` (imported on first use: it needs Dask).
-    Raises what that function raises, and :class:`~hsr.errors.MissingExtraError` when Dask (or, for ``format="zarr"``,
-    Zarr) is not installed."""
+    Raises what that function raises, and :class:`~hsr.errors.MissingExtraError` when Dask
+    (or, for ``format="zarr"``, Zarr) is not installed."""
     from ..errors import require_extra
 
     require_extra("hsr batch", "distributed")

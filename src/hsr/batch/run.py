@@ -13,8 +13,19 @@ from dataclasses import dataclass, field
 
 from ..errors import OutputError
 from ..parallel import progress_bar
-from .plan import (FORMATS, OUTPUT_ARRAYS, BatchError, check_outputs, check_size, group_views,
-                   model_stems, output_complete, output_path, parse_views, probe_options)
+from .plan import (
+    FORMATS,
+    OUTPUT_ARRAYS,
+    BatchError,
+    check_outputs,
+    check_size,
+    group_views,
+    model_stems,
+    output_complete,
+    output_path,
+    parse_views,
+    probe_options,
+)
 
 __all__ = ["render_views", "BatchResult", "local_cluster"]
 

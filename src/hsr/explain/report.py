@@ -72,10 +72,9 @@ def build_report(scene, camera, title: str, width: int = 480, height: int = 360,
                  algorithms=None, progress: bool = False) -> str:
     """The report page as a string."""
     from ..algorithms import ALGORITHMS
+    from ..geometry.viewport import check_size
     from ..render import render
     from .compare import compare_algorithms
-
-    from ..geometry.viewport import check_size
     from .views import MIN_SIZE
 
     check_size(width, height)

@@ -158,7 +158,9 @@ def split_triangle(tri, nx, ny, nz, d, eps, out_front, out_back):
             nb += 1
     n_front = 0
     for k in range(1, nf - 1):
-        out_front[n_front, 0], out_front[n_front, 1], out_front[n_front, 2] = fp[0], fp[k], fp[k + 1]
+        out_front[n_front, 0] = fp[0]
+        out_front[n_front, 1] = fp[k]
+        out_front[n_front, 2] = fp[k + 1]
         n_front += 1
     n_back = 0
     for k in range(1, nb - 1):

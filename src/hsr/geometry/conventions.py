@@ -54,8 +54,8 @@ linearly along the *screen* segment to ``x' = 0`` gives
 ``2 + (0 - (-0.5)) * (10 - 2) / (0.1 - (-0.5)) = 8.666``, but ``M`` is at ``z = 6``.
 Interpolating ``1/z`` instead gives ``1/2 + 0.5 * (1/10 - 1/2) / 0.6 = 0.16666`` and
 ``1 / 0.16666 = 6``: exact. Linear-in-screen ``z`` would rank surfaces wrongly; linear
-``1/z`` (hence linear window depth) never does. ``hsr.geometry.conventions.midpoint_depth_example()``
-reproduces these numbers.
+``1/z`` (hence linear window depth) never does.
+``hsr.geometry.conventions.midpoint_depth_example()`` reproduces these numbers.
 
 Attributes (colour, uv, normals) are interpolated *perspective-correctly*: screen-space
 barycentrics ``l_i`` are turned into ``b_i = (l_i / w_i) / sum_j (l_j / w_j)``.

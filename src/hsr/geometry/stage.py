@@ -144,7 +144,7 @@ class ScreenTriangles:
     def __len__(self):
         return len(self.face_id)
 
-    def subset(self, keep) -> "ScreenTriangles":
+    def subset(self, keep) -> ScreenTriangles:
         return ScreenTriangles(self.xy_window[keep], self.depth_window[keep],
                                self.face_id[keep], self.front[keep], self.width, self.height,
                                self.pos_clip, self.faces)

@@ -110,7 +110,8 @@ class RenderState:
         try:
             near, far = (float(v) for v in self.depth_range)
         except (TypeError, ValueError):
-            raise RenderError(f"depth range must be two numbers, got {self.depth_range!r}") from None
+            raise RenderError(f"depth range must be two numbers, got "
+                              f"{self.depth_range!r}") from None
         for v in (near, far):
             if not (math.isfinite(v) and 0.0 <= v <= 1.0):
                 raise RenderError(f"depth range values must be in [0, 1], got {self.depth_range!r}")
@@ -124,6 +125,6 @@ class RenderState:
         # glClearDepth clamps to [0, 1].
         object.__setattr__(self, "clear_depth", min(max(clear, 0.0), 1.0))
 
-    def with_(self, **changes) -> "RenderState":
+    def with_(self, **changes) -> RenderState:
         """A copy with some fields changed."""
         return replace(self, **changes)

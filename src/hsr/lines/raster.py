@@ -87,7 +87,7 @@ class Edges:
     def __len__(self):
         return len(self.kind)
 
-    def subset(self, keep) -> "Edges":
+    def subset(self, keep) -> Edges:
         return Edges(self.ends[keep], self.faces[keep], self.kind[keep])
 
 

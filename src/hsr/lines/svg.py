@@ -35,7 +35,8 @@ def write_polygons_svg(path, xy_window: np.ndarray, colors: np.ndarray, face_id:
     each carries its source face as ``data-face``."""
     lines = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
              f'viewBox="0 0 {width} {height}">',
-             f'<rect width="{width}" height="{height}" fill="rgb{tuple(int(c) for c in background)}"/>',
+             f'<rect width="{width}" height="{height}" '
+             f'fill="rgb{tuple(int(c) for c in background)}"/>',
              '<g stroke="none">']
     for tri, color, face in zip(xy_window, colors, face_id):
         points = " ".join(f"{x:.4f},{height - y:.4f}" for x, y in tri)

@@ -156,7 +156,7 @@ class Camera:
 
     @classmethod
     def from_opencv(cls, K, R, t, width: int, height: int, near: float = 0.1,
-                    far: float = 100.0) -> "Camera":
+                    far: float = 100.0) -> Camera:
         """A camera from OpenCV's pinhole model: ``x_cam = R @ x_world + t`` with camera axes
         x right, y down, z forward, and ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` for an
         image of ``width`` x ``height`` pixels. OpenCV puts pixel *centres* on integer
@@ -203,7 +203,7 @@ class Camera:
         return K, OPENGL_TO_OPENCV @ view[:3, :3], OPENGL_TO_OPENCV @ view[:3, 3]
 
     @classmethod
-    def from_matrices(cls, view, projection) -> "Camera":
+    def from_matrices(cls, view, projection) -> Camera:
         """A camera from OpenGL-convention 4x4 matrices: ``view`` (world -> eye, a rotation
         and a translation) and a ``projection``: a perspective frustum (glFrustum /
         gluPerspective form, possibly off-axis) or an orthographic box (glOrtho form,

@@ -10,8 +10,8 @@ import numpy as np
 
 from ..errors import MeshError, OutputError
 
-__all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG_SCALES", "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES",
-           "MAX_MTL_BYTES"]
+__all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG_SCALES",
+           "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES", "MAX_MTL_BYTES"]
 
 # Default caps on what one input file may hold: a 10M-triangle OBJ is about 500 MB.
 MAX_MESH_BYTES = 1 << 30

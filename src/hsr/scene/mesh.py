@@ -171,7 +171,8 @@ def _validate_arrays(positions, faces, name):
     if bad.any():
         f = int(np.argwhere(bad)[0][0])
         raise MeshError(
-            f"{name}: face {f} has vertex index {int(faces[bad][0])} outside 0..{len(positions) - 1}"
+            f"{name}: face {f} has vertex index {int(faces[bad][0])} outside "
+            f"0..{len(positions) - 1}"
         )
     finite = np.isfinite(positions).all(axis=1)
     used = np.zeros(len(positions), dtype=bool)
@@ -283,7 +284,7 @@ class Scene:
                 self.add(*item)
 
     def add(self, mesh: Mesh, model=None, opacity: float = 1.0,
-            name: str | None = None) -> "Scene":
+            name: str | None = None) -> Scene:
         """Append an instance of ``mesh`` (a Mesh, trimesh.Trimesh or (vertices, faces))
         placed by ``model`` (4x4, default identity), labelled ``name`` (default the mesh's
         name). Returns the scene.

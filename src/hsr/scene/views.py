@@ -20,7 +20,8 @@ import numpy as np
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["DEFAULT_VIEW", "default", "directions", "model_points", "framed", "orbit", "sphere", "hemisphere", "direction"]
+__all__ = ["DEFAULT_VIEW", "default", "directions", "model_points", "framed", "orbit", "sphere",
+           "hemisphere", "direction"]
 
 DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter view
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side

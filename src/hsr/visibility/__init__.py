@@ -6,11 +6,27 @@ per-camera queries (:func:`visible_faces`, :func:`visible_vertices`,
 :func:`visible_points`, :func:`visibility_matrix`)."""
 
 from .count import VisibilityError, cameras_for, face_visibility, object_visibility
-from .queries import (VisibilityMatrix, project_points, scene_vertices, visibility_matrix,
-                      visible_faces, visible_points, visible_vertices)
+from .prune import (
+    Decision,
+    VisibilityWarning,
+    auto_size,
+    decide,
+    grow_rings,
+    keep_faces,
+    prune,
+    subset_scene,
+    verify,
+)
+from .queries import (
+    VisibilityMatrix,
+    project_points,
+    scene_vertices,
+    visibility_matrix,
+    visible_faces,
+    visible_points,
+    visible_vertices,
+)
 from .rays import RayError, RayHits, RayScene
-from .prune import (Decision, VisibilityWarning, auto_size, decide, grow_rings, keep_faces,
-                    prune, subset_scene, verify)
 
 __all__ = ["VisibilityError", "VisibilityWarning", "Decision", "cameras_for",
            "face_visibility", "object_visibility", "decide", "auto_size", "grow_rings",

@@ -27,8 +27,8 @@ from ..scene.mesh import as_scene
 from .count import VisibilityError, cameras_for, check_size
 from .rays import RayScene
 
-__all__ = ["write_visibility", "visible_faces", "visible_vertices", "visible_points", "visibility_matrix",
-           "project_points", "VisibilityMatrix", "scene_vertices"]
+__all__ = ["write_visibility", "visible_faces", "visible_vertices", "visible_points",
+           "visibility_matrix", "project_points", "VisibilityMatrix", "scene_vertices"]
 
 
 def _camera(camera):
