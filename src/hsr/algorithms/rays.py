@@ -25,37 +25,41 @@ from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame
 __all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
-# The lane of a one-bit mask of four lanes.
-_LOW_BIT = np.array([0, 0, 1, 0, 2, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0], dtype=np.int64)
+# Children per node of the walked tree.
+LANES = 4
+# The lane of a one-bit mask of LANES lanes.
+_LOW_BIT = np.array([(m & -m).bit_length() - 1 if m else 0 for m in range(1 << LANES)],
+                    dtype=np.int64)
 
 
 @njit(cache=True, nogil=True)
 def widen(node_min, node_max, node_left, node_start, node_count):
-    """The binary BVH collapsed into a 4-wide one (each wide node takes the two children
-    of a binary node and, while it has room, replaces the inner child of largest surface
-    area by that child's two children: Wald et al. 2008, "Getting rid of packets").
-    Returns (box, ref, count, depth): box (W, 24) float32, the four children's boxes as
-    lanes [lo_x x4, lo_y x4, lo_z x4, hi_x x4, hi_y x4, hi_z x4] rounded outwards (an empty
-    lane's box lies at +inf, so every ray misses it); ref, count (W, 4) int64: count > 0
+    """The binary BVH collapsed into a LANES-wide one (each wide node takes the two
+    children of a binary node and, while it has room, replaces the inner child of
+    largest surface area by that child's two children: Wald et al. 2008, "Getting rid of
+    packets"). Returns (box, ref, count, depth): box (W, 6 LANES) float32, the
+    children's boxes as lanes [lo_x.., lo_y.., lo_z.., hi_x.., hi_y.., hi_z..] rounded
+    outwards (an empty lane's box lies at +inf, so every ray misses it); ref, count
+    (W, LANES) int64: count > 0
     a leaf's first slot and size, 0 a wide node's index, -1 an empty lane; depth the
     deepest wide level. The root must be an inner node."""
     n = node_left.shape[0]
-    box = np.full((max(n, 1), 24), np.inf, dtype=np.float32)
-    ref = np.zeros((max(n, 1), 4), dtype=np.int64)
-    count = np.full((max(n, 1), 4), -1, dtype=np.int64)
+    box = np.full((max(n, 1), 6 * LANES), np.inf, dtype=np.float32)
+    ref = np.zeros((max(n, 1), LANES), dtype=np.int64)
+    count = np.full((max(n, 1), LANES), -1, dtype=np.int64)
     todo_node = np.empty(n + 1, dtype=np.int64)  # binary node -> its wide node, to fill
     todo_wide = np.empty(n + 1, dtype=np.int64)
     todo_level = np.empty(n + 1, dtype=np.int64)
     todo_node[0], todo_wide[0], todo_level[0] = 0, 0, 0
     top, n_wide, depth = 1, 1, 0
-    kids = np.empty(4, dtype=np.int64)
+    kids = np.empty(LANES, dtype=np.int64)
     while top > 0:
         top -= 1
         b, w, level = todo_node[top], todo_wide[top], todo_level[top]
         depth = max(depth, level)
         kids[0], kids[1] = node_left[b], node_left[b] + 1
         m = 2
-        while m < 4:
+        while m < LANES:
             pick, best = -1, -1.0
             for j in range(m):
                 c = kids[j]
@@ -75,8 +79,8 @@ def widen(node_min, node_max, node_left, node_start, node_count):
         for lane in range(m):
             c = kids[lane]
             for a in range(3):
-                box[w, 4 * a + lane] = _down32(node_min[c, a])
-                box[w, 12 + 4 * a + lane] = _up32(node_max[c, a])
+                box[w, LANES * a + lane] = _down32(node_min[c, a])
+                box[w, LANES * (3 + a) + lane] = _up32(node_max[c, a])
             if node_left[c] < 0:
                 ref[w, lane], count[w, lane] = node_start[c], node_count[c]
             else:
@@ -149,12 +153,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     beyond the current bound are dropped, the nearest entered one is walked next and
     the others pushed farthest first with their entry distances, each dropped when
     popped if a hit nearer than it has been found meanwhile."""
-    size = 3 * wide_depth + 4
+    size = (LANES - 1) * wide_depth + LANES
     stack_ref = np.empty(size, dtype=np.int64)
     stack_count = np.empty(size, dtype=np.int64)
     stack_t = np.empty(size)
-    entry = np.empty(4)
-    order = np.empty(4, dtype=np.int64)
+    entry = np.empty(LANES)
+    order = np.empty(LANES, dtype=np.int64)
     tests = 0
     for i in range(lo, hi):
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
@@ -177,7 +181,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         while walking:
             if n == 0:  # a wide node: its four children's boxes are in its record
                 if careful:
-                    for lane in range(4):
+                    for lane in range(LANES):
                         t_in, t_out = _lane_span(wide_box, ref, lane, ox, oy, oz, inv_dx,
                                                  inv_dy, inv_dz)
                         hit = t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound
@@ -186,18 +190,20 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                     _lanes(wide_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry)
                 # The entered lanes as a bit mask (no branch per lane); one entered lane,
                 # the common case past the top levels, is walked at once.
-                mask = ((entry[0] < np.inf) | ((entry[1] < np.inf) << 1)
-                        | ((entry[2] < np.inf) << 2) | ((entry[3] < np.inf) << 3))
+                mask = 0
+                for lane in range(LANES):
+                    mask |= (entry[lane] < np.inf) << lane
                 if mask != 0 and mask & (mask - 1) == 0:
                     lane = _LOW_BIT[mask]
                     ref, n = wide_ref[ref, lane], wide_count[ref, lane]
                     continue
-                # Several: nearest first (insertion sort of at most four).
+                # Several: nearest first (insertion sort of at most four) where the
+                # order prunes (the nearest hit); any order for any hit and counting.
                 m = 0
-                for lane in range(4):
+                for lane in range(LANES):
                     if mask >> lane & 1:
                         j = m
-                        while j > 0 and entry[order[j - 1]] > entry[lane]:
+                        while mode == 0 and j > 0 and entry[order[j - 1]] > entry[lane]:
                             order[j] = order[j - 1]
                             j -= 1
                         order[j] = lane
@@ -259,13 +265,13 @@ def _lanes(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry):
     when it misses one or enters it beyond ``bound``. The slab test of
     :func:`hsr.algorithms.bvh._box_entry` for rays with no zero direction component
     (no 0 * inf), written without branches so the four lanes run side by side."""
-    for lane in range(4):
+    for lane in range(LANES):
         t0x = (np.float64(box[w, lane]) - ox) * inv_dx
-        t1x = (np.float64(box[w, 12 + lane]) - ox) * inv_dx
-        t0y = (np.float64(box[w, 4 + lane]) - oy) * inv_dy
-        t1y = (np.float64(box[w, 16 + lane]) - oy) * inv_dy
-        t0z = (np.float64(box[w, 8 + lane]) - oz) * inv_dz
-        t1z = (np.float64(box[w, 20 + lane]) - oz) * inv_dz
+        t1x = (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx
+        t0y = (np.float64(box[w, LANES + lane]) - oy) * inv_dy
+        t1y = (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy
+        t0z = (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz
+        t1z = (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz
         t_in = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
         t_out = min(min(max(t0x, t1x), max(t0y, t1y)), max(t0z, t1z))
         hit = (t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound)
@@ -278,11 +284,11 @@ def _lane_span(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     ray with a zero direction component: 0 * inf (the ray in a slab's plane) is NaN,
     and the closed slab holds such a ray for every t (see _box_entry)."""
     t0x = (np.float64(box[w, lane]) - ox) * inv_dx
-    t1x = (np.float64(box[w, 12 + lane]) - ox) * inv_dx
-    t0y = (np.float64(box[w, 4 + lane]) - oy) * inv_dy
-    t1y = (np.float64(box[w, 16 + lane]) - oy) * inv_dy
-    t0z = (np.float64(box[w, 8 + lane]) - oz) * inv_dz
-    t1z = (np.float64(box[w, 20 + lane]) - oz) * inv_dz
+    t1x = (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx
+    t0y = (np.float64(box[w, LANES + lane]) - oy) * inv_dy
+    t1y = (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy
+    t0z = (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz
+    t1z = (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz
     t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))

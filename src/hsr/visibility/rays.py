@@ -87,7 +87,7 @@ class RayScene:
 
     def __init__(self, scene, threads: int | None = None):
         from ..algorithms.bvh import build
-        from ..algorithms.rays import widen
+        from ..algorithms.rays import LANES, widen
         from ..scene.load import load_scene
 
         check_threads(threads)
@@ -103,8 +103,8 @@ class RayScene:
                                bvh.node_count)
             self._root = (0, 0)
         else:
-            self._wide = (np.full((1, 24), np.inf, np.float32), np.zeros((1, 4), np.int64),
-                          np.full((1, 4), -1, np.int64), 0)
+            self._wide = (np.full((1, 6 * LANES), np.inf, np.float32),
+                          np.zeros((1, LANES), np.int64), np.full((1, LANES), -1, np.int64), 0)
             self._root = (int(bvh.node_start[0]), int(bvh.node_count[0]))
 
     @property
