@@ -19,9 +19,11 @@ heap: after one llvmpipe draw, every 1M-face render there gave its ~57 MB of scr
 to the kernel at the end (brk shrinking, M_TRIM_THRESHOLD) and faulted it in again, 4,400-
 6,300 page faults (10-40 ms) a render that no hsr user without Mesa pays (1-3 faults; the
 same with mallopt raising the trim and mmap thresholds). ``--same-process`` times both in
-one process as before. hsr renders through one ``hsr.Workspace`` (its scratch and threads
-kept from frame to frame, as the GL context keeps its framebuffer); ``--no-workspace``
-times plain ``hsr.render`` calls.
+one process as before. hsr is timed as users call it (``--plain``, the default): plain
+``hsr.render`` calls, which keep their scratch in the calling thread's default workspace
+from frame to frame, as the GL context keeps its framebuffer; ``--workspace`` renders
+through one explicit ``hsr.Workspace``; ``--fresh`` drops the default workspace's scratch
+after every frame (the allocation every frame that plain calls paid before).
 """
 
 from __future__ import annotations
@@ -127,8 +129,14 @@ def main(argv=None):
     parser.add_argument("--no-gl", action="store_true", help="skip the OpenGL peer")
     parser.add_argument("--same-process", action="store_true",
                         help="run OpenGL in hsr's process (Mesa then changes hsr's heap)")
-    parser.add_argument("--no-workspace", action="store_true",
-                        help="plain hsr.render calls, scratch allocated every frame")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--plain", action="store_true",
+                      help="plain hsr.render calls, as users write them (the default)")
+    mode.add_argument("--workspace", action="store_true",
+                      help="render through one explicit hsr.Workspace")
+    mode.add_argument("--fresh", action="store_true",
+                      help="plain calls with the default workspace's scratch dropped "
+                           "after every frame")
     args = parser.parse_args(argv)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
 
@@ -149,7 +157,7 @@ def main(argv=None):
           f"{'peak GB':>8}")
     jobs = [(m, s) for m in args.models for s in sizes]
     meshes = {}
-    workspace = None if args.no_workspace else hsr.Workspace()
+    workspace = hsr.Workspace() if args.workspace else None
     for model, (width, height) in progress(jobs, "bench"):
         if model not in meshes:
             meshes.clear()  # keep one large mesh in memory at a time
@@ -157,7 +165,12 @@ def main(argv=None):
             if peer is not None:
                 peer.upload(hsr.Scene([meshes[model][0]]).world_triangles())
         mesh, label, cam = meshes[model]
-        run_hsr = lambda: hsr.render(mesh, cam, width, height, workspace=workspace)  # noqa
+        def run_hsr(mesh=mesh, cam=cam, width=width, height=height):
+            frame = hsr.render(mesh, cam, width, height, workspace=workspace)
+            if args.fresh:
+                hsr.parallel.release_default_workspace()
+            return frame
+
         if peer is not None:
             view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
             hsr_ms, gl_ms = alternating(run_hsr, peer, view_proj, width, height, args.repeat)

@@ -14,6 +14,7 @@ from hsr import scenes
 from hsr.algorithms import zbuffer
 from hsr.geometry.stage import CULLED, prepare, status_counts
 from hsr.geometry.state import RenderState
+from hsr.parallel import release_default_workspace
 from hsr.scene.mesh import as_scene
 
 W, H = 96, 72
@@ -128,6 +129,57 @@ def test_one_workspace_through_many_scenes_matches_the_reference(chunk):
             check(scene, cam, max_ambiguous=0.05, workspace=workspace, **state)
 
 
+def test_plain_renders_keep_scratch_per_thread_and_stay_exact(chunk):
+    """Plain calls (no workspace) keep their scratch in the calling thread's default
+    workspace from render to render: the same sequence as above, each frame against the
+    ray reference; the kept workspace is the same object from call to call, another
+    thread gets its own, and a render nested in another on the same thread gets fresh
+    scratch instead of failing."""
+    import threading
+
+    from hsr import parallel
+
+    parallel.release_default_workspace()
+    for scene, cam, state in [(*soup(seed=5, n=300), {}),
+                              (*inside_cubes(), {"cull": "back"}),
+                              (*soup(seed=8, n=40), {"depth_func": "lequal"}),
+                              (*small_scene("city"), {"depth_range": (0.9, 0.2),
+                                                      "depth_func": "greater",
+                                                      "clear_depth": 0.0}),
+                              (*soup(seed=5, n=300), {"front_face": "cw"})]:
+        check(scene, cam, max_ambiguous=0.05, **state)
+    mine = parallel._THREAD_DEFAULTS.workspace
+    assert mine.kept_bytes() > 0 and not mine.busy
+    other = []
+    thread = threading.Thread(target=lambda: (hsr.render(*soup(seed=1, n=50), W, H),
+                                              other.append(parallel._THREAD_DEFAULTS.workspace)))
+    thread.start()
+    thread.join()
+    assert other[0] is not mine
+    mesh, cam = soup(seed=3, n=100)
+    with parallel.default_workspace(None) as outer:
+        assert outer is mine
+        nested = hsr.render(mesh, cam, W, H)  # the same thread, inside a held one
+    assert np.array_equal(nested.face_id, hsr.render(mesh, cam, W, H).face_id)
+    assert parallel._THREAD_DEFAULTS.workspace is mine
+
+
+def test_the_default_workspace_keeps_no_more_than_its_cap(monkeypatch):
+    from hsr import parallel
+
+    parallel.release_default_workspace()
+    mesh, cam = soup(seed=2, n=200)
+    hsr.render(mesh, cam, W, H)
+    kept = parallel._THREAD_DEFAULTS.workspace.kept_bytes()
+    assert kept > 0
+    monkeypatch.setattr(parallel, "DEFAULT_KEEP_BYTES", kept - 1)
+    hsr.render(mesh, cam, W, H)
+    assert parallel._THREAD_DEFAULTS.workspace.kept_bytes() == 0
+    with hsr.Workspace(1) as ws:  # an explicit workspace releases the default
+        hsr.render(mesh, cam, W, H, workspace=ws)
+    assert parallel._THREAD_DEFAULTS.workspace is None
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.integers(1, 300), st.integers(0, 1000)), min_size=2,
                 max_size=4),
@@ -142,7 +194,9 @@ def test_renders_through_a_workspace_equal_fresh_ones(soups, threads, chunk_size
             for n_faces, seed in soups:
                 mesh, cam = soup(seed=seed, n=n_faces)
                 kept = hsr.render(mesh, cam, W, H, counts=True, workspace=workspace)
+                release_default_workspace()  # plain calls keep scratch too: start empty
                 fresh = hsr.render(mesh, cam, W, H, counts=True, threads=threads)
+                release_default_workspace()
                 assert np.array_equal(kept.face_id, fresh.face_id)
                 assert np.array_equal(kept.depth.view(np.uint32),
                                       fresh.depth.view(np.uint32))

@@ -11,12 +11,15 @@ from __future__ import annotations
 
 import itertools
 import queue
+import threading
 from concurrent.futures import ThreadPoolExecutor, wait
+from contextlib import contextmanager
 
 import numba
 import numpy as np
 
-__all__ = ["Workers", "Workspace", "split_range", "progress_bar"]
+__all__ = ["Workers", "Workspace", "split_range", "progress_bar", "default_workspace",
+           "release_default_workspace", "DEFAULT_KEEP_BYTES"]
 
 
 def progress_bar(enabled: bool, total: int, desc: str, unit: str = "view"):
@@ -160,11 +163,19 @@ class Workspace(Workers):
     buffers until closed or dropped."""
 
     def __init__(self, threads: int | None = None):
-        import threading
-
         super().__init__(threads)
         self._buffers: dict = {}
         self._lock = threading.Lock()
+        self.busy = False  # held by a render (the per-thread default's own flag)
+        self.requested = threads
+
+    def kept_bytes(self) -> int:
+        """Bytes of scratch kept."""
+        return sum(b.nbytes for b in self._buffers.values())
+
+    def drop_buffers(self) -> None:
+        """Drop the scratch, keep the threads."""
+        self._buffers.clear()
 
     def __exit__(self, *exc):
         self.close()
@@ -172,7 +183,7 @@ class Workspace(Workers):
     def close(self) -> None:
         """Stop the threads and drop the buffers (a later render starts them again)."""
         super().__exit__()
-        self._buffers.clear()
+        self.drop_buffers()
 
     def scratch(self, key, rows: int, shape: tuple = (), dtype=np.float64) -> np.ndarray:
         dtype = np.dtype(dtype)
@@ -199,6 +210,50 @@ class Workspace(Workers):
                 self._lock.release()
 
         return held()
+
+
+# What the per-thread default workspace keeps between renders: scratch up to this size
+# (the 1M-face terrain at 1080p keeps about 60 MB); a render that needed more gives its
+# buffers back at its end, so a one-off 10M-face render does not hold a gigabyte.
+DEFAULT_KEEP_BYTES = 256 << 20
+_THREAD_DEFAULTS = threading.local()
+
+
+@contextmanager
+def default_workspace(threads: int | None):
+    """The calling thread's own :class:`Workspace` for ``threads`` (made on first use),
+    held for one render: what ``hsr.render`` uses when it is given no workspace, so plain
+    calls keep their scratch from one to the next as a Workspace does (the reason is in
+    :class:`Workspace`'s notes). Per thread, so no two renders share one; a render
+    nested in another on the same thread (or given ``threads`` other than the kept
+    one's) gets fresh threads and scratch. Scratch over :data:`DEFAULT_KEEP_BYTES` is
+    dropped after the render; :func:`release_default_workspace` drops all of it."""
+    kept = getattr(_THREAD_DEFAULTS, "workspace", None)
+    if kept is None or kept.requested != threads:
+        if kept is not None and not kept.busy:
+            kept.close()
+        kept = Workspace(threads)
+        kept.requested = threads
+        _THREAD_DEFAULTS.workspace = kept
+    if kept.busy:  # nested: this thread's workspace is in use further up the stack
+        with Workers(threads) as workers:
+            yield workers
+        return
+    kept.busy = True
+    try:
+        yield kept
+    finally:
+        kept.busy = False
+        if kept.kept_bytes() > DEFAULT_KEEP_BYTES:
+            kept.drop_buffers()
+
+
+def release_default_workspace() -> None:
+    """Stop the calling thread's default workspace's threads and drop its scratch."""
+    kept = getattr(_THREAD_DEFAULTS, "workspace", None)
+    if kept is not None and not kept.busy:
+        kept.close()
+        _THREAD_DEFAULTS.workspace = None
 
 
 def run_with_progress(kernel, args, report, total: int, desc: str):

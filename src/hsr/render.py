@@ -31,7 +31,12 @@ from .geometry.state import RenderState
 from .geometry.viewport import MAX_SIZE, check_memory, check_size
 from .lines.raster import HiddenLine, as_hidden_line, draw_hidden_lines, fill_state, polygon_edges
 from .lines.raster import check as check_lines
-from .parallel import Workers, Workspace, check_threads
+from .parallel import (
+    Workspace,
+    check_threads,
+    default_workspace,
+    release_default_workspace,
+)
 from .scene.camera import Camera
 from .scene.mesh import as_scene, instance_of
 from .scene.views import default as default_view
@@ -230,7 +235,10 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
     ``Frame.color`` is the background everywhere. ``workspace`` (an
     :class:`hsr.Workspace`) keeps threads and scratch buffers from one render to the next
     (faster for many renders in a row; the result is the same); ``threads`` is then the
-    workspace's.
+    workspace's. Without one, each calling thread keeps a workspace of its own for its
+    plain calls (scratch up to :data:`hsr.parallel.DEFAULT_KEEP_BYTES` kept;
+    :func:`hsr.parallel.release_default_workspace` drops it), so repeated renders are as
+    fast as through a Workspace.
 
     Raises :class:`~hsr.errors.MeshError` for a scene that is not a valid mesh or scene,
     :class:`~hsr.errors.CameraError` for an invalid camera and
@@ -295,7 +303,9 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
 
     stats: dict = {"algorithm": algorithm, "width": width, "height": height}
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
-    with (Workers(threads) if workspace is None else workspace.claim()) as workers:
+    if workspace is not None:
+        release_default_workspace()  # an explicit workspace takes over from the default
+    with (default_workspace(threads) if workspace is None else workspace.claim()) as workers:
         return _render(scene, camera, width, height, algorithm, state, look, background,
                        counts, into, stats, t_start, view_proj, workers, occlusion_cull,
                        options, hidden_line, transparency, transparent, color)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RenderError
+from ..scene.camera import MAX_IMAGE_SIDE
 
 __all__ = ["MAX_SIZE", "BYTES_PER_PIXEL", "check_size", "check_memory", "available_memory"]
 
-# Largest image side: keeps snapped window coordinates well inside int64 edge arithmetic
-# and buffers of a sane size.
-MAX_SIZE = 32768
+# Largest image side (see hsr.scene.camera.MAX_IMAGE_SIDE).
+MAX_SIZE = MAX_IMAGE_SIDE
 # What a render holds per pixel at its peak, rounded up: colour (3), depth (4), face id (4),
 # object id (4), the fill's and the shading's per-pixel temporaries (row and column
 # indices, barycentrics, colours in float64).

@@ -20,6 +20,10 @@ __all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matri
 # float32 step of 1 and rounds to the far plane, where every surface ties and the depth
 # test (LESS against a clear of 1) drops it. So far / near may be at most 2**24.
 MAX_DEPTH_RATIO = float(1 << 24)
+# Largest image side (hsr.geometry.viewport.MAX_SIZE, defined here so the camera files
+# read in this package can refuse larger sizes): keeps snapped window coordinates well
+# inside int64 edge arithmetic and buffers of a sane size.
+MAX_IMAGE_SIDE = 32768
 # Smallest field of view and orthographic height (relative to the camera's coordinates):
 # below them one pixel is narrower than the float64 resolution of positions near the eye.
 # OpenGL eye axes (x right, y up, looking down -z) -> OpenCV camera axes (y down, z ahead).

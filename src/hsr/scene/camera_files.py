@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from ..errors import CameraError
-from .camera import OPENGL_TO_OPENCV, Camera
+from .camera import MAX_IMAGE_SIDE, OPENGL_TO_OPENCV, Camera
 from .files import MAX_MTL_BYTES, read_regular
 
 __all__ = ["read_transforms", "write_transforms", "read_colmap", "COLMAP_MODELS"]
@@ -42,8 +42,6 @@ def _number(value, what, where) -> float:
 
 def _pixels(value, what, where) -> int:
     """An image side: a whole number (an integral float is taken) in 1..MAX_SIZE."""
-    from ..geometry.viewport import MAX_SIZE
-
     if isinstance(value, str):
         try:
             value = float(value)
@@ -51,9 +49,9 @@ def _pixels(value, what, where) -> int:
             pass
     if (isinstance(value, bool) or not isinstance(value, (int, float))
             or not math.isfinite(value) or value != int(value)
-            or not 1 <= value <= MAX_SIZE):
+            or not 1 <= value <= MAX_IMAGE_SIDE):
         raise CameraError(f"{where}: {what} must be a whole number of pixels in "
-                          f"1..{MAX_SIZE}, got {value!r}")
+                          f"1..{MAX_IMAGE_SIDE}, got {value!r}")
     return int(value)
 
 
