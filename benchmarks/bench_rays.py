@@ -15,8 +15,10 @@ public calls with their defaults, the inputs prepared outside the timer: hsr
 first one that compiles), Open3D's ``add_triangles`` plus the first query (it commits
 its scene lazily), Embree's likewise. Each query runs in blocks of ``--repeat`` that
 alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
-(below 1: hsr is faster). Runs on demand, never in the test suite; a missing peer is
-left out.
+(below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
+(``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``
+(``--only-batch`` runs just that). Runs on demand, never in the test suite; a missing peer
+is left out.
 """
 
 from __future__ import annotations
@@ -91,6 +93,62 @@ def embree_peer(mesh):
     return build, queries
 
 
+def batch_vs_open3d(views: int, size: int) -> None:
+    """Views per second of ``hsr batch`` (``render_views`` with its defaults: a local
+    cluster of this machine's cores) of the bunny from ``sphere:VIEWS`` at SIZE x SIZE,
+    face ids + eye depth written as .npy, against a loop of Open3D ``cast_rays`` (scene
+    built once, one pinhole ray set per view, the same two buffers written), same
+    cameras, same cores, both warm (a first run of each is not timed)."""
+    import tempfile
+
+    try:
+        import open3d as o3d
+    except ImportError:
+        print("\nbatch vs Open3D: open3d not installed")
+        return
+    from hsr.batch import render_views
+
+    path = os.path.join(MODELS, "stanford-bunny.obj")
+    bunny = hsr.load(path)
+    cams = hsr.views.sphere(bunny.bounds(), views, 1.0)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(bunny.positions.astype(np.float32)),
+                        o3d.core.Tensor(bunny.faces.astype(np.uint32)))
+
+    def open3d_loop(out):
+        os.makedirs(out, exist_ok=True)
+        for k, cam in enumerate(cams):
+            K, R, t = cam.to_opencv(size, size)
+            extrinsic = np.eye(4)
+            extrinsic[:3, :3], extrinsic[:3, 3] = R, t
+            rays = scene.create_rays_pinhole(o3d.core.Tensor(K), o3d.core.Tensor(extrinsic),
+                                             size, size)
+            hit = scene.cast_rays(rays)
+            ids = hit["primitive_ids"].numpy().astype(np.int32)
+            t_hit = hit["t_hit"].numpy()
+            dirs = rays.numpy()[..., 3:]
+            forward = np.asarray(cam.forward)
+            eye_depth = (t_hit * (dirs @ forward)).astype(np.float32)  # along the view axis
+            ids[~np.isfinite(t_hit)] = -1
+            np.save(os.path.join(out, f"ids_{k:04d}.npy"), ids)
+            np.save(os.path.join(out, f"eye_{k:04d}.npy"), eye_depth)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        timings_s = {}
+        for name, run in (("hsr batch", lambda out: render_views(
+                [path], f"sphere:{views}", (size, size), ("ids", "eye_depth"), out,
+                progress=False)), ("Open3D loop", open3d_loop)):
+            run(os.path.join(tmp, name.replace(" ", "_") + "_warm"))
+            t0 = time.perf_counter()
+            run(os.path.join(tmp, name.replace(" ", "_")))
+            timings_s[name] = time.perf_counter() - t0
+    mine, theirs = timings_s["hsr batch"], timings_s["Open3D loop"]
+    print(f"\nbunny, sphere:{views} at {size}x{size}, ids + eye depth written: hsr batch "
+          f"{views / mine:.1f} views/s ({mine:.2f} s), Open3D cast_rays loop "
+          f"{views / theirs:.1f} views/s ({theirs:.2f} s); hsr / Open3D views/s "
+          f"{theirs / mine:.2f}")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", default=[
@@ -98,7 +156,14 @@ def main(argv=None):
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--batch-views", type=int, default=128,
+                        help="views of the batch comparison (0: skip it)")
+    parser.add_argument("--batch-size", type=int, default=512)
+    parser.add_argument("--only-batch", action="store_true", help="just the batch comparison")
     args = parser.parse_args(argv)
+    if args.only_batch:
+        batch_vs_open3d(args.batch_views, args.batch_size)
+        return 0
     rng = np.random.default_rng(0)
     print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "
           "| Embree ms | hsr / Embree |")
@@ -143,6 +208,8 @@ def main(argv=None):
                          args.rounds)
     print(f"\nvisible_vertices, bunny ({len(bunny.positions):,} vertices, RayScene reused): "
           f"{lo:.1f} / {med:.1f} ms (min / median); peak RSS {peak_gb():.2f} GB")
+    if args.batch_views:
+        batch_vs_open3d(args.batch_views, args.batch_size)
     return 0
 
 

@@ -1,0 +1,143 @@
+"""``hsr prune``: remove the geometry no viewpoint can see."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+from .options import CliError, check_threads, dask_client
+
+
+def add_parser(sub) -> None:
+    from ..algorithms import ALGORITHMS
+    from ..geometry.state import CullMode, DepthFunc, FrontFace
+    from ..scene.write import MESH_FORMATS
+    from ..visibility.prune import AUTO_SIZE, LEVELS
+
+    p = sub.add_parser("prune", help="remove the geometry no viewpoint can see",
+                       description="Render MODEL from many viewpoints, count the pixels where "
+                       "each face is visible and write the model without the faces (or "
+                       "objects) no view shows, face order kept.")
+    p.add_argument("model", metavar="MODEL", help="mesh file (OBJ, PLY, STL, OFF, glTF/GLB)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="the pruned model: " + ", ".join(MESH_FORMATS))
+    p.add_argument("--force", action="store_true", help="replace OUT (and an OBJ's .mtl "
+                   "and textures) if they exist; OUT may never be MODEL itself")
+    g = p.add_argument_group("decision")
+    g.add_argument("--views", action="append", metavar="SPEC",
+                   help="auto (outside views added in rounds until a round changes "
+                   "nothing), sphere:N, hemisphere:N, orbit:N[:ELEVATION] (outside the "
+                   "bounding sphere), or a transforms.json / COLMAP folder (e.g. interior "
+                   "cameras); repeat to use several (default: auto)")
+    g.add_argument("--size", default="auto", metavar="R",
+                   help="R x R pixels per view, or auto: about one pixel per face, "
+                   f"{AUTO_SIZE[0]}..{AUTO_SIZE[1]} (default)")
+    g.add_argument("--max-views", type=int, default=2048, metavar="N",
+                   help="auto starts no round that would pass N views")
+    g.add_argument("--level", default="faces", choices=list(LEVELS),
+                   help="remove single faces, or whole objects (glTF nodes)")
+    g.add_argument("--min-pixels", type=int, default=1, metavar="P",
+                   help="keep a face seen on at least P pixels over all views")
+    g.add_argument("--keep-neighbors", type=int, metavar="K",
+                   help="also keep faces within K edge-rings of a kept face (default: 2 "
+                   "with auto views, else 0)")
+    g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
+                   help="visibility algorithm whose face ids decide")
+    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
+                   help="face culling while deciding (none: a face seen from behind counts)")
+    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
+    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help="depth test: with less an earlier coplanar face keeps its pixels")
+    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
+    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    g = p.add_argument_group("check and run")
+    g.add_argument("--verify", type=int, default=0, metavar="K",
+                   help="render K random outside viewpoints not used for the decision, of "
+                   "the original and the pruned model, and report the pixels that changed")
+    g.add_argument("--seed", type=int, default=0, help="seed of the random viewpoints "
+                   "(auto rounds and --verify draw different ones from it)")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler to "
+                   "spread the views over (default: this process, all cores)")
+    g.add_argument("--threads", type=int, help="kernel threads in this process (default: "
+                   "numba's)")
+    g.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+
+
+def run(args) -> int:
+    import time
+
+    from ..scene.load import load_scene
+    from ..scene.write import check_new, planned_files, write_mesh
+    from ..visibility.count import cameras_for
+    from ..visibility.prune import MAX_VERIFY, decide, split_auto, subset_scene, unsettled, verify
+
+    start = time.perf_counter()
+    _check_prune_output(args)
+    check_threads(args)
+    if not 0 <= args.verify <= MAX_VERIFY:  # checked by verify() too, but after the work
+        raise CliError(f"--verify must be a number of views in 0..{MAX_VERIFY}, got "
+                       f"{args.verify}")
+    if args.size != "auto":
+        try:
+            args.size = int(args.size)
+        except ValueError:
+            raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
+    scene = load_scene(args.model)
+    if not args.force:  # the .mtl and textures beside an OBJ, known once it is loaded
+        check_new(planned_files(scene, args.output), "--force")
+    auto, fixed = split_auto(args.views or ["auto"])
+    # The cameras once, before any connection: a bad --views fails at once.
+    cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []
+    client = dask_client(args.scheduler, "prune") if args.scheduler else None
+    options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
+                   depth_func=args.depth_func)
+    try:
+        decision = decide(scene, cameras + (["auto"] if auto else []), args.size,
+                          level=args.level, keep_neighbors=args.keep_neighbors,
+                          min_pixels=args.min_pixels, seed=args.seed,
+                          max_views=args.max_views, client=client, threads=args.threads,
+                          progress=not args.quiet and sys.stderr.isatty(), **options)
+    finally:
+        if client is not None:
+            client.close()
+    kept = np.flatnonzero(decision.keep)
+    pruned = subset_scene(scene, decision.keep)
+    written = write_mesh(pruned, args.output, overwrite=args.force)
+    seconds = time.perf_counter() - start
+    width, height = decision.size
+    if not decision.converged:
+        print(f"hsr: warning: {unsettled(decision)}", file=sys.stderr)
+    if not args.quiet:
+        before, after = scene.n_faces, pruned.n_faces
+        settled = (f" (auto: the last {decision.last_round} changed nothing)"
+                   if auto and decision.converged else
+                   " (auto: still changing at --max-views)" if auto else "")
+        print(f"faces {before:,} -> {after:,} ({100.0 * (before - after) / before:.2f}% "
+              f"removed); objects {len(scene):,} -> {len(pruned):,}; {decision.views:,} "
+              f"views at {width}x{height}{settled}; {seconds:.1f} s; wrote "
+              f"{', '.join(written)}")
+    if args.verify:
+        report = verify(scene, pruned, kept, args.verify, (width, height), seed=args.seed,
+                        threads=args.threads, **options)
+        print(f"verify: {report['changed']:,} of {report['covered']:,} covered pixels "
+              f"changed ({report['percent']:.4f}%) over {report['views']} random outside "
+              f"views at {width}x{height}")
+    return 0
+
+
+def _check_prune_output(args) -> None:
+    """Before any work: OUT is never MODEL (nor a link to it), and an OUT that exists is
+    replaced only with --force."""
+    from ..scene.files import check_output
+    from ..scene.write import MESH_FORMATS, check_new
+
+    check_output(args.output, MESH_FORMATS)
+    if os.path.realpath(args.output) == os.path.realpath(args.model) or (
+            os.path.exists(args.output) and os.path.exists(args.model)
+            and os.path.samefile(args.output, args.model)):  # a hard link too
+        raise CliError(f"-o {args.output} is MODEL itself: write the pruned model to "
+                       f"another file")
+    if not args.force:
+        check_new([args.output], "--force")

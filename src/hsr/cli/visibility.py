@@ -1,0 +1,95 @@
+"""``hsr visibility``: which faces, vertices or points each view sees."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from .options import CliError, dask_client, size
+
+
+def add_parser(sub) -> None:
+    from ..algorithms import ALGORITHMS
+    from ..geometry.state import CullMode, DepthFunc
+    p = sub.add_parser("visibility", help="which faces, vertices or points each view sees",
+                       description="For every view, the faces (with their pixel counts), "
+                       "the vertices or the points of a .npy file that the camera sees, "
+                       "written as .npz or .csv.")
+    p.add_argument("models", nargs="+", metavar="MODEL", help="mesh files, one scene")
+    p.add_argument("--views", required=True, metavar="SPEC", action="append",
+                   help="sphere:N, hemisphere:N, orbit:N[:ELEVATION], a transforms.json or a "
+                   "COLMAP folder; repeat to use several")
+    p.add_argument("--size", default="512x512", help="WxH in pixels")
+    p.add_argument("--what", default="faces", metavar="faces|vertices|points:FILE.npy",
+                   help="faces: pixel counts per face and view; vertices: the scene's "
+                   "vertices seen by each view; points:FILE.npy: an (N, 3) array's points")
+    p.add_argument("--quality", action="store_true", help="faces: also the mean cosine "
+                   "and distance per face and view")
+    p.add_argument("--tolerance", type=float, default=1e-4, help="vertices and points: the "
+                   "share of each eye-to-point segment left out at the point's end")
+    p.add_argument("-o", "--out", required=True, metavar="OUT", help="OUT.npz or OUT.csv")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
+                   help="faces: glCullFace")
+    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help="faces: glDepthFunc")
+    p.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
+                   help="faces: the visibility algorithm")
+    p.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
+    p.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="faces: a running Dask scheduler "
+                   "to spread the views over")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+
+
+def run(args) -> int:
+    from ..scene.files import check_output
+    from ..scene.load import load_scene
+    from ..scene.mesh import Scene
+    from ..scene.write import check_new
+    from ..visibility import cameras_for
+    from ..visibility.queries import write_visibility
+
+    width, height = size(args.size)
+    check_output(args.out, (".npz", ".csv"))
+    if not args.force:
+        check_new([args.out], "--force")
+    what, _, points_file = args.what.partition(":")
+    if what not in ("faces", "vertices", "points") or (what == "points") != bool(points_file):
+        raise CliError(f"--what must be faces, vertices or points:FILE.npy, got {args.what!r}")
+    if what != "faces":
+        for flag, given in (("--scheduler", args.scheduler), ("--quality", args.quality)):
+            if given:
+                raise CliError(f"{flag} goes with --what faces")
+    points = read_points(points_file) if what == "points" else None
+    scene = Scene()
+    for path in args.models:
+        scene.instances.extend(load_scene(path).instances)
+    cameras = cameras_for(scene, args.views, width / height, args.near, args.far)
+    client = dask_client(args.scheduler, "visibility") if args.scheduler else None
+    try:
+        result = write_visibility(scene, cameras, (width, height), what, points, args.out,
+                                  quality=args.quality, tolerance=args.tolerance,
+                                  client=client, progress=not args.quiet and
+                                  sys.stderr.isatty(), cull=args.cull,
+                                  depth_func=args.depth_func, algorithm=args.algorithm)
+    finally:
+        if client is not None:
+            client.close()
+    if not args.quiet:
+        print(result)
+    return 0
+
+
+def read_points(path: str):
+    from ..scene.files import read_regular
+
+    try:
+        import io
+
+        array = np.load(io.BytesIO(read_regular(path, "points file", 1 << 31, CliError)),
+                        allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise CliError(f"--what points:{path}: not a .npy array ({exc})") from None
+    return array
