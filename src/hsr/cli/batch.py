@@ -4,14 +4,23 @@ from __future__ import annotations
 
 import sys
 
-from .options import CliError, dask_client, key_values, rgb, size
+from .options import (
+    CliError,
+    add_algorithm,
+    add_cull,
+    add_depth_func,
+    add_file_planes,
+    add_front_face,
+    dask_client,
+    key_values,
+    rgb,
+    size,
+)
 
 
 def add_parser(sub) -> None:
-    from ..algorithms import ALGORITHMS
     from ..appearance.shading import LIGHTS, SHADING_MODES
     from ..batch.plan import FORMATS, OUTPUTS
-    from ..geometry.state import CullMode, DepthFunc, FrontFace
 
     b = sub.add_parser("batch", help="many views of many models, on all cores or a Dask "
                        "cluster", description="Render every MODEL from every view and write "
@@ -32,8 +41,7 @@ def add_parser(sub) -> None:
                    help="one file per view and output, or one Zarr v3 store per model")
     g.add_argument("--resume", action="store_true",
                    help="skip views whose outputs all exist (after an interrupted run)")
-    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
-    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    add_file_planes(g)
     g = b.add_argument_group("cluster")
     g.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. "
                    "tcp://10.0.0.5:8786 (default: a local cluster on this machine)")
@@ -43,14 +51,10 @@ def add_parser(sub) -> None:
     g.add_argument("--views-per-task", type=int, metavar="N", help="views in one task "
                    "(default: about 4M pixels, at least four tasks per worker)")
     g = b.add_argument_group("rendering")
-    g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
-                   help="visibility algorithm")
-    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
-                   help="glCullFace")
-    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
-                   help="glFrontFace")
-    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
-                   help="glDepthFunc")
+    add_algorithm(g)
+    add_cull(g)
+    add_front_face(g)
+    add_depth_func(g)
     g.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
                    help="how visible faces are coloured")
     g.add_argument("--light", default="studio", choices=list(LIGHTS), help="lights")

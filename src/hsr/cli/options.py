@@ -145,11 +145,42 @@ def algorithm_names(text: str) -> list:
     return names
 
 
+def add_algorithm(g, help="visibility algorithm") -> None:
+    from ..algorithms import ALGORITHMS
+
+    g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS), help=help)
+
+
+def add_cull(g, help="glCullFace") -> None:
+    from ..geometry.state import CullMode
+
+    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode], help=help)
+
+
+def add_front_face(g, help="glFrontFace") -> None:
+    from ..geometry.state import FrontFace
+
+    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
+                   help=help)
+
+
+def add_depth_func(g, help="glDepthFunc") -> None:
+    from ..geometry.state import DepthFunc
+
+    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
+                   help=help)
+
+
+def add_file_planes(g) -> None:
+    """--near and --far for the cameras of camera files (which give no planes)."""
+    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
+    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+
+
 def add_scene_args(p):
     """Arguments shared by every command that renders, in groups: scene, camera, depth
     state, culling and polygons, appearance, run."""
     from ..appearance.shading import LIGHTS, SHADING_MODES
-    from ..geometry.state import CullMode, DepthFunc, FrontFace
     from ..scene.builtin import SCENES
 
     p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files (OBJ, PLY, STL, "
@@ -176,17 +207,14 @@ def add_scene_args(p):
     g.add_argument("--ortho", type=float, metavar="HEIGHT",
                    help="orthographic projection showing HEIGHT world units vertically")
     g = p.add_argument_group("depth state")
-    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
-                   help="glDepthFunc")
+    add_depth_func(g)
     g.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")
     g.add_argument("--no-depth-write", action="store_true", help="glDepthMask(GL_FALSE)")
     g.add_argument("--clear-depth", type=float, default=1.0, help="glClearDepth value")
     g.add_argument("--depth-range", default="0,1", help="glDepthRange near,far")
     g = p.add_argument_group("culling and polygons")
-    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
-                   help="glCullFace")
-    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace],
-                   help="glFrontFace")
+    add_cull(g)
+    add_front_face(g)
     g.add_argument("--polygon-mode", default="fill", choices=["fill", "line", "point"],
                    help="glPolygonMode: line draws every edge, visible and hidden")
     g.add_argument("--polygon-offset", metavar="FACTOR,UNITS",

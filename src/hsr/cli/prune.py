@@ -7,12 +7,19 @@ import sys
 
 import numpy as np
 
-from .options import CliError, check_threads, dask_client
+from .options import (
+    CliError,
+    add_algorithm,
+    add_cull,
+    add_depth_func,
+    add_file_planes,
+    add_front_face,
+    check_threads,
+    dask_client,
+)
 
 
 def add_parser(sub) -> None:
-    from ..algorithms import ALGORITHMS
-    from ..geometry.state import CullMode, DepthFunc, FrontFace
     from ..scene.write import MESH_FORMATS
     from ..visibility.prune import AUTO_SIZE, LEVELS
 
@@ -43,15 +50,11 @@ def add_parser(sub) -> None:
     g.add_argument("--keep-neighbors", type=int, metavar="K",
                    help="also keep faces within K edge-rings of a kept face (default: 2 "
                    "with auto views, else 0)")
-    g.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
-                   help="visibility algorithm whose face ids decide")
-    g.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
-                   help="face culling while deciding (none: a face seen from behind counts)")
-    g.add_argument("--front-face", default="ccw", choices=[m.value for m in FrontFace])
-    g.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
-                   help="depth test: with less an earlier coplanar face keeps its pixels")
-    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
-    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    add_algorithm(g, "visibility algorithm whose face ids decide")
+    add_cull(g, "face culling while deciding (none: a face seen from behind counts)")
+    add_front_face(g, None)
+    add_depth_func(g, "depth test: with less an earlier coplanar face keeps its pixels")
+    add_file_planes(g)
     g = p.add_argument_group("check and run")
     g.add_argument("--verify", type=int, default=0, metavar="K",
                    help="render K random outside viewpoints not used for the decision, of "

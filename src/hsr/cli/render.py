@@ -5,20 +5,18 @@ from __future__ import annotations
 import os
 import sys
 
-from .options import CliError, add_scene_args, floats
+from .options import CliError, add_algorithm, add_scene_args, floats
 from .setup import hidden_line_args, look, setup
 
 
 def add_parser(sub) -> None:
-    from ..algorithms import ALGORITHMS
 
     r = sub.add_parser("render", help="render meshes (or a built-in scene) to an image",
                        description="Render MODEL files (OBJ, PLY, STL, OFF, glTF) as one scene, "
                        "or a built-in scene when no MODEL is given.")
     add_scene_args(r)
     rv = r.add_argument_group("visibility")
-    rv.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
-                   help="visibility algorithm")
+    add_algorithm(rv)
     rv.add_argument("--occlusion-cull", action="store_true",
                    help="skip objects hidden behind nearer ones (same result, less work)")
     rv.add_argument("--transparency", default="object", choices=["object", "exact"],

@@ -6,12 +6,18 @@ import sys
 
 import numpy as np
 
-from .options import CliError, dask_client, size
+from .options import (
+    CliError,
+    add_algorithm,
+    add_cull,
+    add_depth_func,
+    add_file_planes,
+    dask_client,
+    size,
+)
 
 
 def add_parser(sub) -> None:
-    from ..algorithms import ALGORITHMS
-    from ..geometry.state import CullMode, DepthFunc
     p = sub.add_parser("visibility", help="which faces, vertices or points each view sees",
                        description="For every view, the faces (with their pixel counts), "
                        "the vertices or the points of a .npy file that the camera sees, "
@@ -30,14 +36,10 @@ def add_parser(sub) -> None:
                    "share of each eye-to-point segment left out at the point's end")
     p.add_argument("-o", "--out", required=True, metavar="OUT", help="OUT.npz or OUT.csv")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
-    p.add_argument("--cull", default="none", choices=[m.value for m in CullMode],
-                   help="faces: glCullFace")
-    p.add_argument("--depth-func", default="less", choices=[m.value for m in DepthFunc],
-                   help="faces: glDepthFunc")
-    p.add_argument("--algorithm", default="zbuffer", choices=sorted(ALGORITHMS),
-                   help="faces: the visibility algorithm")
-    p.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
-    p.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    add_cull(p, "faces: glCullFace")
+    add_depth_func(p, "faces: glDepthFunc")
+    add_algorithm(p, "faces: the visibility algorithm")
+    add_file_planes(p)
     p.add_argument("--scheduler", metavar="ADDRESS", help="faces: a running Dask scheduler "
                    "to spread the views over")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
