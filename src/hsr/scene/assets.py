@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import base64
 import binascii
-import io
 import math
 import os
 import struct
@@ -22,9 +21,9 @@ import urllib.parse
 
 from ..errors import MeshError
 from .files import read_regular
+from .images import image_size_ok
 
-__all__ = ["FolderResolver", "check_gltf_assets", "check_gltf_nodes", "image_size_ok",
-           "MAX_NODE_DEPTH"]
+__all__ = ["FolderResolver", "check_gltf_assets", "check_gltf_nodes", "MAX_NODE_DEPTH"]
 
 # What one buffer or image file named by a model may hold.
 MAX_ASSET_BYTES = 1 << 30
@@ -78,7 +77,7 @@ class FolderResolver:
                             f"got {uri!r}")
         if uri in self._read:
             return self._read[uri]
-        if isinstance(uri, str) and uri.startswith("data:"):
+        if uri.startswith("data:"):
             data = data_uri_bytes(uri, self.label)
         else:
             path = self.path_of(uri)
@@ -268,28 +267,3 @@ def check_gltf_nodes(header: dict, label: str) -> None:
 def _finite_number(value) -> bool:
     return (isinstance(value, (int, float)) and not isinstance(value, bool)
             and math.isfinite(value) and abs(value) <= MAX_NODE_VALUE)
-
-
-def image_size_ok(blob: bytes, max_pixels: int) -> str | None:
-    """None when ``blob`` is an image Pillow reads whose header claims at most
-    ``max_pixels``; else what is wrong with it (the header alone is read, so a
-    decompression bomb costs nothing)."""
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", Image.DecompressionBombWarning)
-            with Image.open(io.BytesIO(blob)) as img:
-                width, height = img.size
-    except (Image.DecompressionBombError, Image.DecompressionBombWarning):
-        return f"the image claims more than the {max_pixels:,} pixels hsr reads"
-    except UnidentifiedImageError:
-        return "not an image Pillow can identify"
-    except (OSError, ValueError, SyntaxError, struct.error) as exc:
-        return f"not a readable image ({type(exc).__name__}: {exc})"
-    if width * height > max_pixels:
-        return (f"the image is {width}x{height} pixels, more than the {max_pixels:,} hsr "
-                f"reads")
-    return None

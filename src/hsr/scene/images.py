@@ -4,14 +4,16 @@ bottom row), so rows are flipped on load."""
 
 from __future__ import annotations
 
+import io
 import os
+import struct
 
 import numpy as np
 
 from ..errors import MeshError
 from .files import read_regular
 
-__all__ = ["load_texture", "checkerboard", "MAX_TEXTURE_PIXELS"]
+__all__ = ["load_texture", "checkerboard", "image_size_ok", "MAX_TEXTURE_PIXELS"]
 
 # Largest texture read from a file (8192 x 8192): an image header may claim any size, and
 # decoding 60000 x 60000 pixels would take 10 GB.
@@ -44,28 +46,42 @@ def load_texture(source) -> np.ndarray:
 def _read_image(path: str) -> np.ndarray:
     """(H, W, 3) uint8 pixels of an image file (row 0 = top), refusing files that are not
     regular, too large, or whose header claims more than :data:`MAX_TEXTURE_PIXELS`."""
-    import io
+    from PIL import Image
+
+    data = read_regular(path, "texture file", MAX_TEXTURE_BYTES)
+    problem = image_size_ok(data, MAX_TEXTURE_PIXELS)
+    if problem:
+        raise MeshError(f"{path}: {problem}")
+    try:
+        with Image.open(io.BytesIO(data)) as img:
+            return np.asarray(img.convert("RGB"))
+    except (OSError, ValueError, SyntaxError) as exc:
+        raise MeshError(f"{path}: not a readable image ({exc})") from None
+
+
+def image_size_ok(blob: bytes, max_pixels: int) -> str | None:
+    """None when ``blob`` is an image Pillow reads whose header claims at most
+    ``max_pixels``; else what is wrong with it (the header alone is read, so a
+    decompression bomb costs nothing)."""
     import warnings
 
     from PIL import Image, UnidentifiedImageError
 
-    data = read_regular(path, "texture file", MAX_TEXTURE_BYTES)
     try:
         with warnings.catch_warnings():
-            # Pillow warns (then refuses) on decompression bombs; hsr refuses before that.
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            with Image.open(io.BytesIO(data)) as img:
+            with Image.open(io.BytesIO(blob)) as img:
                 width, height = img.size
-                if width * height > MAX_TEXTURE_PIXELS:
-                    raise MeshError(f"{path}: texture is {width}x{height} pixels, more than "
-                                    f"the {MAX_TEXTURE_PIXELS:,} hsr reads")
-                pixels = np.asarray(img.convert("RGB"))
     except (Image.DecompressionBombError, Image.DecompressionBombWarning):
-        raise MeshError(f"{path}: the image claims more pixels than hsr reads "
-                        f"({MAX_TEXTURE_PIXELS:,})") from None
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
-        raise MeshError(f"{path}: not a readable image ({exc})") from None
-    return pixels
+        return f"the image claims more pixels than hsr reads ({max_pixels:,})"
+    except UnidentifiedImageError:
+        return "not an image Pillow can identify"
+    except (OSError, ValueError, SyntaxError, struct.error) as exc:
+        return f"not a readable image ({type(exc).__name__}: {exc})"
+    if width * height > max_pixels:
+        return (f"the image is {width}x{height} pixels, more than the {max_pixels:,} hsr "
+                f"reads")
+    return None
 
 
 def checkerboard(squares: int = 8, texels_per_square: int = 8,
