@@ -436,24 +436,37 @@ def count_views(scene, cameras, width, height, options) -> np.ndarray:
 
 
 def _on_dask(client, scene, cameras, width, height, options, progress) -> np.ndarray:
-    """Groups of views as tasks; the scene goes to every worker once (scattered), only
-    the (n_faces,) sums come back, added as they arrive."""
+    """Groups of views as tasks; only the (n_faces,) sums come back, added as they
+    arrive."""
+    total = np.zeros(scene.n_faces, dtype=np.int64)
+
+    def take(_, counts):
+        total[:] += counts
+        return None
+
+    with progress_bar(progress, len(cameras), "visibility") as bar:
+        spread_views(client, count_views, scene, cameras, (width, height, options), take, bar)
+    return total
+
+
+def spread_views(client, task, scene, cameras, args, take, bar) -> None:
+    """``task(scene, group, *args)`` for groups of ``cameras`` as Dask tasks: the scene
+    goes to every worker once (scattered), a group is at most VIEWS_PER_TASK views and
+    every worker gets about four groups; ``take(first_view, result)`` runs on the client
+    as each result arrives, and ``bar`` advances by the group's views."""
     from distributed import as_completed
 
     shared = client.scatter(scene, broadcast=True, hash=False)
     workers = max(1, sum(w.get("nthreads", 1) for w in
                          client.scheduler_info().get("workers", {}).values()))
     per_task = max(1, min(VIEWS_PER_TASK, math.ceil(len(cameras) / (4 * workers))))
-    futures = {client.submit(count_views, shared, cameras[k:k + per_task], width, height,
-                             options, pure=False): len(cameras[k:k + per_task])
+    futures = {client.submit(task, shared, cameras[k:k + per_task], *args, pure=False): k
                for k in range(0, len(cameras), per_task)}
-    total = np.zeros(scene.n_faces, dtype=np.int64)
-    with progress_bar(progress, len(cameras), "visibility") as bar:
-        for future in as_completed(list(futures)):
-            total += future.result()
-            bar.update(futures.pop(future))
-            future.release()
-    return total
+    for future in as_completed(list(futures)):
+        k = futures.pop(future)
+        take(k, future.result())
+        bar.update(len(cameras[k:k + per_task]))
+        future.release()
 
 
 def _check_opaque(scene: Scene) -> None:

@@ -17,7 +17,6 @@ of its length at the point's end, so the point's own faces do not hide it.
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 
@@ -280,7 +279,7 @@ def visibility_matrix(scene, views, size=512, *, client=None, quality: bool = Fa
 
     from ..parallel import progress_bar
     from ..render import render
-    from .count import VIEWS_PER_TASK, _check_opaque
+    from .count import _check_opaque, spread_views
 
     scene = _scene(scene)
     _check_opaque(scene)
@@ -302,22 +301,11 @@ def visibility_matrix(scene, views, size=512, *, client=None, quality: bool = Fa
                                                 quality)[0]
                 bar.update(1)
         else:
-            from distributed import as_completed
-
-            shared = client.scatter(scene, broadcast=True, hash=False)
-            workers = max(1, sum(w.get("nthreads", 1) for w in
-                                 client.scheduler_info().get("workers", {}).values()))
-            per_task = max(1, min(VIEWS_PER_TASK, math.ceil(len(cameras) / (4 * workers))))
-            futures = {client.submit(view_group_columns, shared, cameras[k:k + per_task],
-                                     width, height, render_options, quality,
-                                     pure=False): k
-                       for k in range(0, len(cameras), per_task)}
-            for future in as_completed(list(futures)):
-                k = futures.pop(future)
-                group = future.result()
+            def take(k, group):
                 columns[k:k + len(group)] = group
-                bar.update(len(group))
-                future.release()
+
+            spread_views(client, view_group_columns, scene, cameras,
+                         (width, height, render_options, quality), take, bar)
     n_faces = scene.n_faces
 
     def matrix(part, dtype):
