@@ -160,7 +160,8 @@ class Workspace(Workers):
     99-168 ms; kept here, 0-2 faults and 72-100 ms. Kept: the z-buffer's set-up records
     and face status, and the thread pool. One render at a time uses a workspace (another
     thread's render raises :class:`~hsr.errors.RenderError`); it holds its largest
-    buffers until closed or dropped."""
+    buffers until closed or dropped. Plain ``hsr.render`` calls use one of the calling
+    thread's own (:func:`default_workspace`)."""
 
     def __init__(self, threads: int | None = None):
         super().__init__(threads)
