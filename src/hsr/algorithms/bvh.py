@@ -347,21 +347,31 @@ def open_slabs(t0x, t1x, t0y, t1y, t0z, t1z):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
-               dz):
-    """Woop-Benthin-Wald watertight ray/triangle test (``ok*`` are the ray origin's
-    coordinates on the permuted axes). Returns (t, u, v, w) with t = -1 for a miss;
-    (u, v, w) are barycentrics of corners (0, 1, 2)."""
+def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
+    """Triangle ``f``'s corners relative to the ray's origin on the permuted axes, sheared
+    so the ray is the +z axis (Woop et al.): (ax, ay, az, bx, by, bz, cx, cy, cz). One
+    function for every test that must see the same numbers (the hit test and the
+    ownership of an edge hit)."""
     az = tris[f, 0, kz] - okz
     bz = tris[f, 1, kz] - okz
     cz = tris[f, 2, kz] - okz
-    # Shear so the ray becomes the +z axis.
     ax = tris[f, 0, kx] - okx - sx * az
     ay = tris[f, 0, ky] - oky - sy * az
     bx = tris[f, 1, kx] - okx - sx * bz
     by = tris[f, 1, ky] - oky - sy * bz
     cx = tris[f, 2, kx] - okx - sx * cz
     cy = tris[f, 2, ky] - oky - sy * cz
+    return ax, ay, az, bx, by, bz, cx, cy, cz
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
+               dz):
+    """Woop-Benthin-Wald watertight ray/triangle test (``ok*`` are the ray origin's
+    coordinates on the permuted axes). Returns (t, u, v, w) with t = -1 for a miss;
+    (u, v, w) are barycentrics of corners (0, 1, 2)."""
+    ax, ay, az, bx, by, bz, cx, cy, cz = sheared_corners(tris, f, okx, oky, okz, kx, ky,
+                                                         kz, sx, sy)
     # 2-D edge functions; the same edge in a neighbour gives exactly the opposite value.
     u = cx * by - cy * bx
     v = ax * cy - ay * cx

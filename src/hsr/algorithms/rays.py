@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame
+from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame, sheared_corners
 
 __all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
 
@@ -92,45 +92,30 @@ def widen(node_min, node_max, node_left, node_start, node_count):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _edge_owned(px, py, qx, qy):
-    """Whether the triangle owns the points on its edge P -> Q (counter-clockwise
-    winding in the ray's 2-D frame): edges going up, or right when level."""
+def _edge_owned(px, py, qx, qy, flip):
+    """Whether the triangle owns the points on its edge P -> Q: walked counter-clockwise
+    in the ray's 2-D frame (Q -> P when ``flip``, the triangle being wound the other way
+    there), the edge goes up, or right when level."""
+    if flip:
+        px, py, qx, qy = qx, qy, px, py
     return qy > py or (qy == py and qx > px)
 
 
 @njit(cache=True, nogil=True)
 def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
     """With one or two zero edge values (the ray through an edge or a vertex of
-    triangle ``f``): whether ``f`` counts the hit (see the module notes). The 2-D
-    corners are computed exactly as :func:`hsr.algorithms.bvh._intersect` does, so the
+    triangle ``f``): whether ``f`` counts the hit (see the module notes). The corners
+    are :func:`hsr.algorithms.bvh.sheared_corners`, as the hit test saw them, so the
     zero tests see the same numbers."""
-    az = tris[f, 0, kz] - okz
-    bz = tris[f, 1, kz] - okz
-    cz = tris[f, 2, kz] - okz
-    ax = tris[f, 0, kx] - okx - sx * az
-    ay = tris[f, 0, ky] - oky - sy * az
-    bx = tris[f, 1, kx] - okx - sx * bz
-    by = tris[f, 1, ky] - oky - sy * bz
-    cx = tris[f, 2, kx] - okx - sx * cz
-    cy = tris[f, 2, ky] - oky - sy * cz
+    ax, ay, _, bx, by, _, cx, cy, _ = sheared_corners(tris, f, okx, oky, okz, kx, ky, kz,
+                                                      sx, sy)
     u = cx * by - cy * bx  # edge B -> C
     v = ax * cy - ay * cx  # edge C -> A
     w = bx * ay - by * ax  # edge A -> B
-    if u + v + w < 0.0:  # walk the edges the other way: counter-clockwise in 2-D
-        if u == 0.0 and not _edge_owned(cx, cy, bx, by):
-            return False
-        if v == 0.0 and not _edge_owned(ax, ay, cx, cy):
-            return False
-        if w == 0.0 and not _edge_owned(bx, by, ax, ay):
-            return False
-        return True
-    if u == 0.0 and not _edge_owned(bx, by, cx, cy):
-        return False
-    if v == 0.0 and not _edge_owned(cx, cy, ax, ay):
-        return False
-    if w == 0.0 and not _edge_owned(ax, ay, bx, by):
-        return False
-    return True
+    flip = u + v + w < 0.0
+    return not ((u == 0.0 and not _edge_owned(bx, by, cx, cy, flip))
+                or (v == 0.0 and not _edge_owned(cx, cy, ax, ay, flip))
+                or (w == 0.0 and not _edge_owned(ax, ay, bx, by, flip)))
 
 
 @njit(cache=True, nogil=True)
