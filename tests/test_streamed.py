@@ -113,19 +113,24 @@ def test_streamed_equals_prepared(chunk, case):
     assert frame.stats["fragments_tested"] > 0 or case == "soup-cw-front"
 
 
+def kept_scratch_sequence():
+    """(scene, camera, state) in an order that makes kept scratch matter: more faces,
+    fewer, clipped pieces, other states."""
+    return [(*soup(seed=5, n=300), {}),
+            (*inside_cubes(), {"cull": "back"}),
+            (*soup(seed=8, n=40), {"depth_func": "lequal"}),
+            (*small_scene("city"), {"depth_range": (0.9, 0.2), "depth_func": "greater",
+                                    "clear_depth": 0.0}),
+            (*soup(seed=5, n=300), {"front_face": "cw"})]
+
+
 def test_one_workspace_through_many_scenes_matches_the_reference(chunk):
     """Set-up records and face status kept in one Workspace from render to render (more
     faces, fewer, clipped pieces, other states, two threads): every frame still matches
     the ray reference, so nothing of an earlier render leaks into a later one (kept
     buffers hold old records where fresh pages would hold zeros)."""
     with hsr.Workspace(threads=2) as workspace:
-        for scene, cam, state in [(*soup(seed=5, n=300), {}),
-                                  (*inside_cubes(), {"cull": "back"}),
-                                  (*soup(seed=8, n=40), {"depth_func": "lequal"}),
-                                  (*small_scene("city"), {"depth_range": (0.9, 0.2),
-                                                          "depth_func": "greater",
-                                                          "clear_depth": 0.0}),
-                                  (*soup(seed=5, n=300), {"front_face": "cw"})]:
+        for scene, cam, state in kept_scratch_sequence():
             check(scene, cam, max_ambiguous=0.05, workspace=workspace, **state)
 
 
@@ -140,13 +145,7 @@ def test_plain_renders_keep_scratch_per_thread_and_stay_exact(chunk):
     from hsr import parallel
 
     parallel.release_default_workspace()
-    for scene, cam, state in [(*soup(seed=5, n=300), {}),
-                              (*inside_cubes(), {"cull": "back"}),
-                              (*soup(seed=8, n=40), {"depth_func": "lequal"}),
-                              (*small_scene("city"), {"depth_range": (0.9, 0.2),
-                                                      "depth_func": "greater",
-                                                      "clear_depth": 0.0}),
-                              (*soup(seed=5, n=300), {"front_face": "cw"})]:
+    for scene, cam, state in kept_scratch_sequence():
         check(scene, cam, max_ambiguous=0.05, **state)
     mine = parallel._THREAD_DEFAULTS.workspace
     assert mine.kept_bytes() > 0 and not mine.busy

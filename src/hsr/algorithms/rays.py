@@ -245,18 +245,26 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
+    """The ray parameters (t0x, t1x, t0y, t1y, t0z, t1z) where the ray crosses the low
+    and high planes of lane ``lane``'s box of wide node ``w``, in float64."""
+    return ((np.float64(box[w, lane]) - ox) * inv_dx,
+            (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx,
+            (np.float64(box[w, LANES + lane]) - oy) * inv_dy,
+            (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy,
+            (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz,
+            (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _lanes(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry):
     """``entry[lane]``: where the ray enters each of wide node ``w``'s four boxes, +inf
     when it misses one or enters it beyond ``bound``. The slab test of
     :func:`hsr.algorithms.bvh._box_entry` for rays with no zero direction component
     (no 0 * inf), written without branches so the four lanes run side by side."""
     for lane in range(LANES):
-        t0x = (np.float64(box[w, lane]) - ox) * inv_dx
-        t1x = (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx
-        t0y = (np.float64(box[w, LANES + lane]) - oy) * inv_dy
-        t1y = (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy
-        t0z = (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz
-        t1z = (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz
+        t0x, t1x, t0y, t1y, t0z, t1z = _lane_slabs(box, w, lane, ox, oy, oz, inv_dx,
+                                                   inv_dy, inv_dz)
         t_in = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
         t_out = min(min(max(t0x, t1x), max(t0y, t1y)), max(t0z, t1z))
         hit = (t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound)
@@ -268,12 +276,8 @@ def _lane_span(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     """(t_in, t_out) of the ray through lane ``lane``'s box of wide node ``w``, for a
     ray with a zero direction component: 0 * inf (the ray in a slab's plane) is NaN,
     and the closed slab holds such a ray for every t (see _box_entry)."""
-    t0x = (np.float64(box[w, lane]) - ox) * inv_dx
-    t1x = (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx
-    t0y = (np.float64(box[w, LANES + lane]) - oy) * inv_dy
-    t1y = (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy
-    t0z = (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz
-    t1z = (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz
+    t0x, t1x, t0y, t1y, t0z, t1z = _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy,
+                                               inv_dz)
     t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))

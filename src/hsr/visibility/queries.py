@@ -364,7 +364,7 @@ def write_visibility(scene, cameras, size, what: str, points, out: str, *, quali
         columns = {key: index.astype(np.int64), "view": view.astype(np.int64)}
         if what == "points":
             columns["x"], columns["y"] = pixels[view, index, 0], pixels[view, index, 1]
-    _write_table(out, ext, columns, what, (total, n_views),
+    _write_table(out, ext, columns, (total, n_views),
                  None if what == "faces" else visible,
                  pixels if what == "points" else None)
     low, mid, high = (int(per_view.min()), float(np.median(per_view)), int(per_view.max()))
@@ -372,7 +372,7 @@ def write_visibility(scene, cameras, size, what: str, points, out: str, *, quali
             f"median {mid:,.0f} / max {high:,} of {total:,}; wrote {out}")
 
 
-def _write_table(out, ext, columns, what, shape, visible, pixels) -> None:
+def _write_table(out, ext, columns, shape, visible, pixels) -> None:
     from ..errors import OutputError
 
     tmp = f"{out}.partial{ext}"
