@@ -25,11 +25,8 @@ from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame, sheared_corn
 __all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
-# Children per node of the walked tree.
+# Children per node of the walked tree (the sorting network in trace_range is for four).
 LANES = 4
-# The lane of a one-bit mask of LANES lanes.
-_LOW_BIT = np.array([(m & -m).bit_length() - 1 if m else 0 for m in range(1 << LANES)],
-                    dtype=np.int64)
 
 
 @njit(cache=True, nogil=True)
@@ -138,11 +135,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     beyond the current bound are dropped, the nearest entered one is walked next and
     the others pushed farthest first with their entry distances, each dropped when
     popped if a hit nearer than it has been found meanwhile."""
-    size = (LANES - 1) * wide_depth + LANES
+    size = (LANES - 1) * wide_depth + 2 * LANES
     stack_ref = np.empty(size, dtype=np.int64)
     stack_count = np.empty(size, dtype=np.int64)
     stack_t = np.empty(size)
     entry = np.empty(LANES)
+    sorted_t = np.empty(LANES)
     order = np.empty(LANES, dtype=np.int64)
     tests = 0
     for i in range(lo, hi):
@@ -173,35 +171,31 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                         entry[lane] = t_in if hit else np.inf
                 else:
                     _lanes(wide_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry)
-                # The entered lanes as a bit mask (no branch per lane); one entered lane,
-                # the common case past the top levels, is walked at once.
-                mask = 0
-                for lane in range(LANES):
-                    mask |= (entry[lane] < np.inf) << lane
-                if mask != 0 and mask & (mask - 1) == 0:
-                    lane = _LOW_BIT[mask]
-                    ref, n = wide_ref[ref, lane], wide_count[ref, lane]
-                    continue
-                # Several: nearest first (insertion sort of at most four) where the
-                # order prunes (the nearest hit); any order for any hit and counting.
-                m = 0
-                for lane in range(LANES):
-                    if mask >> lane & 1:
-                        j = m
-                        while mode == 0 and j > 0 and entry[order[j - 1]] > entry[lane]:
-                            order[j] = order[j - 1]
-                            j -= 1
-                        order[j] = lane
-                        m += 1
+                # The lanes nearest first by a sorting network on (entry, lane) pairs
+                # (Knuth's five comparators for four keys) made of selects, not
+                # branches: which lanes a ray enters is what a random ray makes
+                # unpredictable. The m entered lanes lead (a missed lane sorts last at
+                # +inf); the nearest is walked next and the others pushed farthest
+                # first. All three pushes are written and the top moves by m - 1, so
+                # the pushes need no branch either (the stack has LANES slots spare).
+                k0, k1, k2, k3 = entry[0], entry[1], entry[2], entry[3]
+                k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
+                k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
+                k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
+                k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
+                k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
+                m = (k0 < np.inf) + (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
                 if m > 0:
-                    for j in range(m - 1, 0, -1):
-                        lane = order[j]
-                        stack_ref[top] = wide_ref[ref, lane]
-                        stack_count[top] = wide_count[ref, lane]
-                        stack_t[top] = entry[lane]
-                        top += 1
-                    lane = order[0]
-                    ref, n = wide_ref[ref, lane], wide_count[ref, lane]
+                    sorted_t[0], sorted_t[1], sorted_t[2], sorted_t[3] = k0, k1, k2, k3
+                    order[0], order[1], order[2], order[3] = l0, l1, l2, l3
+                    for j in range(LANES - 1):
+                        s = max(m - 1 - j, 0)
+                        lane = order[s]
+                        stack_ref[top + j] = wide_ref[ref, lane]
+                        stack_count[top + j] = wide_count[ref, lane]
+                        stack_t[top + j] = sorted_t[s]
+                    top += m - 1
+                    ref, n = wide_ref[ref, l0], wide_count[ref, l0]
                     continue
             else:  # a leaf: slots ref .. ref + n - 1
                 for k in range(ref, ref + n):
@@ -242,6 +236,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         else:
             out_count[i] = count
     return tests
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sorted_pair(ka, la, kb, lb):
+    """One comparator of a sorting network: the pairs (ka, la), (kb, lb) in order of
+    their keys, by selects (equal keys keep their order)."""
+    swap = kb < ka
+    return (kb if swap else ka), (lb if swap else la), (ka if swap else kb), (la if swap else lb)
 
 
 @njit(cache=True, nogil=True, inline="always")
