@@ -65,6 +65,6 @@ def check_rgb(value, what: str) -> tuple:
     except TypeError:
         parts = ()
     if len(parts) != 3 or not all(isinstance(c, numbers.Real) and not isinstance(c, bool)
-                                  and 0 <= c <= 255 for c in parts):
+                                  and 0 <= c <= 255 for c in parts):  # type: ignore[operator]
         raise RenderError(f"{what} must be three numbers in 0..255, got {value!r}")
     return parts

@@ -56,7 +56,7 @@ class Workers:
     def __init__(self, threads: int | None = None):
         check_threads(threads)
         self.threads = max(1, int(threads or numba.get_num_threads()))
-        self._pool = None
+        self._pool: ThreadPoolExecutor | None = None
 
     def __enter__(self):
         return self
@@ -90,10 +90,12 @@ class Workers:
             return results
         if self._pool is None:
             self._pool = ThreadPoolExecutor(self.threads - 1)
+        pool = self._pool
         results = [None] * len(chunks)
         order = itertools.count(1)  # next() is atomic under the GIL; 0 is the caller's
-        finished = queue.SimpleQueue()  # chunk indices as they finish, for on_done
-        failed = []
+        # Chunk indices as they finish, for on_done.
+        finished: queue.SimpleQueue[int] = queue.SimpleQueue()
+        failed: list[int] = []
 
         def report(timeout=None):
             while on_done is not None:
@@ -118,7 +120,7 @@ class Workers:
 
         # The calling thread works too, from chunk 0: one hand-off fewer, and it is busy
         # at once instead of waiting for a pool thread to wake.
-        helpers = [self._pool.submit(take, next(order))
+        helpers = [pool.submit(take, next(order))
                    for _ in range(min(self.threads, len(chunks)) - 1)]
         try:
             take(0, calling=True)

@@ -44,7 +44,8 @@ def check_option(name: str, key: str, value, kind) -> None:
     if kind is bool:
         ok, wanted = isinstance(value, (bool, np.bool_)), "true or false"
     elif kind is int:
-        ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0
+        ok = bool(isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+                  and value >= 0)
         wanted = "an integer >= 0"
     elif isinstance(kind, tuple):
         check_choice(value, kind, f"{name} option {key}")

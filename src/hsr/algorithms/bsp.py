@@ -62,7 +62,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         raise RenderError("bsp needs the scene and camera (call it through hsr.render)")
     check_choice(traversal, TRAVERSALS, "bsp traversal")
     workers = workers or Workers()
-    stats = {"traversal": traversal}
+    stats: dict = {"traversal": traversal}
     if tree is None:
         tree = bsp_tree.build(view.scene, heuristic, max_polygons=max_polygons,
                               progress=progress)

@@ -136,8 +136,8 @@ def build(scene, heuristic: str = "balanced", candidates: int = 8,
         raise RenderError(f"bsp: the tree grew past max_polygons = {limit:,} polygons "
                           f"({len(keep):,} faces cut again and again); raise the limit "
                           f"(--option max_polygons=N) or use another algorithm")
-    return BSPTree(*out[:-1], n_faces=len(tris), build_ms=1e3 * (time.perf_counter() - t0),
-                   heuristic=heuristic)
+    return BSPTree(*out[:-1], n_faces=len(tris),  # type: ignore[misc]
+                   build_ms=1e3 * (time.perf_counter() - t0), heuristic=heuristic)
 
 
 @njit(cache=True, nogil=True)
@@ -368,10 +368,10 @@ def _eye_point(camera):
 def back_to_front(tree: BSPTree, camera) -> np.ndarray:
     """Polygon indices (into ``tree.triangles``) in painting order for ``camera``."""
     return _walk(tree.plane, tree.front, tree.back, tree.poly_start, tree.poly_count,
-                 tree.node_polys, tree.face_id, *_eye_point(camera), True)
+                 tree.node_polys, tree.face_id, *_eye_point(camera), True)  # type: ignore[call-arg]
 
 
 def front_to_back(tree: BSPTree, camera) -> np.ndarray:
     """Polygon indices nearest first (for filling with a coverage mask)."""
     return _walk(tree.plane, tree.front, tree.back, tree.poly_start, tree.poly_count,
-                 tree.node_polys, tree.face_id, *_eye_point(camera), False)
+                 tree.node_polys, tree.face_id, *_eye_point(camera), False)  # type: ignore[call-arg]

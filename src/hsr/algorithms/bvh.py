@@ -88,7 +88,8 @@ def build(scene) -> BVH:
     node_min, node_max, node_left, node_start, node_count, tri_index = arrays
     corners = tris[tri_index]
     walked = _flatten(node_min, node_max, node_left, node_start, node_count)
-    return BVH(*arrays, corners=corners, n_faces=len(tris), child_box=walked[0],
+    return BVH(node_min, node_max, node_left, node_start, node_count, tri_index,
+               corners=corners, n_faces=len(tris), child_box=walked[0],
                child_ref=walked[1], root_box=walked[2], root_ref=walked[3], depth=walked[4],
                build_ms=1e3 * (time.perf_counter() - t0))
 
@@ -596,5 +597,5 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
         camera.is_orthographic, camera.forward, bvh is not None, *nodes, face, depth,
         distance, bary, np.float32(state.clear_depth), extras)
     if not extras:
-        distance = bary = None
+        return face, depth, None, None, int(sum(tests))
     return face, depth, distance, bary, int(sum(tests))

@@ -38,7 +38,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         raise RenderError(f"raycast accel must be 'bvh' or 'none', got {accel!r}")
     workers = workers or Workers()
     width, height = screen.width, screen.height
-    stats = {"accel": accel}
+    stats: dict = {"accel": accel}
     if accel == "none":
         triangles = view.scene.world_triangles()
         if width * height * len(triangles) > NAIVE_LIMIT and not force:

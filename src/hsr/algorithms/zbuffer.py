@@ -140,7 +140,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     of chunk k + 1 (into the other of two record buffers) until none are left, in one
     hand-off. With a hand-off for each (every one waits for the slowest thread) a
     1M-face terrain at 1080p spent 15 of its ~90 ms waiting; pipelined, 10."""
-    geometry: Geometry = screen.geometry
+    geometry: Geometry = screen.geometry  # type: ignore[assignment]  # deferred: kept
     width, height, n_faces = geometry.width, geometry.height, len(geometry.faces)
     # Fresh buffers are cleared by the first chunk's fill.
     depth, face, clear, count_tested, count_written = fill_targets(

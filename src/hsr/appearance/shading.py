@@ -17,6 +17,7 @@ per fragment by :func:`shade_fragments`, which the transparency pass also uses."
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
@@ -27,6 +28,11 @@ from ..scene.images import load_texture
 from ..scene.mesh import instance_of, normal_matrix
 from .fog import Fog
 from .texture import FILTERS, WRAPS, sample
+
+if TYPE_CHECKING:
+    from ..geometry.stage import ScreenTriangles
+    from ..scene.camera import Camera
+    from ..scene.mesh import Scene
 
 __all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look", "ShadeContext",
            "shade_fragments", "face_colors", "paint_faces", "shade_depth", "face_random_colors",
@@ -367,11 +373,11 @@ class ShadeContext:
     """Everything the per-fragment shading of one render needs; textures and normals are
     loaded or computed on first use and kept for the rest of this render only."""
 
-    scene: object
-    camera: object
-    screen: object  # ScreenTriangles: clip-space corners of the source faces
+    scene: Scene
+    camera: Camera
+    screen: ScreenTriangles  # clip-space corners of the source faces
     look: Look
-    workers: object
+    workers: Workers
     _textures: dict = field(default_factory=dict)
     _normals: dict = field(default_factory=dict)
 
@@ -469,7 +475,7 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
     for k, local, idx in _instance_groups(scene, faces):
         inst = scene.instances[k]
         mesh = inst.mesh
-        b = bary[idx] if bary is not None else None
+        b: Any = bary[idx] if bary is not None else None
         if needs_bary:
             world = (mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
                      + inst.model[:3, 3])  # (K, 3 corners, 3)

@@ -55,7 +55,7 @@ class ViewSpec:
         if self.kind in _SETS:
             return self.count
         if self.kind == "per-model":
-            return len(self.per_model[model])
+            return len(self.per_model[model])  # type: ignore[index]  # set with the kind
         return len(self.cameras)
 
 
@@ -178,7 +178,7 @@ def check_outputs(outputs) -> tuple:
 def model_stems(models) -> dict:
     """Model path -> its folder name under the output folder (the file's stem); two models
     with one stem are refused rather than written over each other."""
-    stems = {}
+    stems: dict = {}
     for model in models:
         stem = os.path.splitext(os.path.basename(os.fspath(model)))[0] or "model"
         if stem in stems.values():
@@ -287,5 +287,6 @@ def probe_options(options: dict) -> None:
     for name in ("threads", "into", "counts", "workspace"):
         if name in options:
             raise RenderError(f"{name} is not a batch render option")
-    tri = Mesh([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]], [[0, 1, 2]])
+    tri = Mesh(np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]]),
+               np.array([[0, 1, 2]]))
     render(tri, Camera.look_at((0, 0, 3), (0, 0, 0)), 1, 1, threads=1, **options)

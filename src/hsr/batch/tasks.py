@@ -33,7 +33,7 @@ class MeshCache(WorkerPlugin):
 
     def __init__(self, max_faces: int = 20_000_000):
         self.max_faces = max_faces
-        self.scenes = OrderedDict()
+        self.scenes: OrderedDict = OrderedDict()
         self.lock = threading.Lock()
 
     def setup(self, worker=None):
@@ -73,7 +73,7 @@ def _cache() -> MeshCache:
     try:
         from distributed import get_worker
 
-        return get_worker().plugins[PLUGIN_NAME]
+        return get_worker().plugins[PLUGIN_NAME]  # type: ignore[return-value]
     except (ImportError, ValueError, KeyError):
         return MeshCache()
 
@@ -119,11 +119,11 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
         # ("these", cameras): just this task's views' cameras, in order.
         cameras = place_cameras(scene, placement, size) if describe else None
         mine = (placement[1] if placement[0] == "these"
-                else [cameras[v] for v in views] if describe
+                else [cameras[v] for v in views] if cameras is not None
                 else place_cameras(scene, placement, size, views))
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row
         return {"error": one_line(exc)}
-    done = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
+    done: dict = {"rows": render_group(scene, path, stem, views, mine, size, outputs, out_dir,
                                  fmt, options)}
     if describe:
         done["cameras"] = cameras
@@ -176,7 +176,8 @@ def _write_zarr(store, view, arrays) -> None:
     for name, array in arrays.items():
         # Every chunk is written, one of background alone too (zarr skips chunks equal to
         # the fill value by default), so that a resumed run can tell a lost chunk.
-        group[name].with_config({"write_empty_chunks": True})[view] = array
+        group[name].with_config(  # type: ignore[union-attr]  # an array, made by plan
+            {"write_empty_chunks": True})[view] = array
     group["done"][view] = 1
 
 

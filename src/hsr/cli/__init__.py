@@ -28,7 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="store_true", help="print hsr's version")
     sub = parser.add_subparsers(dest="command", parser_class=Parser)
     # Every option's help ends with its default.
-    sub.add_parser = functools.partial(sub.add_parser, formatter_class=HelpFormatter)
+    sub.add_parser = functools.partial(  # type: ignore[method-assign]
+        sub.add_parser, formatter_class=HelpFormatter)
     for module in COMMANDS.values():
         module.add_parser(sub)
     return parser

@@ -33,7 +33,7 @@ pre { font-size: 0.8rem; overflow-x: auto; }
 """
 
 
-def _data_uri(image: np.ndarray = None, frames: list = None) -> str:
+def _data_uri(image: np.ndarray | None = None, frames: list | None = None) -> str:
     from PIL import Image
 
     buf = io.BytesIO()
@@ -43,7 +43,7 @@ def _data_uri(image: np.ndarray = None, frames: list = None) -> str:
                        loop=0)
         kind = "gif"
     else:
-        Image.fromarray(image).save(buf, format="PNG", optimize=True)
+        Image.fromarray(np.asarray(image)).save(buf, format="PNG", optimize=True)
         kind = "png"
     return f"data:image/{kind};base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 

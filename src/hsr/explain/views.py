@@ -279,7 +279,7 @@ def painter_view(scene, camera, width, height, state, n_frames: int = 24):
 
     painted = render(scene, camera, width, height, state=state, algorithm="painter")
     truth = render(scene, camera, width, height, state=state)
-    screen = painted.fragments.screen
+    screen = painted.fragments.screen  # type: ignore[union-attr]  # render() sets it
     order = sort_far_to_near(screen.depth_window, "max")
     frames = _painting_frames(scene, camera, screen.xy_window[order], screen.face_id[order],
                               width, height, state,

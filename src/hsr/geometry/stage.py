@@ -400,7 +400,8 @@ def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
     if deferred:
         return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,
                                geometry)
-    return ScreenTriangles(*screen_arrays(geometry, workers), width, height, pos_clip, faces)
+    xy_window, depth_window, face_id, front = screen_arrays(geometry, workers)
+    return ScreenTriangles(xy_window, depth_window, face_id, front, width, height, pos_clip, faces)
 
 
 def clip_and_project(geometry: Geometry, clip_faces: np.ndarray):

@@ -351,7 +351,7 @@ def join_polylines(segments: np.ndarray, height: int, tol=1e-6) -> list:
     _, node = np.unique(keys, axis=0, return_inverse=True)
     node = node.reshape(-1, 2)
     n_nodes = node.max() + 1
-    adjacency = [[] for _ in range(n_nodes)]
+    adjacency: list[list[int]] = [[] for _ in range(n_nodes)]
     for s, (a, b) in enumerate(node):
         adjacency[a].append(s)
         adjacency[b].append(s)

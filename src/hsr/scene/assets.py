@@ -51,7 +51,7 @@ class FolderResolver:
         self.folder = os.path.realpath(folder)
         self.label = label
         self.max_bytes = max_bytes
-        self._read = {}
+        self._read: dict[str, bytes] = {}
 
     def path_of(self, uri) -> str:
         """The real path inside the folder that the relative ``uri`` names, or a

@@ -92,9 +92,8 @@ def uv_sphere(radius=1.0, n_lat=16, n_lon=32, color=None) -> Mesh:
             faces += [[a, b, c], [a, c, d]]
     for j in range(n_lon):
         faces.append([bottom, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)])
-    faces = np.array(faces)
     colors = None if color is None else np.tile(np.asarray(color, np.uint8), (len(faces), 1))
-    return Mesh(np.array(verts), faces, face_colors=colors, name="sphere")
+    return Mesh(np.array(verts), np.array(faces), face_colors=colors, name="sphere")
 
 
 def cubes():
@@ -198,7 +197,8 @@ def tessellated_cube(segments: int = 8) -> Mesh:
     counter-clockwise from outside): a cheap way to give an object many triangles."""
     u = np.linspace(-1.0, 1.0, segments + 1)
     ga, gb = np.meshgrid(u, u, indexing="ij")
-    positions, faces = [], []
+    positions: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
     for axis in range(3):
         for sign in (1.0, -1.0):
             p = np.zeros((segments + 1, segments + 1, 3))

@@ -97,7 +97,7 @@ def look_at_matrix(eye, target, up) -> np.ndarray:
     forward /= dist
     side = np.cross(forward, up)
     side_len = np.linalg.norm(side)
-    if side_len <= 1e-12 * max(np.linalg.norm(up), 1e-300):
+    if side_len <= 1e-12 * max(float(np.linalg.norm(up)), 1e-300):
         raise CameraError("up vector is zero or parallel to the viewing direction")
     side /= side_len
     true_up = np.cross(side, forward)
@@ -447,13 +447,13 @@ class Camera:
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """(4, 4) eye -> clip space for an image of the given width / height."""
         if self.is_orthographic and self.intrinsics is None:
-            half_h = self.ortho_height / 2.0
+            half_h = float(self.ortho_height) / 2.0  # type: ignore[arg-type]
             half_w = half_h * aspect
             return orthographic_matrix(-half_w, half_w, -half_h, half_h, self.near, self.far)
         if self.is_orthographic:
             # A box kept from a glOrtho matrix: x_ndc = 2 a x_eye + 2 c - 1 and
             # y_ndc = 2 b y_eye + 1 - 2 d (c, d: the image fraction where the axis lands).
-            a, b, c, d = self.intrinsics
+            a, b, c, d = self.intrinsics  # type: ignore[misc]
             proj = orthographic_matrix(-1.0, 1.0, -1.0, 1.0, self.near, self.far)
             proj[0, 0], proj[0, 3] = 2.0 * a, 2.0 * c - 1.0
             proj[1, 1], proj[1, 3] = 2.0 * b, 1.0 - 2.0 * d

@@ -113,7 +113,8 @@ def _read_with_trimesh(path: str, max_bytes: int):
     import trimesh  # imported lazily: it is slow to import and OBJ does not need it
 
     check_regular(path, "mesh file", max_bytes)
-    header, source, kind = None, path, None
+    header, kind = None, None
+    source: str | io.BytesIO = path
     # Every file the model names is read through this resolver: inside the model's
     # folder, regular files only, capped (see hsr.scene.assets).
     resolver = folder_resolver(os.path.dirname(os.path.abspath(path)), path)
@@ -161,7 +162,8 @@ def _gltf_node_order(header: dict) -> list | None:
     from trimesh.util import unique_name
 
     nodes = header.get("nodes", [])
-    names, counts = {}, {}
+    names: dict = {}
+    counts: dict = {}
     for i, node in enumerate(nodes):  # the same loop as trimesh.exchange.gltf
         names[unique_name(node.get("name", str(i)), names, counts=counts)] = i
     by_index = {i: name for name, i in names.items()}

@@ -9,6 +9,7 @@ ties are decided by submission order): nothing here reorders faces. Reading file
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -419,7 +420,7 @@ def from_trimesh(tm, name: str) -> Mesh:
     # Checked before the per-vertex attributes are gathered through the faces (a file's
     # index past the vertex count would otherwise fail there as an IndexError).
     positions, faces, _ = _validate_arrays(tm.vertices, tm.faces, name)
-    visual = getattr(tm, "visual", None)
+    visual: Any = getattr(tm, "visual", None)
     kind = getattr(visual, "kind", None)
     corner_uv = texture = face_colors = corner_colors = None
     if kind == "texture":

@@ -121,7 +121,9 @@ class _Scanned:
 
 def scan_careful(text: str, name: str) -> _Scanned:
     """Line by line: sort the statements by tag, keeping line numbers."""
-    v_rows, vt_rows, vn_rows = [], [], []
+    v_rows: list = []
+    vt_rows: list = []
+    vn_rows: list = []
     f_rows, f_lines, f_nv, f_nt, f_nn = [], [], [], [], []
     mat_events: list[tuple[int, str]] = []
     mtllibs: list[str] = []
@@ -205,8 +207,9 @@ def _build(path, name, s: _Scanned) -> Mesh:
     n_tris = counts - 2
     start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     tri_poly = np.repeat(np.arange(len(counts)), n_tris)
-    k = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
-    corner = np.stack([start[tri_poly], start[tri_poly] + k, start[tri_poly] + k + 1], axis=1)
+    step = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
+    corner = np.stack([start[tri_poly], start[tri_poly] + step, start[tri_poly] + step + 1],
+                      axis=1)
     faces = resolved[corner, 0]
     corner_uv = uvs[resolved[corner, 1]] if len(uvs) and (resolved[:, 1] >= 0).all() else None
     corner_normals = (normals[resolved[corner, 2]]

@@ -72,7 +72,7 @@ def check_new(paths, flag: str = "overwrite=True") -> None:
 def _texture_names(scene: Scene, stem: str) -> dict:
     """Texture (a path, or the id of an array) -> its file name beside an OBJ named
     ``stem``, in the order the instances first use them."""
-    names = {}
+    names: dict = {}
     for inst in scene.instances:
         texture = inst.mesh.texture
         if texture is None:
@@ -100,7 +100,7 @@ def _write_obj(scene: Scene, path: str) -> list:
     """One OBJ for the scene (an ``o`` per instance), a .mtl with a material per (texture,
     colour) pair, the textures copied (or saved as PNG) beside it."""
     folder, stem = os.path.dirname(path) or ".", os.path.splitext(os.path.basename(path))[0]
-    written, materials, textures = [path], {}, {}
+    written, materials, textures = [path], {}, {}  # type: list[str], dict, dict
     names = _texture_names(scene, stem)
     lines, base_v, base_vt, base_vn = [f"mtllib {stem}.mtl\n"], 1, 1, 1
     for inst in scene.instances:
@@ -145,7 +145,7 @@ def _write_obj(scene: Scene, path: str) -> list:
     return written
 
 
-def _token(name: str) -> str:
+def _token(name: str | None) -> str:
     return "_".join(str(name).split()) or "object"
 
 
@@ -193,7 +193,7 @@ def _write_glb(scene: Scene, path: str) -> None:
     import trimesh
 
     out = trimesh.Scene()
-    geometry = {}
+    geometry: dict = {}
     for k, inst in enumerate(scene.instances):
         key = id(inst.mesh)
         if key not in geometry:  # in the scene's geometry, not yet on a node

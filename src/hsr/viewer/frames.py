@@ -103,10 +103,11 @@ def render_request(scene, request: ViewRequest, bounds=None) -> tuple:
     w, h = request.w, request.h
     options = _options(bounds, camera, request)
     buffer = request.buffer
-    extra = {}
+    extra: dict = {}
+    image: np.ndarray | None
     if buffer == "overdraw":
         frame = render(scene, camera, w, h, counts=True, **options)
-        tested = frame.fragments.count_tested
+        tested: np.ndarray = frame.fragments.count_tested  # type: ignore[union-attr,assignment]
         image = heat(tested, max(int(tested.max()), 1))
         extra["max_fragments_per_pixel"] = int(tested.max())
     else:
@@ -221,7 +222,7 @@ def pick(scene, request: ViewRequest, names, bounds=None) -> dict:
         result.update(object_id=obj, object=scene.instances[obj].name,
                       eye_depth=float(frame.eye_depth[y, x]))
     one = pixel_camera(camera, request.w, request.h, x, y)
-    agree = {}
+    agree: dict = {}
     for name in names:
         try:
             got = int(render(scene, one, 1, 1, **dict(options, algorithm=name,
