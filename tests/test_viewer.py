@@ -312,7 +312,7 @@ def test_the_page_in_a_real_browser(server, tmp_path, models_dir):
     """Load the page, wait for a frame, drag (the image changes), switch to the painter's
     algorithm on the cyclic scene (the error count shows), click a pixel (the face id is
     hsr.render's there), and measure the frames per second while dragging the bunny at
-    800 x 600 (printed; the README reports it)."""
+    800 x 600 (printed; docs/performance.md reports it)."""
     try:
         from selenium.webdriver.common.action_chains import ActionChains
         from selenium.webdriver.common.by import By

@@ -101,7 +101,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
                  progress=None, near=0.1, far=100.0, views_per_task=None,
                  **render_options) -> BatchResult:
     """Render every model from every view, on a Dask cluster, writing the outputs to
-    ``out`` (see the README section "Many views at scale" for the layout).
+    ``out`` (see docs/guide/batch.md for the layout).
 
     ``models``: paths every worker can read (each is loaded once per worker). ``views``:
     ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``, a transforms.json or COLMAP

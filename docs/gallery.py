@@ -1,0 +1,223 @@
+"""Every picture of the documentation's gallery, made from the code (never edited by hand).
+
+    python docs/gallery.py [OUT_DIR]            # default: docs/gallery
+    python docs/gallery.py --readme docs/img/montage.png   # the README's picture
+
+The docs build runs it (docs/hooks.py) when a picture is missing or older than this
+script or hsr's sources, so the gallery always shows what the installed code draws.
+Models come from ``../shared/models`` beside the repository; the built-in scenes need
+nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+import hsr
+from hsr.explain.compare import compare_algorithms, montage
+from hsr.explain.views import explain
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+MODELS = os.path.join(HERE, "..", "..", "shared", "models")
+ALGORITHMS = ("zbuffer", "scanline", "raycast", "painter", "newell", "bsp")
+# (file name, caption) of every picture, in page order; docs/gallery.md shows them.
+PICTURES = {
+    "algorithms.png": "The six algorithms on the cyclic scene (three triangles that overlap "
+                      "in a cycle) and where each differs from the z-buffer: only the "
+                      "painter's is wrong, and it says where.",
+    "models.png": "Every shared model from the fixed three-quarter view (top) and from "
+                  "its first look, the view `hsr render MODEL` chooses (bottom).",
+    "buffers.png": "One render's buffers: colour, face ids (false colour), eye depth and "
+                   "normals (world space, as colour).",
+    "appearance.png": "Texture with Gouraud shading, fog, polygon mode `line` and exact "
+                      "feature lines.",
+    "transparency.png": "Transparency: per-object sorting (wrong where the objects "
+                        "interpenetrate) and the exact per-pixel sort.",
+    "explain-depth.png": "`hsr explain depth`: window depth as stored and linear eye depth.",
+    "explain-overdraw.png": "`hsr explain overdraw`: fragments tested and written per pixel.",
+    "explain-painter.png": "`hsr explain painter` on the cyclic scene: the painting order "
+                           "and the pixels it gets wrong.",
+    "explain-precision.png": "`hsr explain precision`: z-fighting in 16-bit, 24-bit, float "
+                             "and reversed-z depth.",
+    "explain-culling.png": "`hsr explain culling`: the four glCullFace modes.",
+    "prune.png": "`hsr prune`: a housing with a part inside, as rendered, and an x-ray of "
+                 "the faces removed (red).",
+}
+
+
+def model(name: str):
+    return hsr.load(os.path.join(MODELS, name))
+
+
+def label(image: np.ndarray, text: str) -> np.ndarray:
+    """The image under a one-line caption."""
+    h, w = image.shape[:2]
+    sheet = Image.new("RGB", (w, h + 18), (24, 24, 24))
+    sheet.paste(Image.fromarray(image), (0, 18))
+    ImageDraw.Draw(sheet).text((4, 3), text, fill=(235, 235, 235))
+    return np.asarray(sheet)
+
+
+def side_by_side(images: list, gap: int = 4) -> np.ndarray:
+    h = max(im.shape[0] for im in images)
+    padded = [np.pad(im, ((0, h - im.shape[0]), (0, gap), (0, 0)), constant_values=24)
+              for im in images]
+    return np.concatenate(padded, axis=1)[:, :-gap]
+
+
+def algorithms_picture() -> Image.Image:
+    scene, camera = hsr.scenes.get("cyclic")
+    return montage(compare_algorithms(scene, camera, 200, 150, ALGORITHMS))
+
+
+def models_picture() -> np.ndarray:
+    """Every shared model: the fixed view of hsr.views.default above, hsr.first_look
+    (what ``hsr render MODEL`` draws) below."""
+    rows = [], []
+    for name in sorted(n for n in os.listdir(MODELS) if n.endswith(".obj")):
+        mesh = model(name)
+        az, el = hsr.best_view(mesh)
+        for row, view, text in ((rows[0], hsr.views.DEFAULT_VIEW, "fixed 35,25"),
+                                (rows[1], (az, el), f"first look {az:g},{el:g}")):
+            frame = hsr.render(mesh, hsr.views.default(mesh, 4 / 3, view=view), 160, 120,
+                               light="studio")
+            row.append(label(frame.color, f"{name[:-4][:14]}: {text}"))
+    top, bottom = side_by_side(rows[0]), side_by_side(rows[1])
+    return np.concatenate([top, np.full((4, top.shape[1], 3), 24, np.uint8), bottom])
+
+
+def buffers_picture() -> np.ndarray:
+    bunny = model("stanford-bunny.obj")
+    frame = hsr.render(bunny, hsr.first_look(bunny, 4 / 3), 200, 150, light="studio")
+    ids = frame.face_id
+    rng = np.random.default_rng(0)
+    palette = rng.integers(40, 255, (bunny.n_faces, 3), dtype=np.uint8)
+    id_image = np.where(ids[..., None] >= 0, palette[np.maximum(ids, 0)], 0).astype(np.uint8)
+    eye = frame.eye_depth
+    seen = np.isfinite(eye)
+    lo, hi = eye[seen].min(), eye[seen].max()
+    depth = np.zeros(eye.shape, np.uint8)
+    depth[seen] = (255 - 215 * (eye[seen] - lo) / (hi - lo)).astype(np.uint8)
+    normals = ((frame.normals + 1) * 127.5).astype(np.uint8) * seen[..., None]
+    return side_by_side([label(frame.color, "color"), label(id_image, "face_id"),
+                         label(np.repeat(depth[..., None], 3, -1), "eye_depth"),
+                         label(normals, "normals")])
+
+
+def appearance_picture() -> np.ndarray:
+    head = model("african_head.obj")
+    head.texture = os.path.join(MODELS, "african_head_diffuse.tga")
+    cam = hsr.views.framed(head.bounds(), hsr.views.direction(20, 10))
+    textured = hsr.render(head, cam, 200, 200, shading="gouraud", texture_filter="bilinear")
+    scene, camera = hsr.scenes.get("cubes")
+    fog = hsr.render(scene, camera, 267, 200, background=(200, 200, 210),
+                     fog=hsr.Fog("linear", start=3, end=12, color=(200, 200, 210)))
+    wire = hsr.render(scene, camera, 267, 200, polygon_mode="line")
+    spot = model("spot.obj")
+    lines = hsr.render(spot, hsr.first_look(spot, 4 / 3), 267, 200, background=(255,) * 3,
+                       hidden_line=hsr.HiddenLine(edges="feature"))
+    return side_by_side([label(textured.color, "texture, gouraud"),
+                         label(fog.color, "fog linear 3..12"),
+                         label(wire.color, "polygon mode line"),
+                         label(lines.color, "feature lines")])
+
+
+def transparency_picture() -> np.ndarray:
+    scene, camera = hsr.scenes.get("glass")
+    by_object = hsr.render(scene, camera, 267, 200)
+    exact = hsr.render(scene, camera, 267, 200, transparency="exact")
+    return side_by_side([label(by_object.color, "transparency=object"),
+                         label(exact.color, "transparency=exact")])
+
+
+def explain_picture(view: str) -> np.ndarray:
+    if view in ("painter",):
+        scene, camera = hsr.scenes.get("cyclic")
+    elif view == "culling":
+        scene = model("spot.obj")
+        camera = hsr.views.default(scene, 4 / 3)
+    else:
+        scene, camera = hsr.scenes.get("cubes")
+    return explain(view, scene, camera, 240, 180).image
+
+
+def prune_picture() -> np.ndarray:
+    import trimesh
+
+    from hsr.visibility import subset_scene
+
+    housing = trimesh.creation.box(extents=(2, 1.2, 1.2))
+    inner = trimesh.creation.icosphere(subdivisions=3, radius=0.45)
+    shaft = trimesh.creation.cylinder(radius=0.15, height=2.4, sections=24)
+    shaft.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+    scene = hsr.Scene().add(housing, name="housing").add(inner, name="part")
+    scene.add(shaft, name="shaft")
+    _, kept = hsr.prune(scene, "sphere:48", 256)
+    keep = np.zeros(scene.n_faces, dtype=bool)
+    keep[kept] = True
+    camera = hsr.views.default(scene, 1.0)
+    before = hsr.render(scene, camera, 240, 240, light="studio").color
+    grey = hsr.render(subset_scene(scene, keep), camera, 240, 240, light="studio")
+    red = hsr.render(subset_scene(scene, ~keep), camera, 240, 240, light="studio",
+                     depth_test=False)
+    xray = (grey.color * 0.45).astype(np.uint8)
+    mask = red.face_id >= 0
+    shade = red.color[..., 1:2].astype(float) / 255.0
+    xray[mask] = (np.concatenate([0.55 + 0.45 * shade, 0.1 * shade, 0.1 * shade], axis=-1)
+                  * 255).astype(np.uint8)[mask]
+    return side_by_side([label(before, "as rendered"),
+                         label(xray, f"removed: {int((~keep).sum())} of {keep.size} faces")])
+
+
+def make(name: str):
+    if name == "algorithms.png":
+        return algorithms_picture()
+    if name.startswith("explain-"):
+        return explain_picture(name[len("explain-"):-len(".png")])
+    return {"models.png": models_picture, "buffers.png": buffers_picture,
+            "appearance.png": appearance_picture, "transparency.png": transparency_picture,
+            "prune.png": prune_picture}[name]()
+
+
+def save(image, path: str) -> None:
+    image = image if isinstance(image, Image.Image) else Image.fromarray(image)
+    tmp = path + ".tmp.png"
+    image.save(tmp, optimize=True)
+    os.replace(tmp, path)
+
+
+def readme_montage(path: str) -> None:
+    """The README's picture: the six algorithms, an explanation view and the viewer."""
+    top = np.asarray(algorithms_picture().convert("RGB"))
+    explained = explain_picture("painter")
+    viewer = Image.open(os.path.join(HERE, "viewer.png")).convert("RGB")
+    height = explained.shape[0]
+    viewer = np.asarray(viewer.resize((round(viewer.width * height / viewer.height), height)))
+    bottom = side_by_side([explained, viewer])
+    width = max(top.shape[1], bottom.shape[1])
+    rows = [np.pad(im, ((0, 4), (0, width - im.shape[1]), (0, 0)), constant_values=24)
+            for im in (top, bottom)]
+    save(np.concatenate(rows, axis=0)[:-4], path)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", nargs="?", default=os.path.join(HERE, "gallery"))
+    parser.add_argument("--readme", metavar="PNG", help="write the README's montage instead")
+    args = parser.parse_args(argv)
+    if args.readme:
+        readme_montage(args.readme)
+        return 0
+    os.makedirs(args.out, exist_ok=True)
+    for name in PICTURES:
+        save(make(name), os.path.join(args.out, name))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
