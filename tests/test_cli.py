@@ -346,17 +346,18 @@ def test_orbit_writes_numbered_views(models_dir, tmp_path, capsys):
 
 
 def test_first_look_of_a_model(tmp_path, capsys, models_dir):
-    """``hsr render MODEL``: the three-quarter view (views.DEFAULT_VIEW) framed for the
-    image's aspect, lit by the studio rig; a built-in scene keeps its camera and the
-    headlight. Negative numbers after an option are values (--view -55,25)."""
+    """``hsr render MODEL``: the view hsr.best_view chooses (tests/test_viewpoint.py
+    checks the choice) framed for the image's aspect, lit by the studio rig; a built-in
+    scene keeps its camera and the headlight. Negative numbers after an option are values
+    (--view -55,25)."""
     import hsr
 
     path = os.path.join(models_dir, "fandisk.obj")
     out = tmp_path / "f.png"
     assert main(["render", path, "-o", str(out), "--size", "200x120", "--quiet"]) == 0
     mesh = hsr.load(path)
-    cam = hsr.views.default(mesh, 200 / 120)
-    assert np.allclose(cam.forward, -hsr.views.direction(35, 25))
+    cam = hsr.first_look(mesh, 200 / 120)
+    assert np.allclose(cam.forward, -hsr.views.direction(*hsr.best_view(mesh)))
     want = hsr.render(mesh, cam, 200, 120, light="studio")
     assert np.array_equal(np.asarray(Image.open(out)), want.color)
     # Python without a camera: the same first look.

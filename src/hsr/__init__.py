@@ -18,6 +18,7 @@ from . import batch, visibility
 from .algorithms import ALGORITHMS, bsp, raycast
 from .appearance.fog import Fog
 from .appearance.shading import Look
+from .appearance.viewpoint import best_view, first_look
 from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
 from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
 from .lines.raster import HiddenLine
@@ -50,5 +51,5 @@ __all__ = [
     "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
     "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
-    "visible_vertices", "visible_points", "visibility_matrix",
+    "visible_vertices", "visible_points", "visibility_matrix", "first_look", "best_view",
 ]

@@ -25,6 +25,7 @@ from .appearance.shading import (
     shade_visible,
 )
 from .appearance.transparency import check_order, transparent_mask, transparent_pass
+from .appearance.viewpoint import first_look
 from .errors import RenderError
 from .geometry.stage import prepare
 from .geometry.state import RenderState
@@ -39,7 +40,6 @@ from .parallel import (
 )
 from .scene.camera import Camera
 from .scene.mesh import as_scene, instance_of
-from .scene.views import default as default_view
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
@@ -206,8 +206,9 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
            **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
     ``camera`` into a ``width`` x ``height`` Frame. Without a camera: the first look of
-    ``hsr render MODEL`` (:func:`hsr.views.default`: a three-quarter view framed tight,
-    and the studio light unless ``light`` says otherwise).
+    ``hsr render MODEL`` (:func:`hsr.first_look`: the model framed tight from the side
+    that shows the most of its shape, and the studio light unless ``light`` says
+    otherwise).
 
     ``state`` (or keyword fields of :class:`RenderState`, e.g. ``cull="back"``,
     ``depth_func="lequal"``, ``polygon_mode="line"``, ``polygon_offset=(1, 1)``) sets the
@@ -251,7 +252,7 @@ def render(scene, camera: Camera | None = None, width: int = 640, height: int = 
     if camera is None:
         # The first look, as ``hsr render MODEL`` draws it.
         scene = as_scene(scene)
-        camera = default_view(scene, width / height)
+        camera = first_look(scene, width / height)
         light = "studio" if light is None else light
     if not isinstance(camera, Camera):
         raise RenderError(f"camera must be an hsr.Camera, got {type(camera).__name__}")

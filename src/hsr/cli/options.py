@@ -194,8 +194,8 @@ def add_scene_args(p):
     g.add_argument("--size", help="WxH in pixels (default: the --camera file's, else 800x600)")
     g.add_argument("--view", dest="view_from", metavar="AZ,EL", help="frame the model from "
                    "azimuth AZ (degrees from +Z towards +X) and elevation EL (degrees up) "
-                   "(default for MODELs: 35,25, a three-quarter view from above; built-in "
-                   "scenes: their own camera)")
+                   "(default for MODELs: the side showing the most shape, hsr.best_view; "
+                   "built-in scenes: their own camera)")
     g.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
     g.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
     g.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")

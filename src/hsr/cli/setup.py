@@ -52,6 +52,7 @@ def camera_from_file(args):
 
 
 def camera_from_args(args, scene, default_camera, aspect):
+    from ..appearance.viewpoint import best_view
     from ..errors import CameraError
     from ..scene import views
     from ..scene.camera import Camera
@@ -76,9 +77,9 @@ def camera_from_args(args, scene, default_camera, aspect):
     try:
         if eye is None:
             # Frame the model's bounding sphere for this aspect ratio from --view, or by
-            # default from a three-quarter view above the front-right (views.DEFAULT_VIEW).
+            # default from the side that shows the most of its shape (hsr.first_look).
             az, el = (floats(args.view_from, 2, "--view") if args.view_from is not None
-                      else views.DEFAULT_VIEW)
+                      else best_view(scene, args.fov))
             cam = Camera.frame(bounds, views.direction(az, el), up, args.fov,
                                ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect,
                                fit="points", points=points)
@@ -168,7 +169,7 @@ def apply_textures(args, scene, owner) -> None:
     MODEL when no MODEL= is given). A MODEL named twice, a MODEL not on the command line,
     a bare IMAGE with several MODELs, or a MODEL without texture coordinates is an error:
     never a silent choice."""
-    given = {}
+    given: dict = {}
     for value in args.texture:
         model, image = None, value
         if "=" in value and not os.path.isfile(value):

@@ -41,18 +41,30 @@ def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
 
 
-def default(model, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
-    """The first look at a model: a three-quarter view from the front-right and above
-    (azimuth 35, elevation 25 degrees: three faces of a box show, so the shape reads).
-    ``model`` is a Mesh or Scene (the eye comes as close as its vertices allow with a 5%
-    margin: the whole model, as large as it fits) or a (2, 3) box (as close as the box's
-    corners allow). ``hsr render MODEL`` uses it. Raises
-    :class:`~hsr.errors.CameraError` as the module says."""
+def default(model, aspect: float = 1.0, fov_y: float = 45.0,
+            view: tuple = DEFAULT_VIEW) -> Camera:
+    """A model framed from ``view`` = (azimuth, elevation) in degrees, by default a
+    three-quarter view from the front-right and above (35, 25: three faces of a box
+    show, so the shape reads). ``model`` is a Mesh or Scene (the eye comes as close as
+    its vertices allow with a 5% margin: the whole model, as large as it fits) or a
+    (2, 3) box (as close as the box's corners allow). :func:`hsr.first_look` frames the
+    same way from the view that shows the most of the model's shape, which is what
+    ``hsr render MODEL`` draws. Raises :class:`~hsr.errors.CameraError` as the module
+    says, and for a view that is not two finite numbers."""
+    try:
+        if isinstance(view, str):
+            raise TypeError
+        azimuth, elevation = (float(v) for v in view)
+    except (TypeError, ValueError):
+        raise CameraError(f"view must be (azimuth, elevation) in degrees, got {view!r}") \
+            from None
+    if not (math.isfinite(azimuth) and math.isfinite(elevation)):
+        raise CameraError(f"view must be finite degrees, got {view!r}")
     points = model_points(model) if hasattr(model, "bounds") else None
     # The model's box from the same points (what Mesh/Scene.bounds() gives, without
     # transforming every face corner a second time).
     bounds = model if points is None else np.stack([points.min(axis=0), points.max(axis=0)])
-    return Camera.frame(bounds, direction(*DEFAULT_VIEW), (0.0, 1.0, 0.0), fov_y,
+    return Camera.frame(bounds, direction(azimuth, elevation), (0.0, 1.0, 0.0), fov_y,
                         margin=MARGIN, aspect=aspect,
                         fit="box" if points is None else "points", points=points)
 
