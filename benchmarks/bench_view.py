@@ -55,7 +55,7 @@ def browser_fps(base, seconds=3.0, screenshot=None):
     try:
         driver.get(base + "/")
         WebDriverWait(driver, 60).until(
-            lambda d: d.execute_script("return window.hsr && window.hsr.frames") >= 1)
+            lambda d: d.execute_script("return (window.hsr && window.hsr.frames) || 0") >= 1)
         driver.set_script_timeout(seconds + 30)
         got = driver.execute_async_script(
             f"window.hsr.drag({seconds}).then(arguments[arguments.length - 1])")

@@ -164,7 +164,7 @@ def test_visibility_matrix_on_a_dask_cluster_equals_the_local_one(diablo):
     distributed = pytest.importorskip("distributed")
     local = hsr.visibility_matrix(diablo, "sphere:5", 64, quality=True)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  host="127.0.0.1", dashboard_address=None,
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0",
                                   silence_logs=40) as cluster, \
             distributed.Client(cluster) as client:
         remote = hsr.visibility_matrix(diablo, "sphere:5", 64, quality=True, client=client)

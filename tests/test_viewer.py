@@ -326,7 +326,9 @@ def test_the_page_in_a_real_browser(server, tmp_path, models_dir):
     try:
         driver.get(base + "/")
         wait = WebDriverWait(driver, 60)
-        wait.until(lambda d: d.execute_script("return window.hsr && window.hsr.frames") >= 1)
+        # "|| 0": before the page's script has run, window.hsr is undefined (None here).
+        frames = "return (window.hsr && window.hsr.frames) || 0"
+        wait.until(lambda d: d.execute_script(frames) >= 1)
         img = driver.find_element(By.ID, "frame")
         first = img.get_attribute("src")
         frames = driver.execute_script("return window.hsr.frames")
