@@ -13,10 +13,11 @@ import itertools
 import queue
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 
 import numba
 import numpy as np
+from numpy.typing import DTypeLike
 
 __all__ = ["Workers", "Workspace", "split_range", "progress_bar", "default_workspace",
            "release_default_workspace", "DEFAULT_KEEP_BYTES"]
@@ -53,7 +54,7 @@ class Workers:
     """A few threads for one render. ``threads`` defaults to numba's thread count
     (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``)."""
 
-    def __init__(self, threads: int | None = None):
+    def __init__(self, threads: int | None = None) -> None:
         check_threads(threads)
         self.threads = max(1, int(threads or numba.get_num_threads()))
         self._pool: ThreadPoolExecutor | None = None
@@ -134,7 +135,8 @@ class Workers:
         report()
         return results
 
-    def scratch(self, key, rows: int, shape: tuple = (), dtype=np.float64) -> np.ndarray:
+    def scratch(self, key: str, rows: int, shape: tuple = (),
+                dtype: DTypeLike = np.float64) -> np.ndarray:
         """An uninitialised (rows, *shape) array for work inside one render (never for
         what the render returns). Fresh here; a :class:`Workspace` keeps them."""
         return np.empty((rows, *shape), dtype=dtype)
@@ -165,7 +167,7 @@ class Workspace(Workers):
     buffers until closed or dropped. Plain ``hsr.render`` calls use one of the calling
     thread's own (:func:`default_workspace`)."""
 
-    def __init__(self, threads: int | None = None):
+    def __init__(self, threads: int | None = None) -> None:
         super().__init__(threads)
         self._buffers: dict = {}
         self._lock = threading.Lock()
@@ -188,7 +190,8 @@ class Workspace(Workers):
         super().__exit__()
         self.drop_buffers()
 
-    def scratch(self, key, rows: int, shape: tuple = (), dtype=np.float64) -> np.ndarray:
+    def scratch(self, key: str, rows: int, shape: tuple = (),
+                dtype: DTypeLike = np.float64) -> np.ndarray:
         dtype = np.dtype(dtype)
         kept = self._buffers.get(key)
         if kept is None or kept.shape[1:] != tuple(shape) or kept.dtype != dtype \
@@ -196,7 +199,7 @@ class Workspace(Workers):
             kept = self._buffers[key] = np.empty((rows, *shape), dtype=dtype)
         return kept[:rows]
 
-    def claim(self):
+    def claim(self) -> AbstractContextManager[Workers]:
         """Context manager for one render's use: raises RenderError if another holds it."""
         from contextlib import contextmanager
 

@@ -5,10 +5,12 @@ earlier frame, transparency, hidden lines), and hand back a :class:`Frame`."""
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .algorithms import ALGORITHMS, Needs
 from .algorithms import check as check_algorithm
@@ -39,7 +41,7 @@ from .parallel import (
     release_default_workspace,
 )
 from .scene.camera import Camera
-from .scene.mesh import as_scene, instance_of
+from .scene.mesh import SceneLike, as_scene, instance_of
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
@@ -165,7 +167,7 @@ class Frame:
     def height(self) -> int:
         return self.color.shape[0]
 
-    def save(self, path) -> None:
+    def save(self, path: str | os.PathLike) -> None:
         """Write the colour image (PNG or any format Pillow knows).
 
         Raises :class:`~hsr.errors.OutputError` for a missing folder or an unknown extension.
@@ -174,7 +176,7 @@ class Frame:
 
         save_image(self.color, path)
 
-    def save_depth(self, path) -> None:
+    def save_depth(self, path: str | os.PathLike) -> None:
         """Write the depth buffer: ``.npy`` float32, or 16-bit PNG (depth * 65535).
 
         Raises :class:`~hsr.errors.OutputError` for a missing folder or another extension.
@@ -183,7 +185,7 @@ class Frame:
 
         save_depth(self.depth, path)
 
-    def save_ids(self, path) -> None:
+    def save_ids(self, path: str | os.PathLike) -> None:
         """Write the face-id buffer as ``.npy`` int32.
 
         Raises :class:`~hsr.errors.OutputError` for a missing folder or another extension.
@@ -193,9 +195,9 @@ class Frame:
         save_ids(self.face_id, path)
 
 
-def render(scene, camera: Camera | None = None, width: int = 640, height: int = 480, *,
+def render(scene: SceneLike, camera: Camera | None = None, width: int = 640, height: int = 480, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
-           shading: str = "flat", background=(0, 0, 0), counts: bool = False,
+           shading: str = "flat", background: ArrayLike = (0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
            occlusion_cull: bool = False, options: dict | None = None,
            look: Look | None = None, fog: Fog | None = None, textures: bool = True,

@@ -34,7 +34,7 @@ from ..geometry.stage import prepare
 from ..geometry.state import RenderState
 from ..parallel import Workers
 from ..scene.camera import Camera
-from ..scene.mesh import as_scene, normal_matrix
+from ..scene.mesh import SceneLike, as_scene, normal_matrix
 from ..scene.views import DEFAULT_VIEW, MARGIN, default, direction, model_points
 
 AZIMUTHS = tuple(35.0 + 45.0 * k for k in range(8))
@@ -55,7 +55,7 @@ def candidates(n_faces: int) -> list:
     return [DEFAULT_VIEW]
 
 
-def best_view(model, fov_y: float = 45.0, workers: Workers | None = None) -> tuple:
+def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = None) -> tuple:
     """``(azimuth, elevation)`` in degrees (as :func:`hsr.views.direction` takes them) of
     the candidate view of ``model`` (a Mesh or Scene) with the largest projected total
     curvature, see the module. Deterministic; about 16 renders of 96 x 72 (fewer for
@@ -82,7 +82,7 @@ def best_view(model, fov_y: float = 45.0, workers: Workers | None = None) -> tup
     return best
 
 
-def first_look(model, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
+def first_look(model: SceneLike, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     """The camera ``hsr render MODEL`` and ``hsr.render(model)`` start from: the model
     framed as :func:`hsr.views.default` frames it (as large as it fits in an image of
     ``aspect``), from :func:`best_view`. Raises :class:`~hsr.errors.MeshError` for

@@ -9,6 +9,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -59,7 +60,7 @@ class ViewSpec:
         return len(self.cameras)
 
 
-def parse_views(views, models, near=0.1, far=100.0) -> ViewSpec:
+def parse_views(views: Any, models: list, near: float = 0.1, far: float = 100.0) -> ViewSpec:
     """A :class:`ViewSpec` from ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``,
     a transforms.json or COLMAP folder (the same cameras for every model),
     ``per-model:FILE`` (a JSON object from each model's path or file name to a

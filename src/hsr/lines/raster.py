@@ -56,7 +56,7 @@ class HiddenLine:
     color: tuple | None = None
     fill: str = "background"
 
-    def line_color(self, background) -> tuple:
+    def line_color(self, background: tuple) -> tuple:
         """The line colour: ``color``, or white on a dark background, black on a light one."""
         if self.color is not None:
             return tuple(self.color)

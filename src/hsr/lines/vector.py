@@ -17,6 +17,7 @@ overlays the PNG.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,7 +26,8 @@ from numba import njit
 from ..geometry.stage import prepare
 from ..geometry.state import RenderState
 from ..geometry.viewport import check_size
-from ..scene.mesh import as_scene
+from ..scene.camera import Camera
+from ..scene.mesh import SceneLike, as_scene
 from .raster import HiddenLine, chosen_edges, clip_segments
 from .svg import write_svg
 
@@ -257,9 +259,9 @@ def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progre
     return hidden_edge, hidden_t, ends, cell
 
 
-def hidden_lines(scene, camera, width: int, height: int, settings: HiddenLine | None = None,
-                 state: RenderState | None = None, threads: int | None = None,
-                 with_hidden: bool = True,
+def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
+                 settings: HiddenLine | None = None, state: RenderState | None = None,
+                 threads: int | None = None, with_hidden: bool = True,
                  cell: int | None = None, progress: bool | None = None) -> LineDrawing:
     """Exact visible (and hidden) parts of the scene's edges (all or feature edges, per
     ``settings``) as seen by ``camera`` in a ``width`` x ``height`` image. ``state``
@@ -406,8 +408,9 @@ def _simplify(points: np.ndarray) -> np.ndarray:
     return points[keep]
 
 
-def write_lines_svg(path, drawing: LineDrawing, background=(255, 255, 255),
-                    color=(0, 0, 0), hidden: bool = False, stroke_width: float = 1.0) -> None:
+def write_lines_svg(path: str | os.PathLike, drawing: LineDrawing,
+                    background: tuple = (255, 255, 255), color: tuple = (0, 0, 0),
+                    hidden: bool = False, stroke_width: float = 1.0) -> None:
     """Write the drawing as SVG: one ``<path>`` per polyline in a ``visible`` group and,
     with ``hidden``, the hidden parts dashed in a ``hidden`` group. The viewBox is the
     image, so the SVG overlays the PNG of the same render.

@@ -29,19 +29,19 @@ _SIDE_COLORS = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [
                          [0, 255, 255]], dtype=np.uint8)
 
 
-def translate(x, y, z) -> np.ndarray:
+def translate(x: float, y: float, z: float) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = (x, y, z)
     return m
 
 
-def scale(s) -> np.ndarray:
+def scale(s: float) -> np.ndarray:
     m = np.eye(4)
     m[0, 0] = m[1, 1] = m[2, 2] = s
     return m
 
 
-def rotate_y(degrees) -> np.ndarray:
+def rotate_y(degrees: float) -> np.ndarray:
     c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
     m = np.eye(4)
     m[0, 0], m[0, 2], m[2, 0], m[2, 2] = c, s, -s, c
@@ -68,7 +68,8 @@ def cube(colored: bool = True) -> Mesh:
     return Mesh(v, np.array(faces), face_colors=colors, name="cube")
 
 
-def uv_sphere(radius=1.0, n_lat=16, n_lon=32, color=None) -> Mesh:
+def uv_sphere(radius: float = 1.0, n_lat: int = 16, n_lon: int = 32,
+              color: tuple | None = None) -> Mesh:
     """A latitude-longitude sphere, counter-clockwise seen from outside, closed."""
     verts = [[0.0, radius, 0.0]]
     for i in range(1, n_lat):
@@ -96,7 +97,7 @@ def uv_sphere(radius=1.0, n_lat=16, n_lon=32, color=None) -> Mesh:
     return Mesh(np.array(verts), np.array(faces), face_colors=colors, name="sphere")
 
 
-def cubes():
+def cubes() -> tuple:
     """Four coloured cubes at different depths, overlapping on screen."""
     scene = Scene()
     box = cube()
@@ -109,14 +110,16 @@ def cubes():
     return scene, camera
 
 
-def cyclic():
+def cyclic() -> tuple:
     """Three long triangles in a visibility cycle: A over B, B over C, C over A.
 
     Stick i runs along the edge V_i -> V_(i+1) of an equilateral triangle, from a narrow
     far tail behind V_i to a wide near head beyond V_(i+1); at V_(i+1) its head lies over
     the tail of stick i+1, so each stick is in front of the next one (seed 004, 11.1).
     """
-    faces, verts, colors = [], [], []
+    faces: list = []
+    verts: list = []
+    colors: list = []
     palette = [[230, 60, 60], [60, 200, 60], [70, 110, 240]]
     corners = [np.array([math.cos(a), math.sin(a)]) * 1.2
                for a in (math.pi / 2 + 2 * math.pi * i / 3 for i in range(3))]
@@ -139,7 +142,7 @@ def cyclic():
     return Scene([mesh]), camera
 
 
-def penetration():
+def penetration() -> tuple:
     """Two triangles that pierce each other: each is in front over part of the other."""
     verts = np.array([
         [-1.6, -1.0, -5.5], [1.6, -1.0, -5.5], [0.0, 1.4, -3.5],  # leans towards the eye
@@ -153,7 +156,7 @@ def penetration():
     return Scene([mesh]), camera
 
 
-def spheres(detail: int = 24):
+def spheres(detail: int = 24) -> tuple:
     """Three intersecting spheres, ``detail`` latitude bands each."""
     scene = Scene()
     lon = 2 * detail
@@ -238,13 +241,14 @@ def city(blocks: int = 16, segments: int = 16, seed: int = 7):
     return scene, camera
 
 
-def glass():
+def glass() -> tuple:
     """Transparency (seed 003): an opaque floor and cube; a transparent sphere beside them,
     and two transparent slabs that pass through each other, where sorting whole objects
     back to front cannot be right (compare with ``transparency="exact"``)."""
     scene = Scene()
-    floor = Mesh([[-4, 0, -4], [4, 0, -4], [4, 0, 4], [-4, 0, 4]], [[0, 2, 1], [0, 3, 2]],
-                 face_colors=[[190, 190, 180]] * 2, name="floor")
+    floor = Mesh(np.array([[-4.0, 0, -4], [4, 0, -4], [4, 0, 4], [-4, 0, 4]]),
+                 np.array([[0, 2, 1], [0, 3, 2]]), face_colors=np.array([[190, 190, 180]] * 2),
+                 name="floor")
     scene.add(floor, translate(0, -1.0, -8))
     scene.add(cube(), translate(1.6, -0.4, -9.5) @ rotate_y(30) @ scale(0.6))
     scene.add(uv_sphere(0.8, 16, 32, color=(60, 200, 90)), translate(-1.8, -0.2, -7.5),
@@ -266,7 +270,7 @@ def _scale3(x, y, z) -> np.ndarray:
     return np.diag([x, y, z, 1.0])
 
 
-def checker():
+def checker() -> tuple:
     """A textured plane at a grazing angle (seed 002's homework): perspective-correct
     texture coordinates keep the squares straight and shrinking with distance."""
     from .images import checkerboard
@@ -285,7 +289,7 @@ SCENES = {"cubes": cubes, "cyclic": cyclic, "penetration": penetration, "spheres
           "terrain": terrain, "city": city, "glass": glass, "checker": checker}
 
 
-def get(name: str):
+def get(name: str) -> tuple:
     """``(Scene, Camera)`` of the built-in scene ``name``.
 
     Raises :class:`~hsr.errors.HsrError` for an unknown name.

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import CameraError
 from .mesh import MAX_COORDINATE
@@ -159,8 +160,8 @@ class Camera:
     intrinsics: tuple | None = None
 
     @classmethod
-    def from_opencv(cls, K, R, t, width: int, height: int, near: float = 0.1,
-                    far: float = 100.0) -> Camera:
+    def from_opencv(cls, K: ArrayLike, R: ArrayLike, t: ArrayLike, width: int, height: int,
+                    near: float = 0.1, far: float = 100.0) -> Camera:
         """A camera from OpenCV's pinhole model: ``x_cam = R @ x_world + t`` with camera axes
         x right, y down, z forward, and ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` for an
         image of ``width`` x ``height`` pixels. OpenCV puts pixel *centres* on integer
@@ -193,7 +194,7 @@ class Camera:
         cam.validate()
         return cam
 
-    def to_opencv(self, width: int, height: int):
+    def to_opencv(self, width: int, height: int) -> tuple:
         """``(K, R, t)`` of this camera for an image of ``width`` x ``height`` pixels, in
         OpenCV's conventions (see :meth:`from_opencv`). Raises
         :class:`~hsr.errors.CameraError` for an orthographic camera (OpenCV's model is a
@@ -207,7 +208,7 @@ class Camera:
         return K, OPENGL_TO_OPENCV @ view[:3, :3], OPENGL_TO_OPENCV @ view[:3, 3]
 
     @classmethod
-    def from_matrices(cls, view, projection) -> Camera:
+    def from_matrices(cls, view: ArrayLike, projection: ArrayLike) -> Camera:
         """A camera from OpenGL-convention 4x4 matrices: ``view`` (world -> eye, a rotation
         and a translation) and a ``projection``: a perspective frustum (glFrustum /
         gluPerspective form, possibly off-axis) or an orthographic box (glOrtho form,
@@ -263,7 +264,8 @@ class Camera:
         return f / (2.0 * aspect), f / 2.0, 0.5, 0.5
 
     @classmethod
-    def look_at(cls, eye, target, up=(0.0, 1.0, 0.0), fov_y=45.0, near=0.1, far=100.0):
+    def look_at(cls, eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0),
+                fov_y: float = 45.0, near: float = 0.1, far: float = 100.0) -> Camera:
         """A perspective camera (gluLookAt + gluPerspective).
 
         Raises :class:`~hsr.errors.CameraError` as :meth:`validate` says.
@@ -275,7 +277,8 @@ class Camera:
         return cam
 
     @classmethod
-    def orthographic(cls, eye, target, up=(0.0, 1.0, 0.0), height=2.0, near=0.1, far=100.0):
+    def orthographic(cls, eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0),
+                     height: float = 2.0, near: float = 0.1, far: float = 100.0) -> Camera:
         """An orthographic camera (gluLookAt + glOrtho) seeing ``height`` world units.
 
         Raises :class:`~hsr.errors.CameraError` as :meth:`validate` says.
@@ -287,8 +290,10 @@ class Camera:
         return cam
 
     @classmethod
-    def frame(cls, bounds, direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0), fov_y=45.0,
-              ortho_height=None, margin=1.1, aspect=1.0, fit="sphere", points=None):
+    def frame(cls, bounds: ArrayLike, direction: ArrayLike = (0.0, 0.0, 1.0),
+              up: ArrayLike = (0.0, 1.0, 0.0), fov_y: float = 45.0,
+              ortho_height: float | None = None, margin: float = 1.1, aspect: float = 1.0,
+              fit: str = "sphere", points: ArrayLike | None = None) -> Camera:
         """A camera that sees the whole box ``bounds`` ((2, 3): min, max) from ``direction``
         (pointing from the target towards the eye), with near/far hugging the box.
 
@@ -321,18 +326,18 @@ class Camera:
             raise CameraError(f"aspect and margin must be > 0, got {aspect!r}, {margin!r}")
         center = bounds.mean(axis=0)
         radius = max(float(np.linalg.norm(bounds[1] - bounds[0])) / 2.0, 1e-9)
-        direction = _vec3(direction, "view direction")
-        norm = np.linalg.norm(direction)
+        toward = _vec3(direction, "view direction")
+        norm = np.linalg.norm(toward)
         if norm == 0:
             raise CameraError("view direction must not be zero")
-        direction = direction / norm
+        toward = toward / norm
         up = _vec3(up, "up")
         up_norm = np.linalg.norm(up)
-        if up_norm > 0 and abs(direction @ up) > 0.999 * up_norm:
-            up = np.array([0.0, 0.0, -math.copysign(1.0, direction @ up)])
+        if up_norm > 0 and abs(toward @ up) > 0.999 * up_norm:
+            up = np.array([0.0, 0.0, -math.copysign(1.0, toward @ up)])
         if ortho_height is not None:
             dist = 3.0 * radius
-            eye = center + direction * dist
+            eye = center + toward * dist
             return cls.orthographic(eye, center, up, ortho_height, dist - radius * 1.5,
                                     dist + radius * 1.5)
         half_y = math.radians(_finite(fov_y, "fov")) / 2.0
@@ -345,12 +350,12 @@ class Camera:
                                    for z in bounds[:, 2]])
             else:
                 points = _points(points)
-            return cls._frame_points(points, center, radius, direction, up, fov_y,
+            return cls._frame_points(points, center, radius, toward, up, fov_y,
                                      math.tan(half_x) / margin, math.tan(half_y) / margin)
         if fit != "sphere":
             raise CameraError(f"fit must be 'sphere', 'box' or 'points', got {fit!r}")
         dist = margin * radius / math.sin(min(half_x, half_y))
-        eye = center + direction * dist
+        eye = center + toward * dist
         near = max(dist - radius * 1.5, dist * 1e-3)
         return cls.look_at(eye, center, up, fov_y, near, dist + radius * 1.5)
 
@@ -389,7 +394,7 @@ class Camera:
     def is_orthographic(self) -> bool:
         return self.ortho_height is not None
 
-    def validate(self):
+    def validate(self) -> None:
         """Raise :class:`CameraError` unless the camera can be rendered exactly: finite
         values within +-1e100, near < far, for perspective 0 < near, fov in
         [1e-6, 180) degrees and far / near <= 2**24 (float32 window depth must tell the

@@ -70,7 +70,8 @@ def _angle(value, what, where) -> float:
     return value
 
 
-def read_transforms(path, near: float = 0.1, far: float = 100.0):
+def read_transforms(path: str | os.PathLike, near: float = 0.1,
+                    far: float = 100.0) -> tuple:
     """Cameras of a NeRF-style ``transforms.json``: ``(cameras, file_paths, (w, h))``.
 
     Intrinsics from ``fl_x``/``fl_y``/``cx``/``cy`` (COLMAP's half-pixel convention) or
@@ -129,7 +130,8 @@ def read_transforms(path, near: float = 0.1, far: float = 100.0):
     return cameras, names, size
 
 
-def write_transforms(path, cameras, width: int, height: int, file_paths=None) -> None:
+def write_transforms(path: str | os.PathLike, cameras: list, width: int, height: int,
+                     file_paths: list | None = None) -> None:
     """Write ``cameras`` (perspective) as a NeRF-style ``transforms.json`` for images of
     ``width`` x ``height``: intrinsics (``fl_x``, ``fl_y``, ``cx``, ``cy`` in COLMAP's
     half-pixel convention, ``w``, ``h``) at the top when all cameras share them, else per
@@ -177,7 +179,7 @@ def _quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def read_colmap(folder, near: float = 0.1, far: float = 100.0):
+def read_colmap(folder: str | os.PathLike, near: float = 0.1, far: float = 100.0) -> tuple:
     """Cameras of a COLMAP text model (``cameras.txt`` and ``images.txt`` in ``folder``):
     ``(cameras, image_names, sizes)`` in ``images.txt`` order. Camera models
     SIMPLE_PINHOLE (f, cx, cy) and PINHOLE (fx, fy, cx, cy); a model with lens distortion

@@ -8,11 +8,13 @@ ties are decided by submission order): nothing here reorders faces. Reading file
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike
 
 from ..errors import MeshError
 
@@ -274,7 +276,7 @@ class Scene:
     """Mesh instances drawn in order. ``face_id`` is global: the faces of the first
     instance come first, then the second's, and so on (submission order)."""
 
-    def __init__(self, instances=()):
+    def __init__(self, instances: Iterable[Instance | Mesh] = ()) -> None:
         self.instances: list[Instance] = []
         for item in instances:
             if isinstance(item, Instance):
@@ -284,7 +286,7 @@ class Scene:
             else:
                 self.add(*item)
 
-    def add(self, mesh: Mesh, model=None, opacity: float = 1.0,
+    def add(self, mesh: Mesh, model: ArrayLike | None = None, opacity: float = 1.0,
             name: str | None = None) -> Scene:
         """Append an instance of ``mesh`` (a Mesh, trimesh.Trimesh or (vertices, faces))
         placed by ``model`` (4x4, default identity), labelled ``name`` (default the mesh's
@@ -293,8 +295,8 @@ class Scene:
         Raises :class:`~hsr.errors.MeshError` as :class:`Mesh` and :class:`Instance` do."""
         if not isinstance(mesh, Mesh):
             mesh = as_mesh(mesh)
-        self.instances.append(Instance(mesh, np.eye(4) if model is None else model, opacity,
-                                       name))
+        self.instances.append(Instance(mesh, np.eye(4) if model is None else np.asarray(model),
+                                       opacity, name))
         return self
 
     def __len__(self):
@@ -323,11 +325,11 @@ class Scene:
             np.int64
         )
 
-    def instance_of(self, face_id) -> np.ndarray:
+    def instance_of(self, face_id: ArrayLike) -> np.ndarray:
         """Instance index of each global face id (see :func:`instance_of`)."""
         return instance_of(self.face_offsets(), face_id)
 
-    def assembled(self):
+    def assembled(self) -> tuple:
         """The instances' meshes joined in submission order, as the geometry stage reads
         them: ``(positions (V, 3), faces (F, 3) into them, degenerate (F,) bool, owner
         (V,) int64 instance of each vertex)`` (model space: each instance's matrix is
@@ -401,12 +403,21 @@ def is_trimesh_scene(value) -> bool:
     return type(value).__name__ == "Scene" and hasattr(value, "graph")
 
 
-def as_scene(source) -> Scene:
+# What the public functions take as a scene (see as_scene): a Scene, a Mesh, a
+# trimesh.Trimesh, a (vertices, faces) pair or a list of meshes. trimesh has no type
+# information, so the alias stays loose on purpose; it names the argument's meaning.
+SceneLike: TypeAlias = Any
+
+
+def as_scene(source: SceneLike) -> Scene:
     """A Scene from a Scene, a Mesh, a trimesh.Trimesh, a (vertices, faces) pair or a list."""
     if isinstance(source, Scene):
         if len(source) == 0:
             raise MeshError("scene is empty")
         return source
+    if getattr(source, "kind", None) == "hsr-partitioned-scene":
+        raise MeshError(f"{source!r} is partitioned: render it with hsr.batch."
+                        f"render_partitioned (hsr batch STORE), or one part with .part(p)")
     if isinstance(source, list):
         return Scene([as_mesh(s) for s in source])
     return Scene([as_mesh(source)])

@@ -14,8 +14,10 @@ a number of views outside 1..1000000.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import CameraError
 from .camera import Camera
@@ -33,7 +35,8 @@ def direction(azimuth: float, elevation: float) -> np.ndarray:
     return np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
 
 
-def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
+def framed(bounds: ArrayLike, toward: ArrayLike, aspect: float = 1.0,
+           fov_y: float = 45.0) -> Camera:
     """A perspective camera on the line from the centre of ``bounds`` along ``toward`` (a
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
     with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin).
@@ -41,7 +44,7 @@ def framed(bounds, toward, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
     return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
 
 
-def default(model, aspect: float = 1.0, fov_y: float = 45.0,
+def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
             view: tuple = DEFAULT_VIEW) -> Camera:
     """A model framed from ``view`` = (azimuth, elevation) in degrees, by default a
     three-quarter view from the front-right and above (35, 25: three faces of a box
@@ -69,7 +72,7 @@ def default(model, aspect: float = 1.0, fov_y: float = 45.0,
                         fit="box" if points is None else "points", points=points)
 
 
-def model_points(model) -> np.ndarray:
+def model_points(model: Any) -> np.ndarray:
     """(N, 3) world-space positions of the vertices that faces use, of a Mesh or of every
     instance of a Scene."""
     return model.world_points() if hasattr(model, "instances") else model.used_positions()
@@ -89,7 +92,7 @@ def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0)
     raise CameraError(f"view set must be orbit, sphere or hemisphere, got {kind!r}")
 
 
-def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
+def orbit(bounds: ArrayLike, n: int, elevation: float = 20.0, aspect: float = 1.0,
           fov_y: float = 45.0, azimuth: float = 0.0) -> list:
     """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
     at ``elevation``. Raises :class:`~hsr.errors.CameraError` as the module says."""
@@ -97,13 +100,13 @@ def orbit(bounds, n: int, elevation: float = 20.0, aspect: float = 1.0,
             for d in directions("orbit", n, elevation, azimuth)]
 
 
-def sphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
+def sphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
     """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y) for d in directions("sphere", n)]
 
 
-def hemisphere(bounds, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
+def hemisphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
     """``n`` cameras spread evenly over the upper hemisphere (y >= 0). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y) for d in directions("hemisphere", n)]

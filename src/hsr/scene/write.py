@@ -19,14 +19,14 @@ import numpy as np
 
 from ..errors import OutputError
 from .files import check_output
-from .mesh import Scene, as_scene, normal_matrix
+from .mesh import Scene, SceneLike, as_scene, normal_matrix
 
 __all__ = ["write_mesh", "planned_files", "check_new", "MESH_FORMATS"]
 
 MESH_FORMATS = (".obj", ".ply", ".glb")
 
 
-def write_mesh(scene, path, overwrite: bool = False) -> list:
+def write_mesh(scene: SceneLike, path: str | os.PathLike, overwrite: bool = False) -> list:
     """Write ``scene`` (a Scene, Mesh, ...) to ``path`` (.obj, .ply or .glb). Returns the
     files written (an OBJ's .mtl and texture too). A file that exists already (the
     model's, or one of an OBJ's .mtl and textures) is replaced only with ``overwrite``.

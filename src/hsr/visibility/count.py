@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import sys
 import threading
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -22,7 +23,7 @@ from numba import njit
 from ..errors import HsrError
 from ..parallel import progress_bar
 from ..scene.camera import Camera
-from ..scene.mesh import Scene, as_scene
+from ..scene.mesh import Scene, SceneLike, as_scene
 
 __all__ = ["VisibilityError", "face_visibility", "object_visibility", "cameras_for",
            "check_size"]
@@ -51,7 +52,7 @@ def check_size(size) -> tuple:
     return width, height
 
 
-def cameras_for(scene: Scene, views, aspect: float, near: float = 0.1,
+def cameras_for(scene: Scene, views: Any, aspect: float, near: float = 0.1,
                 far: float = 100.0) -> list:
     """The cameras of ``views``: a spec (``sphere:N``, ``hemisphere:N``,
     ``orbit:N[:ELEVATION]``: framed outside the scene's bounding sphere, as
@@ -88,7 +89,8 @@ def cameras_for(scene: Scene, views, aspect: float, near: float = 0.1,
     return cameras
 
 
-def face_visibility(scene, views, size=512, *, client=None, algorithm: str = "zbuffer",
+def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
+                    client: Any = None, algorithm: str = "zbuffer",
                     threads: int | None = None, near: float = 0.1, far: float = 100.0,
                     progress: bool | None = None, cull_objects: bool | str = True,
                     **render_options) -> np.ndarray:
@@ -186,7 +188,8 @@ def _count_here(scene, cameras, width, height, threads, options, bar, boxes, alw
             workspace.close()
 
 
-def object_visibility(scene, views, size=512, **options) -> np.ndarray:
+def object_visibility(scene: SceneLike, views: Any, size: int | tuple = 512,
+                      **options) -> np.ndarray:
     """(n_instances,) int64: the visible pixels of each instance summed over the views
     (:func:`face_visibility` summed over each instance's faces)."""
     scene = as_scene(scene)

@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..scene.mesh import Mesh, Scene, _kept, as_scene
+from ..scene.mesh import Mesh, Scene, SceneLike, _kept, as_scene
 from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
 
 __all__ = ["prune", "decide", "Decision", "auto_size", "VisibilityWarning", "keep_faces",
@@ -74,9 +76,10 @@ def auto_size(scene: Scene) -> int:
     return int(min(max(side, AUTO_SIZE[0]), AUTO_SIZE[1]))
 
 
-def decide(scene, views="auto", size="auto", *, level: str = "faces",
-           keep_neighbors: int | None = None, min_pixels: int = 1, seed: int = 0,
-           max_views: int = AUTO_MAX_VIEWS, client=None, progress: bool | None = None,
+def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
+           level: str = "faces", keep_neighbors: int | None = None, min_pixels: int = 1,
+           seed: int = 0, max_views: int = AUTO_MAX_VIEWS, client: Any = None,
+           progress: bool | None = None,
            **options) -> Decision:
     """Which faces to keep: :func:`face_visibility` over ``views`` at ``size``, then
     :func:`keep_faces` (``level``, ``keep_neighbors``, ``min_pixels``).
@@ -135,7 +138,7 @@ def decide(scene, views="auto", size="auto", *, level: str = "faces",
         keep = grown
 
 
-def prune(scene, views="auto", size="auto", *, level: str = "faces",
+def prune(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *, level: str = "faces",
           keep_neighbors: int | None = None, min_pixels: int = 1,
           counts: np.ndarray | None = None, **options) -> tuple:
     """``(pruned Scene, kept)``: ``scene`` without the faces (``level="faces"``) or
@@ -178,7 +181,7 @@ def unsettled(decision: Decision) -> str:
             f"rings, and measure with verify")
 
 
-def keep_faces(scene: Scene, counts, level: str = "faces", keep_neighbors: int = 0,
+def keep_faces(scene: Scene, counts: ArrayLike, level: str = "faces", keep_neighbors: int = 0,
                min_pixels: int = 1) -> np.ndarray:
     """(n_faces,) bool: the faces to keep, from per-face pixel ``counts``."""
     _check_rule(level, keep_neighbors, min_pixels)
@@ -298,7 +301,8 @@ def _cut_mesh(mesh: Mesh, mine: np.ndarray) -> Mesh:
                 part(mesh.corner_colors))
 
 
-def verify(original, pruned, kept, count: int = 100, size=512, *, seed: int = 0,
+def verify(original: SceneLike, pruned: SceneLike, kept: ArrayLike, count: int = 100,
+           size: int | tuple = 512, *, seed: int = 0,
            algorithm: str = "zbuffer", threads: int | None = None, **options) -> dict:
     """Render ``count`` random viewpoints from outside the original's bounding sphere
     (directions uniform on the sphere from ``seed``: not the decision's views) of the

@@ -19,10 +19,13 @@ from __future__ import annotations
 
 import os
 import sys
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..scene.mesh import as_scene
+from ..scene.camera import Camera
+from ..scene.mesh import SceneLike, as_scene
 from .count import VisibilityError, cameras_for, check_size
 from .rays import RayScene
 
@@ -48,7 +51,8 @@ def _scene(scene):
     return as_scene(scene)
 
 
-def visible_faces(scene, camera, width: int, height: int, **render_options):
+def visible_faces(scene: SceneLike, camera: Camera, width: int, height: int,
+                  **render_options) -> tuple:
     """``(face_ids, pixel_counts)``: the global ids (ascending, int64) of the faces that
     own at least one pixel centre of ``camera``'s ``width`` x ``height`` image, and how
     many (int64): exactly what :func:`hsr.render` shows, with the same
@@ -64,7 +68,7 @@ def visible_faces(scene, camera, width: int, height: int, **render_options):
     return faces.astype(np.int64), counts.astype(np.int64)
 
 
-def scene_vertices(scene) -> np.ndarray:
+def scene_vertices(scene: SceneLike) -> np.ndarray:
     """(V, 3) float64 world positions of every vertex of every instance, in scene order
     (instance 0's vertices, then instance 1's, ...), as :func:`visible_vertices` numbers
     them."""
@@ -74,7 +78,8 @@ def scene_vertices(scene) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
-def project_points(camera, points, width: int, height: int, convention: str = "hsr"):
+def project_points(camera: Camera, points: ArrayLike, width: int, height: int,
+                   convention: str = "hsr") -> tuple:
     """``(pixels, in_frustum)`` for (N, 3) world ``points``: (N, 2) float64 window
     coordinates and (N,) bool.
 
@@ -149,8 +154,8 @@ def _segments_clear(rays: RayScene, camera, points, tolerance, progress) -> np.n
     return clear
 
 
-def visible_vertices(scene, camera, width: int, height: int, tolerance: float = 1e-4,
-                     progress: bool | None = None) -> np.ndarray:
+def visible_vertices(scene: SceneLike, camera: Camera, width: int, height: int,
+                     tolerance: float = 1e-4, progress: bool | None = None) -> np.ndarray:
     """(V,) bool over the scene's vertices (:func:`scene_vertices` order: instances in
     scene order, each mesh's vertices in its order): the vertex lies inside
     ``camera``'s view volume for a ``width`` x ``height`` image, and the open segment
@@ -166,8 +171,9 @@ def visible_vertices(scene, camera, width: int, height: int, tolerance: float = 
                           tolerance, progress=progress)[1]
 
 
-def visible_points(scene, camera, points, width: int, height: int, tolerance: float = 1e-4,
-                   convention: str = "hsr", progress: bool | None = None):
+def visible_points(scene: SceneLike, camera: Camera, points: ArrayLike, width: int,
+                   height: int, tolerance: float = 1e-4, convention: str = "hsr",
+                   progress: bool | None = None) -> tuple:
     """``(pixels, visible)`` for (N, 3) world ``points`` (a point cloud to colour from a
     photo, landmarks, sensor positions): pixels (N, 2) float64 in ``convention`` (see
     :func:`project_points`: ``"hsr"`` x right, y down, pixel (x, y) centred at
@@ -193,7 +199,8 @@ class VisibilityMatrix:
     face's normal (as wound) and the direction to the eye, and mean distance from the eye
     (world units), over its pixels; and ``cameras``, the views' cameras."""
 
-    def __init__(self, counts, cameras, cosine=None, distance=None):
+    def __init__(self, counts: Any, cameras: list, cosine: Any = None,
+                 distance: Any = None) -> None:
         self.counts, self.cameras, self.cosine, self.distance = counts, cameras, cosine, distance
 
     @property
@@ -259,7 +266,8 @@ def view_group_columns(scene, cameras, width, height, options, quality) -> list:
                 for cam in cameras]
 
 
-def visibility_matrix(scene, views, size=512, *, client=None, quality: bool = False,
+def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
+                      client: Any = None, quality: bool = False,
                       near: float = 0.1, far: float = 100.0, progress: bool | None = None,
                       **render_options) -> VisibilityMatrix:
     """The faces x views table of visible pixel counts (a :class:`VisibilityMatrix`,

@@ -17,10 +17,11 @@ import sys
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import HsrError
 from ..parallel import Workers, check_threads, progress_bar, split_range
-from ..scene.mesh import as_scene
+from ..scene.mesh import SceneLike, as_scene
 
 __all__ = ["RayScene", "RayHits", "RayError"]
 
@@ -62,11 +63,11 @@ class RayHits:
         """(N,) bool: rays that hit something."""
         return self.face_id >= 0
 
-    def points(self, origins, directions) -> np.ndarray:
+    def points(self, origins: ArrayLike, directions: ArrayLike) -> np.ndarray:
         """(N, 3) float64 hit points ``origin + t * direction`` (NaN for a miss)."""
-        origins, directions = _broadcast(origins, directions)
+        origin, direction = _broadcast(origins, directions)
         t = np.where(self.hit, self.t, np.nan)
-        return origins + t[:, None] * directions
+        return origin + t[:, None] * direction
 
     def __len__(self):
         return len(self.t)
@@ -85,7 +86,8 @@ class RayScene:
     :class:`~hsr.errors.RenderError` for a bad ``threads``.
     """
 
-    def __init__(self, scene, threads: int | None = None):
+    def __init__(self, scene: SceneLike | str | os.PathLike,
+                 threads: int | None = None) -> None:
         from ..algorithms.bvh import build
         from ..algorithms.rays import LANES, widen
         from ..scene.load import load_scene
@@ -115,30 +117,33 @@ class RayScene:
         return (f"<hsr.RayScene: {self.n_faces:,} faces, {len(self.scene)} objects, BVH of "
                 f"{self.bvh.n_nodes:,} nodes built in {self.bvh.build_ms:.0f} ms>")
 
-    def cast(self, origins, directions, t_min=0.0, t_max=np.inf,
+    def cast(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
+             t_max: float = np.inf,
              progress: bool | None = None) -> RayHits:
         """The nearest hit of each ray (see :class:`RayHits`). ``origins``: (N, 3), or
         (3,) for one origin shared by all rays; ``directions``: (N, 3), any non-zero
         length; both any real dtype (computed in float64). ``t_min``, ``t_max``:
         scalars or (N,), ``0 <= t_min <= t_max`` (``t_max`` may be ``inf``). Equal
         distances go to the lower face id. Raises :class:`RayError` for bad input."""
-        origins, directions, t0, t1 = self._rays(origins, directions, t_min, t_max)
-        n = len(origins)
+        origin, direction, t0, t1 = self._rays(origins, directions, t_min, t_max)
+        n = len(origin)
         hits = RayHits(np.empty(n), np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int32),
                        np.empty((n, 2)), np.empty((n, 3)))
-        self._run(0, origins, directions, t0, t1, (hits.t, hits.face_id, hits.object_id,
+        self._run(0, origin, direction, t0, t1, (hits.t, hits.face_id, hits.object_id,
                                                     hits.barycentric, hits.normal,
                                                     np.empty(0, np.int32)), progress)
         return hits
 
-    def occluded(self, origins, directions, t_min=0.0, t_max=np.inf,
+    def occluded(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
+             t_max: float = np.inf,
                  progress: bool | None = None) -> np.ndarray:
         """(N,) bool: whether each ray meets any surface with ``t`` in
         ``[t_min, t_max]`` (its walk stops at the first one). Arguments as
         :meth:`cast`."""
         return self._counted(1, origins, directions, t_min, t_max, progress).astype(bool)
 
-    def count(self, origins, directions, t_min=0.0, t_max=np.inf,
+    def count(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
+             t_max: float = np.inf,
               progress: bool | None = None) -> np.ndarray:
         """(N,) int32: how many times each ray crosses the surface with ``t`` in
         ``[t_min, t_max]``. Watertight: a ray through a shared edge or vertex of a
