@@ -31,6 +31,8 @@ from .scene.camera import Camera
 from .scene.camera_files import read_colmap, read_transforms, write_transforms
 from .scene.load import load, load_scene
 from .scene.mesh import Instance, Mesh, Scene
+from .scene.partition import partition
+from .scene.partitioned import PartitionedScene
 from .scene.write import write_mesh
 from .visibility import (
     RayHits,
@@ -52,4 +54,5 @@ __all__ = [
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
     "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
     "visible_vertices", "visible_points", "visibility_matrix", "first_look", "best_view",
+    "partition", "PartitionedScene",
 ]

@@ -2,10 +2,13 @@
 Dask (``dask.distributed``) is imported only when a batch runs (``pip install
 'hsr[dask]'``)."""
 
+from typing import Any
+
 from .plan import OUTPUTS, BatchError, parse_views
+from .sortlast import CompositeFrame, composite, render_partitioned
 
 
-def render_views(*args, **kwargs):
+def render_views(*args: Any, **kwargs: Any) -> Any:
     """See :func:`hsr.batch.run.render_views` (imported on first use: it needs Dask).
     Raises what that function raises, and :class:`~hsr.errors.MissingExtraError` when Dask
     (or, for ``format="zarr"``, Zarr) is not installed."""
@@ -19,4 +22,5 @@ def render_views(*args, **kwargs):
     return run(*args, **kwargs)
 
 
-__all__ = ["render_views", "parse_views", "OUTPUTS", "BatchError"]
+__all__ = ["render_views", "parse_views", "OUTPUTS", "BatchError", "render_partitioned",
+           "composite", "CompositeFrame"]

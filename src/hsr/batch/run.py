@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from ..errors import OutputError
 from ..parallel import progress_bar
+from ..scene.partitioned import is_partitioned
 from .plan import (
     FORMATS,
     OUTPUT_ARRAYS,
@@ -122,9 +123,14 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     :class:`~hsr.errors.OutputError` when ``out`` cannot be written. A model or view that
     fails is a ``failed`` row of the manifest, never an exception.
     """
-    models = [os.fspath(m) for m in models]
+    models = [os.fspath(m) for m in ([models] if isinstance(models, (str, os.PathLike))
+                                     else models)]
     if not models:
         raise BatchError("no models given")
+    partitioned = [m for m in models if is_partitioned(m)]
+    if partitioned and len(models) > 1:
+        raise BatchError(f"a partitioned scene ({partitioned[0]}) renders on its own: give "
+                         f"it as the only model")
     width, height = check_size(size)
     outputs = check_outputs(outputs)
     if format not in FORMATS:
@@ -144,6 +150,12 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     if progress is None:
         progress = sys.stderr.isatty()
 
+    if partitioned:
+        if format != "files" or resume:
+            raise BatchError("a partitioned scene writes files (format files), without "
+                             "resume, for now")
+        return _run_partitioned(client, models[0], stems, spec, (width, height), outputs,
+                                out, render_options, views_per_task)
     start = time.perf_counter()
     own_cluster = None
     if client is None:
@@ -220,6 +232,51 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
     order = {model: k for k, model in enumerate(models)}
     rows.sort(key=lambda r: (order[r["model"]], r["view"]))
     return rows, busy
+
+
+def _run_partitioned(client, store_path, stems, spec, size, outputs, out, options,
+                     views_per_task) -> BatchResult:
+    """``render_views`` of one partitioned scene: sort-last on ``client`` (or here without
+    one, part after part), the composited frames written on the client as a plain
+    model's would be; each view's manifest row names the parts its task group rendered,
+    the faces they loaded and their milliseconds."""
+    from ..scene.partitioned import open_partitioned
+    from .sortlast import OUTPUTS as COMPOSITED
+    from .sortlast import render_partitioned
+    from .tasks import _write_files, place_cameras
+
+    start = time.perf_counter()
+    store = open_partitioned(store_path)
+    stem = stems[store_path]
+    given = (spec.per_model[store_path] if spec.kind == "per-model"
+             else spec.cameras if spec.kind == "cameras" else None)
+    placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
+                 else ("all", list(given)))
+    cameras = place_cameras(store, placement, size)
+    per_task = views_per_task or max(1, (4 << 20) // (size[0] * size[1]))
+    frames = render_partitioned(store, cameras, size[0], size[1],
+                                outputs=tuple(o for o in outputs if o in COMPOSITED),
+                                client=client, views_per_task=per_task, **options)
+    names = {"color": "color", "window_depth": "depth", "eye_depth": "eye_depth",
+             "distance": "distance", "normals": "normals", "ids": "face_id",
+             "object_ids": "object_id"}
+    for name in outputs:
+        os.makedirs(os.path.dirname(output_path(out, stem, name, 0)), exist_ok=True)
+    rows = []
+    for view, frame in enumerate(frames):
+        _write_files(out, stem, view, {name: getattr(frame, names[name]) for name in outputs})
+        rows.append({"model": store_path, "view": view, "status": "ok", "error": None,
+                     # the view's share of its group's part renders
+                     "ms": round(sum(s["ms"] / s["views"] for s in frame.stats), 3),
+                     "parts": [s["part"] for s in frame.stats],
+                     "faces_loaded": [s["faces_loaded"] for s in frame.stats]})
+    _describe(out, stem, cameras, size, outputs, "files")
+    busy = sum(s["ms"] for group in {id(f.stats): f.stats for f in frames}.values()
+               for s in group) / 1000.0
+    result = BatchResult(rows, os.path.join(out, "manifest.json"),
+                         time.perf_counter() - start, busy)
+    _write_manifest(result, spec, size, outputs, "files", options)
+    return result
 
 
 def _size_of(model) -> int:

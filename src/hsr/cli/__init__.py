@@ -12,14 +12,15 @@ import functools
 import sys
 
 from ..errors import HsrError
-from . import batch, compare, explain, prune, render, report, view, visibility
+from . import batch, compare, explain, partition, prune, render, report, view, visibility
 from .options import EXIT_USAGE, CliError, HelpFormatter, Parser
 
 __all__ = ["main", "build_parser", "CliError", "EXIT_USAGE"]
 
 # In the order ``hsr --help`` lists them.
 COMMANDS = {"render": render, "compare": compare, "explain": explain, "report": report,
-            "batch": batch, "prune": prune, "visibility": visibility, "view": view}
+            "batch": batch, "partition": partition, "prune": prune, "visibility": visibility,
+            "view": view}
 
 
 def build_parser() -> argparse.ArgumentParser:

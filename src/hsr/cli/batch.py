@@ -27,7 +27,8 @@ def add_parser(sub) -> None:
                        "the buffers, a transforms.json per model and a manifest, on a local "
                        "Dask cluster or the one at --scheduler.")
     b.add_argument("models", nargs="+", metavar="MODEL", help="mesh files every worker "
-                   "can read")
+                   "can read, or one partitioned scene (hsr partition), rendered part by "
+                   "part and composited by depth (sort-last)")
     g = b.add_argument_group("job")
     g.add_argument("--views", default="orbit:8", metavar="SPEC",
                    help="orbit:N[:ELEVATION], sphere:N, hemisphere:N, a transforms.json or "

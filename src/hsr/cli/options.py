@@ -245,3 +245,22 @@ def add_scene_args(p):
     g.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="algorithm option, e.g. accel=none (raycast); repeatable")
     g.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def load_models(paths, command: str) -> tuple:
+    """``(scene, owner)``: the MODEL files as one Scene, instances in file order, and for
+    each instance the index of the MODEL it came from. A partitioned scene (a store that
+    hsr partition wrote) is refused: only hsr batch renders one."""
+    from ..scene.load import load_scene
+    from ..scene.mesh import Scene
+    from ..scene.partitioned import PartitionedScene
+
+    scene, owner = Scene(), []
+    for k, path in enumerate(paths):
+        loaded = load_scene(path)
+        if isinstance(loaded, PartitionedScene):
+            raise CliError(f"{path} is a partitioned scene: hsr batch renders it (hsr "
+                           f"{command} takes mesh files)")
+        scene.instances.extend(loaded.instances)
+        owner += [k] * len(loaded.instances)
+    return scene, owner

@@ -72,6 +72,7 @@ def run(args) -> int:
     import time
 
     from ..scene.load import load_scene
+    from ..scene.partitioned import PartitionedScene
     from ..scene.write import check_new, planned_files, write_mesh
     from ..visibility.count import cameras_for
     from ..visibility.prune import MAX_VERIFY, decide, split_auto, subset_scene, unsettled, verify
@@ -88,6 +89,9 @@ def run(args) -> int:
         except ValueError:
             raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
     scene = load_scene(args.model)
+    if isinstance(scene, PartitionedScene):
+        raise CliError(f"{args.model}: hsr prune does not take partitioned scenes yet; "
+                       f"prune the original model")
     if not args.force:  # the .mtl and textures beside an OBJ, known once it is loaded
         check_new(planned_files(scene, args.output), "--force")
     auto, fixed = split_auto(args.views or ["auto"])

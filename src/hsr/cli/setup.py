@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from .options import CliError, check_lens, check_threads, floats, key_values, rgb, size
+from .options import CliError, check_lens, check_threads, floats, key_values, load_models, rgb, size
 
 
 def auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
@@ -115,8 +115,6 @@ def setup(args):
     """Scene, camera, size, state, background and options from the shared arguments."""
     from ..geometry.state import RenderState
     from ..scene import builtin as scenes
-    from ..scene.load import load_scene
-    from ..scene.mesh import Scene
 
     check_lens(args)
     file_camera, file_size = camera_from_file(args)
@@ -125,11 +123,8 @@ def setup(args):
     if args.light is None:
         args.light = "studio" if args.models else "headlight"
     if args.models:
-        scene, owner = Scene(), []  # owner[i]: the MODEL instance i came from
-        for k, path in enumerate(args.models):
-            for inst in load_scene(path).instances:
-                scene.instances.append(inst)
-                owner.append(k)
+        # owner[i]: the MODEL instance i came from
+        scene, owner = load_models(args.models, args.command)
         apply_textures(args, scene, owner)
     else:
         if args.texture:

@@ -13,6 +13,7 @@ from .options import (
     add_depth_func,
     add_file_planes,
     dask_client,
+    load_models,
     size,
 )
 
@@ -47,8 +48,6 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..scene.files import check_output
-    from ..scene.load import load_scene
-    from ..scene.mesh import Scene
     from ..scene.write import check_new
     from ..visibility import cameras_for
     from ..visibility.queries import write_visibility
@@ -65,9 +64,7 @@ def run(args) -> int:
             if given:
                 raise CliError(f"{flag} goes with --what faces")
     points = read_points(points_file) if what == "points" else None
-    scene = Scene()
-    for path in args.models:
-        scene.instances.extend(load_scene(path).instances)
+    scene, _ = load_models(args.models, "visibility")
     cameras = cameras_for(scene, args.views, width / height, args.near, args.far)
     client = dask_client(args.scheduler, "visibility") if args.scheduler else None
     try:

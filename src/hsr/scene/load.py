@@ -26,15 +26,16 @@ from ..errors import HsrError, MeshError
 from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver
 from .files import MAX_MESH_BYTES, check_regular, read_regular
 from .images import MAX_TEXTURE_PIXELS
-from .mesh import Mesh, Scene, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
+from .mesh import Mesh, Scene, SceneLike, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
 from .obj import read_obj
+from .partitioned import PartitionedScene, is_partitioned, open_partitioned
 
 __all__ = ["load", "load_scene"]
 
 _GLTF_EXTENSIONS = (".gltf", ".glb")
 
 
-def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
+def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
     """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh``, a
     ``trimesh.Scene`` holding one mesh, or a ``(vertices, faces)`` pair. Face order is kept
     exactly. Only regular files of at most ``max_bytes`` are read. A file or scene with
@@ -56,7 +57,8 @@ def load(source, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
     return from_trimesh(loaded, os.path.basename(path))
 
 
-def load_scene(source, max_bytes: int = MAX_MESH_BYTES) -> Scene:
+def load_scene(source: str | os.PathLike | SceneLike,
+               max_bytes: int = MAX_MESH_BYTES) -> Scene | PartitionedScene:
     """A :class:`Scene` from a glTF / GLB file (or any file trimesh reads as a scene), a
     ``trimesh.Scene``, or anything :func:`load` takes (one instance).
 
@@ -68,7 +70,13 @@ def load_scene(source, max_bytes: int = MAX_MESH_BYTES) -> Scene:
     Materials: base-colour textures (embedded or external) and factors, vertex colours and
     face colours (see :func:`hsr.scene.mesh.from_trimesh`).
 
+    A folder written by :func:`hsr.partition` opens as a
+    :class:`~hsr.scene.partitioned.PartitionedScene`, reading only its metadata.
+
     Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
+    if isinstance(source, (str, os.PathLike)) and os.path.isdir(source) \
+            and is_partitioned(source):
+        return open_partitioned(source)
     if is_trimesh_scene(source):
         return _scene_from_trimesh(source, None, "trimesh scene")
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):

@@ -1,0 +1,417 @@
+"""Partitioned scenes and sort-last rendering (hsr.partition, hsr.batch.render_partitioned):
+the composited frames must equal hsr.render of the whole scene bit for bit, in every
+buffer, for any number of parts, every cull mode and the depth functions that order
+fragments, including exact depth ties between faces in different parts and parts whose
+boxes overlap; the reference is the single-process render, an independent path through
+the same z-buffer (no compositing)."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+import hsr
+from conftest import coplanar_soup
+from hsr.batch import composite, render_partitioned
+from hsr.errors import CameraError, MeshError
+from hsr.scene.partitioned import PartitionError, open_partitioned
+
+pytest.importorskip("zarr")
+
+BUFFERS = ("face_id", "depth", "object_id", "color", "eye_depth", "distance", "normals")
+OUTPUTS = ("color", "eye_depth", "distance", "normals")
+
+
+def assert_same(frames, scene, cameras, width, height, **options):
+    for frame, cam in zip(frames, cameras, strict=True):
+        whole = hsr.render(scene, cam, width, height, **options)
+        for name in BUFFERS:
+            got, want = getattr(frame, name), getattr(whole, name)
+            assert got.dtype == want.dtype, name
+            assert np.array_equal(got, want, equal_nan=True), \
+                f"{name}: {np.count_nonzero(got != want)} pixels differ"
+
+
+def tie_scene() -> hsr.Scene:
+    """Instances with model matrices (rotated, scaled, moved), a coplanar soup whose faces
+    overlap at exactly equal depths, and two copies of one cube at the same place (every
+    fragment of one ties with the other's), so that ties fall between parts."""
+    soup, _ = coplanar_soup(60, seed=7)
+    scene = hsr.Scene()
+    scene.add(soup, np.diag([2.0, 2.0, 1.0, 1.0]) @ hsr.scenes.translate(0, 0, 3.0))
+    cube = hsr.scenes.cube()
+    turn = hsr.scenes.rotate_y(30) @ hsr.scenes.scale(0.7)
+    scene.add(cube, hsr.scenes.translate(0.3, 0.2, -1.0) @ turn)
+    scene.add(cube, hsr.scenes.translate(0.3, 0.2, -1.0) @ turn)
+    scene.add(hsr.scenes.uv_sphere(0.6), hsr.scenes.translate(-0.8, -0.3, -0.5))
+    return scene
+
+
+@pytest.fixture(scope="module")
+def tie_stores(tmp_path_factory):
+    scene = tie_scene()
+    folder = tmp_path_factory.mktemp("stores")
+    return scene, {k: hsr.partition(scene, k, folder / f"ties{k}.zarr") for k in (1, 2, 3, 7)}
+
+
+def tie_cameras():
+    return [hsr.Camera.look_at((0.4, 0.3, 6.0), (0, 0, -1), fov_y=40, near=0.5, far=20),
+            hsr.Camera.look_at((-3.0, 2.0, 4.0), (0, 0, -1), fov_y=50, near=0.5, far=20)]
+
+
+@pytest.mark.parametrize("parts", [1, 2, 3, 7])
+@pytest.mark.parametrize("cull", ["none", "back", "front", "front_and_back"])
+@pytest.mark.parametrize("depth_func", ["less", "lequal"])
+def test_sort_last_equals_one_render(tie_stores, parts, cull, depth_func):
+    scene, stores = tie_stores
+    cams = tie_cameras()
+    frames = render_partitioned(stores[parts], cams, 96, 72, outputs=OUTPUTS, cull=cull,
+                                depth_func=depth_func, light="studio")
+    assert_same(frames, scene, cams, 96, 72, cull=cull, depth_func=depth_func,
+                light="studio")
+
+
+def test_the_scene_has_ties_across_parts_and_overlapping_parts(tie_stores):
+    """The fixture does what the tests above need: with 7 parts, some pixel is covered by
+    faces of two parts at exactly the same window depth (a tie only the global face order
+    can break), and some parts' boxes overlap."""
+    from hsr.batch.sortlast import render_part
+
+    _, stores = tie_stores
+    store = stores[7]
+    partial = [render_part(store, p, tie_cameras(), 96, 72, (), {})["frames"]
+               for p in range(store.parts)]
+    ties = sum(int(np.count_nonzero((a["face_id"] >= 0) & (b["face_id"] >= 0)
+                                    & (a["depth"] == b["depth"])))
+               for i, a in enumerate(partial) for b in partial[i + 1:])
+    assert ties > 50
+    boxes = [store.part_bounds(p) for p in range(store.parts)]
+    assert any(np.all(a[0] < b[1]) and np.all(b[0] < a[1])
+               for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+@pytest.mark.parametrize("depth_func,clear", [("greater", 0.0), ("gequal", 0.0),
+                                              ("always", 1.0)])
+def test_other_ordering_depth_functions(tie_stores, depth_func, clear):
+    scene, stores = tie_stores
+    cams = tie_cameras()
+    frames = render_partitioned(stores[3], cams, 64, 48, outputs=("color",),
+                                depth_func=depth_func, clear_depth=clear)
+    for frame, cam in zip(frames, cams, strict=True):
+        whole = hsr.render(scene, cam, 64, 48, depth_func=depth_func, clear_depth=clear)
+        assert np.array_equal(frame.face_id, whole.face_id)
+        assert np.array_equal(frame.depth, whole.depth)
+        assert np.array_equal(frame.color, whole.color)
+
+
+def test_a_shared_model_in_parts(models_dir, tmp_path):
+    mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
+    store = hsr.partition(os.path.join(models_dir, "spot.obj"), 5, tmp_path / "spot.zarr")
+    assert isinstance(hsr.load_scene(tmp_path / "spot.zarr"), hsr.PartitionedScene)
+    cams = hsr.views.sphere(mesh.bounds(), 3, aspect=4 / 3)
+    frames = render_partitioned(store, cams, 120, 90, outputs=OUTPUTS, views_per_task=2,
+                                light="studio", cull="back")
+    assert_same(frames, mesh, cams, 120, 90, light="studio", cull="back")
+    loaded = sorted((s["part"], s["faces_loaded"]) for s in frames[0].stats)
+    assert loaded == list(enumerate(store.part_faces))  # each part once, only its faces
+    assert sum(store.part_faces) == mesh.n_faces
+
+
+def test_parts_are_compact(models_dir, tmp_path):
+    """Morton order makes each part a small region: the parts' boxes of the bunny in 8
+    parts hold far less volume than 8 parts of randomly drawn faces."""
+    mesh = hsr.load(os.path.join(models_dir, "stanford-bunny.obj"))
+    store = hsr.partition(mesh, 8, tmp_path / "bunny.zarr")
+
+    def volume(box):
+        return float(np.prod(box[1] - box[0]))
+
+    morton = sum(volume(store.part_bounds(p)) for p in range(8))
+    tris = mesh.positions[mesh.faces]
+    shuffled = np.random.default_rng(0).permutation(mesh.n_faces)
+    random = sum(volume(np.stack([tris[ids].reshape(-1, 3).min(0),
+                                  tris[ids].reshape(-1, 3).max(0)]))
+                 for ids in np.array_split(shuffled, 8))
+    assert morton < 0.3 * random
+
+
+def test_composite_is_associative_and_commutative(tie_stores):
+    """Any reduction tree gives the same frame: ((a b) c) = (a (b c)) = (c (b a))."""
+    from hsr.batch.sortlast import render_part
+
+    _, stores = tie_stores
+    store = stores[3]
+    cams = tie_cameras()
+    a, b, c = (render_part(store, p, cams, 64, 48, ("color",), {})["frames"]
+               for p in range(3))
+    for func in ("less", "lequal", "always"):
+        left = composite(composite(a, b, func), c, func)
+        right = composite(a, composite(b, c, func), func)
+        turned = composite(c, composite(b, a, func), func)
+        for name in left:
+            assert np.array_equal(left[name], right[name]), (func, name)
+            assert np.array_equal(left[name], turned[name]), (func, name)
+
+
+def test_on_a_dask_cluster(tie_stores, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    scene, stores = tie_stores
+    store = stores[7]
+    cams = tie_cameras() * 3
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                  silence_logs=50) as cluster, \
+            distributed.Client(cluster) as client:
+        frames = render_partitioned(store, cams, 80, 60, outputs=OUTPUTS, client=client,
+                                    views_per_task=2, depth_func="lequal", cull="back")
+    assert_same(frames, scene, cams, 80, 60, depth_func="lequal", cull="back")
+    for frame in frames:
+        loaded = sorted((s["part"], s["faces_loaded"]) for s in frame.stats)
+        assert loaded == list(enumerate(store.part_faces))
+
+
+def test_writing_is_all_or_nothing(tmp_path, monkeypatch):
+    """A failure part way leaves nothing under the output name and no temporary folder."""
+    from hsr.scene import partition as writer
+
+    calls = []
+    real = writer._part_arrays
+
+    def failing(*args):
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError("disk full")
+        return real(*args)
+
+    monkeypatch.setattr(writer, "_part_arrays", failing)
+    with pytest.raises(OSError):
+        hsr.partition(tie_scene(), 5, tmp_path / "s.zarr")
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("parts", [0, -1, True, 2.0, 10 ** 9])
+def test_bad_part_counts_are_refused(tmp_path, parts):
+    with pytest.raises(PartitionError, match="parts must be"):
+        hsr.partition(hsr.scenes.cube(), parts, tmp_path / "s.zarr")
+    assert os.listdir(tmp_path) == []
+
+
+def test_bad_outputs_are_refused(tmp_path):
+    (tmp_path / "taken.zarr").mkdir()
+    with pytest.raises(PartitionError, match="exists"):
+        hsr.partition(hsr.scenes.cube(), 2, tmp_path / "taken.zarr")
+    with pytest.raises(PartitionError, match="does not exist"):
+        hsr.partition(hsr.scenes.cube(), 2, tmp_path / "no" / "s.zarr")
+    with pytest.raises(PartitionError, match="not a partitioned scene"):
+        hsr.partition(hsr.scenes.cube(), 2, tmp_path / "taken.zarr", overwrite=True)
+    with pytest.raises(PartitionError, match="not a partitioned scene"):
+        open_partitioned(tmp_path / "taken.zarr")
+
+
+@pytest.mark.parametrize("options,match", [
+    ({"depth_func": "notequal"}, "depth function"),
+    ({"depth_func": "equal"}, "depth function"),
+    ({"depth_mask": False}, "depth_mask"),
+    ({"depth_test": False}, "depth_test"),
+    ({"polygon_mode": "line"}, "filled"),
+    ({"counts": True}, "counts"),
+    ({"hidden_line": True}, "hidden_line"),
+    ({"algorithm": "raycast"}, "algorithm must be zbuffer"),
+    ({"shading": "depth"}, "whole image"),
+    ({"shading": "random"}, "face ids"),
+])
+def test_options_compositing_cannot_honour_are_refused(tie_stores, options, match):
+    _, stores = tie_stores
+    with pytest.raises(PartitionError, match=match):
+        render_partitioned(stores[2], tie_cameras(), 32, 24, **options)
+
+
+def test_other_bad_requests_are_refused(tie_stores, tmp_path):
+    scene, stores = tie_stores
+    store = stores[2]
+    with pytest.raises(PartitionError, match="unknown output"):
+        render_partitioned(store, tie_cameras(), 32, 24, outputs=("ids",))
+    with pytest.raises(CameraError):
+        render_partitioned(store, [], 32, 24)
+    with pytest.raises(CameraError):
+        render_partitioned(store, ["camera"], 32, 24)
+    with pytest.raises(PartitionError, match="views_per_task"):
+        render_partitioned(store, tie_cameras(), 32, 24, views_per_task=0)
+    with pytest.raises(hsr.RenderError):
+        render_partitioned(store, tie_cameras(), 0, 24)
+    with pytest.raises(PartitionError, match="part must be"):
+        store.part(2)
+    with pytest.raises(MeshError, match="partitioned"):
+        hsr.render(store, tie_cameras()[0], 32, 24)
+    glass = hsr.Scene().add(hsr.scenes.cube(), opacity=0.5)
+    see_through = hsr.partition(glass, 2, tmp_path / "glass.zarr")
+    with pytest.raises(PartitionError, match="transparent"):
+        render_partitioned(see_through, tie_cameras(), 32, 24)
+    assert math.isfinite(store.bounds().sum())
+
+
+def test_the_command_line(models_dir, tmp_path, monkeypatch):
+    """hsr partition, then hsr batch STORE: the files equal hsr.render of the model from
+    the same cameras; the manifest names each view's parts and the faces they loaded."""
+    import json
+
+    from PIL import Image
+
+    from conftest import run_cli
+    from hsr.batch.tasks import place_cameras
+
+    monkeypatch.chdir(tmp_path)
+    model = os.path.join(models_dir, "spot.obj")
+    code, err = run_cli(["partition", model, "--parts", "3", "--out", "spot.zarr", "--quiet"])
+    assert code == 0, err
+    code, err = run_cli(["batch", "spot.zarr", "--views", "sphere:4", "--size", "96x72",
+                         "--outputs", "color,ids,window_depth,eye_depth,normals",
+                         "--out", "out", "--cull", "back", "--quiet"])
+    assert code == 0, err
+    mesh = hsr.load(model)
+    store = hsr.load_scene("spot.zarr")
+    cams = place_cameras(store, ("set", "sphere", 4, 20.0), (96, 72))
+    for view, cam in enumerate(cams):
+        want = hsr.render(mesh, cam, 96, 72, cull="back", light="studio")
+        folder = os.path.join("out", "spot")
+        assert np.array_equal(np.asarray(Image.open(f"{folder}/color/{view:04d}.png")),
+                              want.color)
+        assert np.array_equal(np.load(f"{folder}/ids/{view:04d}.npy"), want.face_id)
+        assert np.array_equal(np.load(f"{folder}/window_depth/{view:04d}.npy"), want.depth)
+        assert np.array_equal(np.load(f"{folder}/eye_depth/{view:04d}.npy"), want.eye_depth)
+        assert np.array_equal(np.load(f"{folder}/normals/{view:04d}.npy"), want.normals)
+    rows = json.load(open("out/manifest.json"))["tasks"]
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    assert all(r["parts"] == [0, 1, 2] and r["faces_loaded"] == store.part_faces for r in rows)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--parts", "0"], "parts must be"),
+    (["--parts", "2", "--out", "missing/s.zarr"], "does not exist"),
+    (["--parts", "two"], "invalid int value"),
+])
+def test_the_command_line_refuses_bad_input(models_dir, tmp_path, monkeypatch, args,
+                                             message):
+    from conftest import run_cli
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["partition", os.path.join(models_dir, "spot.obj")] + args
+    if "--out" not in args:
+        argv += ["--out", "s.zarr"]
+    code, err = run_cli(argv)
+    assert code == 2 and len(err) == 1 and err[0].startswith("hsr: error:"), err
+    assert message in err[0]
+    assert os.listdir(tmp_path) == []
+
+
+def test_stores_are_only_for_batch(models_dir, tmp_path, monkeypatch):
+    from conftest import run_cli
+
+    monkeypatch.chdir(tmp_path)
+    model = os.path.join(models_dir, "spot.obj")
+    assert run_cli(["partition", model, "--parts", "2", "--out", "s.zarr", "--quiet"])[0] == 0
+    for argv in (["render", "s.zarr", "-o", "x.png"], ["partition", model, "--parts", "2",
+                                                       "--out", "s.zarr"],
+                 ["batch", "s.zarr", model], ["visibility", "s.zarr", "--views", "sphere:2",
+                                              "-o", "v.npz"],
+                 ["prune", "s.zarr", "-o", "p.obj"]):
+        code, err = run_cli(argv)
+        assert code == 2 and len(err) == 1 and err[0].startswith("hsr: error:"), (argv, err)
+    assert sorted(os.listdir(tmp_path)) == ["s.zarr"]
+
+
+def test_a_killed_worker_is_recovered(tmp_path):
+    """SIGKILL one worker while the sort-last job runs: Dask loads its parts again and
+    reruns its tasks elsewhere; every frame is still the whole scene's render."""
+    import signal
+    import threading
+    import time
+
+    distributed = pytest.importorskip("distributed")
+    scene = hsr.Scene().add(hsr.scenes.terrain_mesh(60_000))
+    store = hsr.partition(scene, 6, tmp_path / "t.zarr")
+    cams = hsr.views.sphere(store.bounds(), 80, aspect=4 / 3)
+    outcome = {}
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                  silence_logs=50) as cluster, \
+            distributed.Client(cluster) as client:
+
+        def job():
+            outcome["frames"] = render_partitioned(store, cams, 96, 72, client=client,
+                                                   views_per_task=2)
+
+        thread = threading.Thread(target=job)
+        thread.start()
+        deadline = time.time() + 60
+        while time.time() < deadline and sum(len(keys) for keys in
+                                             client.has_what().values()) < 12:
+            time.sleep(0.01)
+        pids = client.run(os.getpid)
+        killed_mid_job = thread.is_alive()
+        os.kill(sorted(pids.values())[0], signal.SIGKILL)
+        thread.join(180)
+    assert killed_mid_job, "the job ended before the kill: make it longer"
+    assert not thread.is_alive()
+    frames = outcome["frames"]
+    assert len(frames) == 80
+    for k in range(0, 80, 11):
+        whole = hsr.render(scene, cams[k], 96, 72)
+        assert np.array_equal(frames[k].face_id, whole.face_id)
+        assert np.array_equal(frames[k].color, whole.color)
+
+
+def reset_peak_rss() -> None:
+    """Linux: reset this process's peak resident set size (VmHWM) to its current size."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+
+
+def peak_rss_mb() -> float:
+    """Linux: this process's peak resident set size (VmHWM) in MB."""
+    with open("/proc/self/status") as f:
+        line = next(row for row in f if row.startswith("VmHWM:"))
+    return int(line.split()[1]) / 1024
+
+
+def test_workers_under_a_memory_limit_render_a_scene_none_of_them_could_hold(tmp_path):
+    """A 4M-face terrain: one process that loads and renders it peaks above 450 MB
+    (measured here in a fresh process); in 8 parts on two workers limited to 450 MB each,
+    every worker's peak stays under the limit and the frames are the whole render's."""
+    import subprocess
+    import sys
+
+    distributed = pytest.importorskip("distributed")
+    mesh = hsr.scenes.terrain_mesh(4_000_000)
+    np.save(tmp_path / "p.npy", mesh.positions)
+    np.save(tmp_path / "f.npy", mesh.faces)
+    limit_mb = 450
+    whole = subprocess.run([sys.executable, "-c", f"""
+import resource, numpy as np, hsr
+m = hsr.Mesh(np.load({str(tmp_path / 'p.npy')!r}), np.load({str(tmp_path / 'f.npy')!r}))
+hsr.render(m, hsr.views.default(m.bounds(), 4 / 3), 256, 192)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+"""], capture_output=True, text=True, timeout=300)
+    assert whole.returncode == 0, whole.stderr[-2000:]
+    whole_mb = float(whole.stdout.split()[-1])
+    assert whole_mb > limit_mb
+    store = hsr.partition(mesh, 8, tmp_path / "terrain.zarr")
+    cams = [hsr.views.default(mesh.bounds(), 4 / 3), hsr.views.default(
+        mesh.bounds(), 4 / 3, view=(-60, 40))]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  memory_limit=f"{limit_mb}MB", host="127.0.0.1",
+                                  dashboard_address="127.0.0.1:0",
+                                  silence_logs=50) as cluster, \
+            distributed.Client(cluster) as client:
+        client.run(reset_peak_rss)  # a worker may start as a copy of this big process
+        frames = render_partitioned(store, cams, 256, 192, client=client)
+        peaks = client.run(peak_rss_mb)
+    print(f"whole scene in one process: peak {whole_mb:.0f} MB; workers' peaks: "
+          f"{', '.join(f'{v:.0f}' for v in peaks.values())} MB (limit {limit_mb} MB)")
+    assert len(peaks) == 2 and max(peaks.values()) < limit_mb, peaks
+    for frame, cam in zip(frames, cams, strict=True):
+        want = hsr.render(mesh, cam, 256, 192)
+        assert np.array_equal(frame.face_id, want.face_id)
+        assert np.array_equal(frame.depth, want.depth)
+        assert np.array_equal(frame.color, want.color)
