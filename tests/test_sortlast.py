@@ -165,7 +165,11 @@ def test_on_a_dask_cluster(tie_stores, tmp_path):
             distributed.Client(cluster) as client:
         frames = render_partitioned(store, cams, 80, 60, outputs=OUTPUTS, client=client,
                                     views_per_task=2, depth_func="lequal", cull="back")
+        counts = hsr.visibility.face_visibility(store, cams, (80, 60), client=client,
+                                                depth_func="lequal", cull="back")
     assert_same(frames, scene, cams, 80, 60, depth_func="lequal", cull="back")
+    assert np.array_equal(counts, hsr.visibility.face_visibility(
+        scene, cams, (80, 60), depth_func="lequal", cull="back"))
     for frame in frames:
         loaded = sorted((s["part"], s["faces_loaded"]) for s in frame.stats)
         assert loaded == list(enumerate(store.part_faces))
@@ -415,3 +419,26 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
         assert np.array_equal(frame.face_id, want.face_id)
         assert np.array_equal(frame.depth, want.depth)
         assert np.array_equal(frame.color, want.color)
+
+
+def test_visibility_of_a_partitioned_scene_equals_the_whole_scenes(tie_stores, tmp_path):
+    """face_visibility and visibility_matrix take a store (or its path) and count after
+    compositing: the same counts, cosines and distances as for the scene in memory."""
+    from hsr.visibility import VisibilityError, face_visibility
+
+    scene, stores = tie_stores
+    store = stores[3]
+    cams = tie_cameras()
+    whole = face_visibility(scene, cams, (96, 72), cull="back")
+    assert np.array_equal(face_visibility(store, cams, (96, 72), cull="back"), whole)
+    assert np.array_equal(face_visibility(store.path, cams, (96, 72), cull="back"), whole)
+    assert whole.sum() > 0
+    want = hsr.visibility_matrix(scene, cams, (96, 72), quality=True)
+    got = hsr.visibility_matrix(store, cams, (96, 72), quality=True)
+    for name in ("counts", "cosine", "distance"):
+        a, b = getattr(want, name), getattr(got, name)
+        assert (a != b).nnz == 0 and a.shape == b.shape, name
+    with pytest.raises(VisibilityError, match="partitioned"):
+        hsr.visible_faces(store.path, cams[0], 32, 24)
+    with pytest.raises(PartitionError, match="algorithm must be zbuffer"):
+        face_visibility(store, cams, 32, algorithm="raycast")

@@ -13,6 +13,7 @@ visible).
 from __future__ import annotations
 
 import math
+import os
 import sys
 import threading
 from typing import Any
@@ -105,9 +106,21 @@ def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     skip the objects a view cannot show where that pays (``"always"``: wherever it can;
     :func:`count_view_culled`: the counts are the same, faster when parts are hidden).
 
+    A partitioned scene (:func:`hsr.partition`'s store, or its path) is rendered sort-last
+    (:func:`hsr.batch.render_partitioned`, on ``client`` when given) and counted after
+    compositing; the counts equal the whole scene's.
+
     Raises :class:`VisibilityError` for bad views or size and for a scene with
     transparent instances (whether a face is seen through one is not a face id), and
     what :func:`hsr.render` raises for bad render options."""
+    from ..scene.load import load_scene
+    from ..scene.partitioned import PartitionedScene
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_scene(scene)
+    if isinstance(scene, PartitionedScene):
+        return _partitioned_counts(scene, views, size, client, near, far,
+                                   dict(render_options, algorithm=algorithm, threads=threads))
     scene = as_scene(scene)
     _check_opaque(scene)
     width, height = check_size(size)
@@ -470,6 +483,20 @@ def spread_views(client, task, scene, cameras, args, take, bar) -> None:
         take(k, future.result())
         bar.update(len(cameras[k:k + per_task]))
         future.release()
+
+
+def _partitioned_counts(store, views, size, client, near, far, options) -> np.ndarray:
+    """face_visibility of a partitioned scene: sort-last frames, counted on the client."""
+    from ..batch.sortlast import render_partitioned
+
+    width, height = check_size(size)
+    cameras = cameras_for(store, views, width / height, near, far)
+    counts = np.zeros(store.n_faces, dtype=np.int64)
+    for frame in render_partitioned(store, cameras, width, height, outputs=(), client=client,
+                                    **options):
+        shown = frame.face_id[frame.face_id >= 0]
+        counts += np.bincount(shown, minlength=store.n_faces)
+    return counts
 
 
 def _check_opaque(scene: Scene) -> None:

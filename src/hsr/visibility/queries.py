@@ -41,13 +41,22 @@ def _camera(camera):
     return camera
 
 
-def _scene(scene):
+def _scene(scene, partitioned: bool = False):
+    """The Scene a query works on; a partitioned scene (a store or its path) only where
+    ``partitioned`` (the queries that composite, see :mod:`hsr.batch.sortlast`)."""
     from ..scene.load import load_scene
+    from ..scene.partitioned import PartitionedScene
 
     if isinstance(scene, RayScene):
         return scene.scene
     if isinstance(scene, (str, os.PathLike)):
-        return load_scene(scene)
+        scene = load_scene(scene)
+    if isinstance(scene, PartitionedScene):
+        if partitioned:
+            return scene
+        raise VisibilityError(f"{scene.path} is a partitioned scene: face_visibility and "
+                              f"visibility_matrix take it, this query needs the scene in "
+                              f"memory")
     return as_scene(scene)
 
 
@@ -228,6 +237,13 @@ def _view_columns(scene, camera, width, height, options, quality, workspace):
 
     frame = render(scene, camera, width, height, color=False, workspace=workspace,
                    **options)
+    return frame_columns(frame, camera, quality)
+
+
+def frame_columns(frame, camera, quality: bool) -> tuple:
+    """(faces, counts[, cosine sums, distance sums]) of the faces a frame shows (an
+    :class:`hsr.Frame`, or a composited one with normals and distance when ``quality``)."""
+    height, width = frame.face_id.shape
     face_id = frame.face_id.ravel()
     shown = face_id >= 0
     ids = face_id[shown]
@@ -255,6 +271,27 @@ def _pixel_rays(camera, width, height) -> np.ndarray:
         ends.append(h[:, :3] / h[:, 3:])
     d = ends[1] - ends[0]
     return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _columns(scene, cameras, width, height, options, quality, client, progress) -> list:
+    """The columns of every view of an in-memory scene, here or on a Dask client."""
+    from ..parallel import progress_bar
+    from .count import spread_views
+
+    columns: list = [None] * len(cameras)
+    with progress_bar(progress, len(cameras), "visibility") as bar:
+        if client is None:
+            for j, cam in enumerate(cameras):
+                columns[j] = view_group_columns(scene, [cam], width, height, options,
+                                                quality)[0]
+                bar.update(1)
+        else:
+            def take(k, group):
+                columns[k:k + len(group)] = group
+
+            spread_views(client, view_group_columns, scene, cameras,
+                         (width, height, options, quality), take, bar)
+    return columns
 
 
 def view_group_columns(scene, cameras, width, height, options, quality) -> list:
@@ -285,12 +322,12 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     :func:`hsr.render` raises for bad render options."""
     import scipy.sparse
 
-    from ..parallel import progress_bar
+    from ..batch.sortlast import render_partitioned
     from ..render import render
-    from .count import _check_opaque, spread_views
+    from ..scene.partitioned import PartitionedScene
+    from .count import _check_opaque
 
-    scene = _scene(scene)
-    _check_opaque(scene)
+    scene = _scene(scene, partitioned=True)
     width, height = check_size(size)
     if not isinstance(quality, (bool, np.bool_)):
         raise VisibilityError(f"quality must be True or False, got {quality!r}")
@@ -298,22 +335,19 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
         if name in render_options:
             raise VisibilityError(f"{name} is not an option of visibility_matrix")
     cameras = cameras_for(scene, views, width / height, near, far)
-    render(scene, cameras[0], 1, 1, threads=1, **render_options)  # bad options: now
     if progress is None:
         progress = sys.stderr.isatty()
-    columns = [None] * len(cameras)
-    with progress_bar(progress, len(cameras), "visibility") as bar:
-        if client is None:
-            for j, cam in enumerate(cameras):
-                columns[j] = view_group_columns(scene, [cam], width, height, render_options,
-                                                quality)[0]
-                bar.update(1)
-        else:
-            def take(k, group):
-                columns[k:k + len(group)] = group
-
-            spread_views(client, view_group_columns, scene, cameras,
-                         (width, height, render_options, quality), take, bar)
+    if isinstance(scene, PartitionedScene):
+        # Sort-last: the counts are taken from the composited frames (hsr.batch.sortlast).
+        frames = render_partitioned(scene, cameras, width, height,
+                                    outputs=("normals", "distance") if quality else (),
+                                    client=client, **render_options)
+        columns = [frame_columns(f, cam, quality) for f, cam in zip(frames, cameras)]
+    else:
+        _check_opaque(scene)
+        render(scene, cameras[0], 1, 1, threads=1, **render_options)  # bad options: now
+        columns = _columns(scene, cameras, width, height, render_options, quality, client,
+                           progress)
     n_faces = scene.n_faces
 
     def matrix(part, dtype):
