@@ -318,8 +318,7 @@ def test_stores_are_only_for_batch(models_dir, tmp_path, monkeypatch):
     for argv in (["render", "s.zarr", "-o", "x.png"], ["partition", model, "--parts", "2",
                                                        "--out", "s.zarr"],
                  ["batch", "s.zarr", model], ["visibility", "s.zarr", "--views", "sphere:2",
-                                              "-o", "v.npz"],
-                 ["prune", "s.zarr", "-o", "p.obj"]):
+                                              "-o", "v.npz"]):
         code, err = run_cli(argv)
         assert code == 2 and len(err) == 1 and err[0].startswith("hsr: error:"), (argv, err)
     assert sorted(os.listdir(tmp_path)) == ["s.zarr"]
@@ -442,3 +441,106 @@ def test_visibility_of_a_partitioned_scene_equals_the_whole_scenes(tie_stores, t
         hsr.visible_faces(store.path, cams[0], 32, 24)
     with pytest.raises(PartitionError, match="algorithm must be zbuffer"):
         face_visibility(store, cams, 32, algorithm="raycast")
+
+
+def test_a_ply_larger_than_the_address_space_allows_still_partitions(tmp_path):
+    """A binary PLY of 3M faces: under a 950 MB address-space cap (RLIMIT_AS) loading it
+    and partitioning in memory fails, hsr partition streams it and succeeds; the store
+    has the same parts as the in-memory path, and its sort-last frames are hsr.render's
+    of the loaded mesh."""
+    import resource
+    import subprocess
+    import sys
+
+    ply = tmp_path / "big.ply"
+    hsr.write_mesh(hsr.scenes.terrain_mesh(3_000_000), ply)
+    cap = 950 * 2 ** 20
+
+    def capped(code: str):
+        def limit():
+            resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+
+        env = dict(os.environ, MALLOC_ARENA_MAX="2")
+        return subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
+                              preexec_fn=limit, capture_output=True, text=True, timeout=600)
+
+    in_memory = capped("import hsr; hsr.partition(hsr.load('big.ply'), 8, 'memory.zarr')")
+    assert in_memory.returncode != 0 and not (tmp_path / "memory.zarr").exists()
+    streamed = capped("import sys; from hsr.cli import main; "
+                      "sys.exit(main(['partition', 'big.ply', '--parts', '8', '--out', "
+                      "'big.zarr', '--quiet']))")
+    assert streamed.returncode == 0, streamed.stderr[-2000:]
+    store = hsr.load_scene(tmp_path / "big.zarr")
+    mesh = hsr.load(ply)
+    assert store.n_faces == mesh.n_faces and store.parts == 8
+    reference = hsr.partition(mesh, 8, tmp_path / "reference.zarr")
+    for p in (0, 5):
+        assert np.array_equal(store.part(p)[1], reference.part(p)[1])
+    cams = hsr.views.sphere(mesh.bounds(), 2, aspect=4 / 3)
+    for frame, cam in zip(render_partitioned(store, cams, 96, 72), cams, strict=True):
+        whole = hsr.render(mesh, cam, 96, 72)
+        assert np.array_equal(frame.face_id, whole.face_id)
+        assert np.array_equal(frame.color, whole.color)
+
+
+def test_streaming_refuses_what_it_cannot_read(tmp_path):
+    from hsr.scene.partition import partition_streamed
+
+    quads = tmp_path / "quads.ply"
+    header = (b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+              b"property float y\nproperty float z\nelement face 1\n"
+              b"property list uchar int vertex_indices\nend_header\n")
+    body = np.zeros((4, 3), "<f4").tobytes() + bytes([4]) + np.arange(4, dtype="<i4").tobytes()
+    quads.write_bytes(header + body)
+    with pytest.raises(MeshError):
+        partition_streamed(quads, 1, tmp_path / "q.zarr")
+    outside = tmp_path / "outside.ply"
+    outside.write_bytes(header.replace(b"face 1", b"face 1") + np.zeros((4, 3), "<f4").tobytes()
+                        + bytes([3]) + np.array([0, 1, 9], "<i4").tobytes())
+    with pytest.raises(MeshError, match="outside"):
+        partition_streamed(outside, 1, tmp_path / "o.zarr")
+    truncated = tmp_path / "truncated.ply"
+    truncated.write_bytes(header + body[:20])
+    with pytest.raises(MeshError, match="shorter"):
+        partition_streamed(truncated, 1, tmp_path / "t.zarr")
+    with pytest.raises(MeshError):
+        partition_streamed(tmp_path, 1, tmp_path / "d.zarr")  # a folder, not a file
+    assert sorted(os.listdir(tmp_path)) == ["outside.ply", "quads.ply", "truncated.ply"]
+
+
+def test_a_store_assembles_into_the_scene_it_came_from(tie_stores):
+    scene, stores = tie_stores
+    assembled = stores[7].assemble()
+    assert len(assembled.instances) == len(scene.instances)
+    for got, want in zip(assembled.instances, scene.instances, strict=True):
+        a, b = got.mesh, want.mesh
+        assert np.array_equal(a.positions[a.faces], b.positions[b.faces])
+        assert np.array_equal(got.model, want.model) and got.name == want.name
+        for name in ("face_colors", "corner_colors", "corner_uv", "corner_normals"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert (x is None and y is None) or np.array_equal(x, y), name
+
+
+def test_prune_of_a_store_equals_prune_of_the_scene(models_dir, tmp_path, monkeypatch):
+    """hsr.prune and hsr prune take a store: counted part by part, cut in memory; the same
+    kept faces and the same pruned geometry as pruning the scene itself."""
+    from conftest import run_cli
+
+    housing = hsr.Scene()
+    housing.add(hsr.scenes.tessellated_cube(6), hsr.scenes.scale(2.0))
+    housing.add(hsr.scenes.uv_sphere(0.5), hsr.scenes.translate(0.2, 0.1, 0.0))  # hidden
+    housing.add(hsr.scenes.uv_sphere(0.4), hsr.scenes.translate(3.5, 0.0, 0.0))  # outside
+    store = hsr.partition(housing, 4, tmp_path / "housing.zarr")
+    views = ["sphere:24"]
+    pruned, kept = hsr.prune(housing, views, 128, keep_neighbors=1)
+    pruned_store, kept_store = hsr.prune(store, views, 128, keep_neighbors=1)
+    assert np.array_equal(kept, kept_store) and 0 < len(kept) < housing.n_faces
+    for got, want in zip(pruned_store.instances, pruned.instances, strict=True):
+        a, b = got.mesh, want.mesh
+        assert np.array_equal(a.positions[a.faces], b.positions[b.faces])
+    monkeypatch.chdir(tmp_path)
+    code, err = run_cli(["prune", "housing.zarr", "-o", "kept.ply", "--views", "sphere:24",
+                         "--size", "128", "--keep-neighbors", "1", "--quiet"])
+    assert code == 0, err
+    written = hsr.load(tmp_path / "kept.ply")
+    assert written.n_faces == len(kept)

@@ -9,7 +9,8 @@ def add_parser(sub) -> None:
                        "spatially coherent parts (Morton order of their centroids) and write "
                        "them to a Zarr v3 store that hsr batch renders part by part on a "
                        "Dask cluster (sort-last compositing), so no worker holds the whole "
-                       "scene.")
+                       "scene. One binary PLY of triangles is streamed: it may be larger "
+                       "than memory.")
     p.add_argument("models", nargs="+", metavar="MODEL", help="mesh files, one scene")
     p.add_argument("--parts", type=int, required=True, metavar="K", help="how many parts")
     p.add_argument("--out", required=True, metavar="STORE", help="the store to write (a "
@@ -21,9 +22,13 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..scene.partition import partition
+    from ..scene.ply import is_binary_ply
     from .options import load_models
 
-    scene, _ = load_models(args.models, "partition")
+    if len(args.models) == 1 and is_binary_ply(args.models[0]):
+        scene = args.models[0]  # streamed: its faces never all sit in memory
+    else:
+        scene, _ = load_models(args.models, "partition")
     store = partition(scene, args.parts, args.out, overwrite=args.force)
     if not args.quiet:
         sizes = store.part_faces

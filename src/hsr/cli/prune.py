@@ -89,9 +89,9 @@ def run(args) -> int:
         except ValueError:
             raise CliError(f"--size must be an integer or auto, got {args.size!r}") from None
     scene = load_scene(args.model)
-    if isinstance(scene, PartitionedScene):
-        raise CliError(f"{args.model}: hsr prune does not take partitioned scenes yet; "
-                       f"prune the original model")
+    store = None
+    if isinstance(scene, PartitionedScene):  # counted part by part, cut in memory
+        store, scene = scene, scene.assemble()
     if not args.force:  # the .mtl and textures beside an OBJ, known once it is loaded
         check_new(planned_files(scene, args.output), "--force")
     auto, fixed = split_auto(args.views or ["auto"])
@@ -105,7 +105,8 @@ def run(args) -> int:
                           level=args.level, keep_neighbors=args.keep_neighbors,
                           min_pixels=args.min_pixels, seed=args.seed,
                           max_views=args.max_views, client=client, threads=args.threads,
-                          progress=not args.quiet and sys.stderr.isatty(), **options)
+                          progress=not args.quiet and sys.stderr.isatty(), count_on=store,
+                          **options)
     finally:
         if client is not None:
             client.close()

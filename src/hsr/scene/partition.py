@@ -30,8 +30,9 @@ from .partitioned import (
     is_partitioned,
     open_partitioned,
 )
+from .ply import face_chunks, is_binary_ply, read_layout, read_positions
 
-__all__ = ["partition", "morton_order", "MAX_PARTS"]
+__all__ = ["partition", "partition_streamed", "morton_order", "morton_codes", "MAX_PARTS"]
 
 # The per-face attributes of a Mesh a part keeps: shape of one face's value and dtype.
 FACE_ATTRIBUTES = {"corner_uv": ((3, 2), np.float64), "corner_normals": ((3, 3), np.float64),
@@ -43,12 +44,18 @@ MAX_PARTS = 65536
 def morton_order(centroids: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Stable order of (N, 3) ``centroids`` along the 3-D Morton curve of the box
     [``lo``, ``hi``], 21 bits per axis (ties keep their index order)."""
+    return np.argsort(morton_codes(centroids, lo, hi), kind="stable")
+
+
+def morton_codes(centroids: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(N,) uint64 Morton codes of (N, 3) points in the box [``lo``, ``hi``]: each axis
+    quantised to 21 bits, the bits interleaved (x lowest)."""
     extent = np.where(hi > lo, hi - lo, 1.0)
     cells = np.clip((centroids - lo) / extent * (2 ** 21), 0, 2 ** 21 - 1).astype(np.uint64)
     code = np.zeros(len(centroids), dtype=np.uint64)
     for axis in range(3):
         code |= _spread_bits(cells[:, axis]) << np.uint64(axis)
-    return np.argsort(code, kind="stable")
+    return code
 
 
 def _spread_bits(v: np.ndarray) -> np.ndarray:
@@ -65,21 +72,28 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
 def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
               overwrite: bool = False) -> PartitionedScene:
     """Split ``scene`` (a Scene, Mesh, path, ...) into ``parts`` spatially coherent parts
-    and write them to the Zarr store ``out`` (see the module); returns it opened.
-    Raises :class:`PartitionError` for a part count outside 1..min(faces, 65536), an
-    ``out`` that exists (unless ``overwrite``) or whose folder does not, and
+    and write them to the Zarr store ``out`` (see the module); returns it opened. A
+    binary PLY path is streamed (:func:`partition_streamed`): its faces never all sit in
+    memory. Raises :class:`PartitionError` for a part count outside
+    1..min(faces, 65536), an ``out`` that exists (unless ``overwrite``) or whose folder
+    does not, :class:`~hsr.errors.MeshError` for a model that does not load and
     :class:`~hsr.errors.MissingExtraError` without Zarr."""
     require_extra("hsr partition", "zarr")
-    import zarr
-
+    out = _check_out(out, overwrite)
+    if isinstance(scene, (str, os.PathLike)) and is_binary_ply(os.fspath(scene)):
+        return partition_streamed(scene, parts, out, overwrite)
     if isinstance(scene, (str, os.PathLike)):
         scene = load_scene(scene)
     scene = as_scene(scene)
-    n_faces = scene.n_faces
-    if isinstance(parts, bool) or not isinstance(parts, (int, np.integer)) \
-            or not 1 <= parts <= min(n_faces, MAX_PARTS):
-        raise PartitionError(f"parts must be an integer in 1..{min(n_faces, MAX_PARTS)} "
-                             f"(the scene has {n_faces:,} faces), got {parts!r}")
+    _check_parts(parts, scene.n_faces)
+
+    def write(root, scratch) -> dict:
+        return _write_in_memory(scene, parts, root)
+
+    return _write_store(out, write)
+
+
+def _check_out(out: str | os.PathLike, overwrite: bool) -> str:
     out = os.fspath(out)
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
@@ -87,7 +101,53 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
     if os.path.lexists(out) and not overwrite:
         raise PartitionError(f"{out} exists; choose another name or replace it "
                              f"(overwrite=True; hsr partition --force)")
+    return out
 
+
+def _check_parts(parts, n_faces: int) -> None:
+    if isinstance(parts, bool) or not isinstance(parts, (int, np.integer)) \
+            or not 1 <= parts <= min(n_faces, MAX_PARTS):
+        raise PartitionError(f"parts must be an integer in 1..{min(n_faces, MAX_PARTS)} "
+                             f"(the scene has {n_faces:,} faces), got {parts!r}")
+
+
+def _write_store(out: str, write) -> PartitionedScene:
+    """``write(root group, scratch folder) -> metadata`` into a store under a temporary
+    name beside ``out``, renamed to ``out`` when complete (nothing left behind if not)."""
+    import zarr
+
+    folder = os.path.dirname(os.path.abspath(out))
+    tmp = tempfile.mkdtemp(prefix=".hsr-partition-", dir=folder)
+    try:
+        root = zarr.open_group(os.path.join(tmp, "store"), mode="w")
+        meta = write(root, tmp)
+        root.attrs["hsr"] = json.loads(json.dumps(meta))
+        if os.path.lexists(out):
+            _remove(out)
+        os.replace(os.path.join(tmp, "store"), out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return open_partitioned(out)
+
+
+def _metadata(parts: int, n_faces: int, bounds, instances: list) -> dict:
+    return {"kind": KIND, "version": VERSION, "parts": int(parts), "n_faces": int(n_faces),
+            "bounds": [list(map(float, bounds[0])), list(map(float, bounds[1]))],
+            "instances": instances, "part_faces": [], "part_bounds": []}
+
+
+def _add_part(root, meta: dict, p: int, arrays: dict) -> None:
+    """Part ``p``'s arrays as a group of the store, its size and box in the metadata."""
+    box = arrays.pop("box")  # the world box of the part's face corners
+    group = root.create_group(f"part_{p:04d}")
+    for name, array in arrays.items():
+        group.create_array(name, data=array, chunks=_chunks(array))
+    meta["part_faces"].append(int(len(arrays["face_id"])))
+    meta["part_bounds"].append(box)
+
+
+def _write_in_memory(scene: Scene, parts: int, root) -> dict:
+    n_faces = scene.n_faces
     triangles = scene.world_triangles()
     lo, hi = scene.bounds()
     order = morton_order(triangles.mean(axis=1), lo, hi)
@@ -100,36 +160,96 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
                                  if getattr(inst.mesh, a) is not None],
                   "texture": _texture_ref(inst.mesh.texture, k)}
                  for k, inst in enumerate(scene.instances)]
-    part_faces: list = []
-    part_bounds: list = []
-    meta = {"kind": KIND, "version": VERSION, "parts": int(parts), "n_faces": int(n_faces),
-            "bounds": [lo.tolist(), hi.tolist()], "instances": instances,
-            "part_faces": part_faces, "part_bounds": part_bounds}
-    tmp = tempfile.mkdtemp(prefix=".hsr-partition-", dir=folder)
-    try:
-        root = zarr.open_group(os.path.join(tmp, "store"), mode="w")
-        for k, inst in enumerate(scene.instances):
-            if isinstance(instances[k]["texture"], dict):  # an image given as an array
-                image = np.ascontiguousarray(inst.mesh.texture)
-                root.create_array(instances[k]["texture"]["array"], data=image,
-                                  chunks=image.shape)
-        for p in range(parts):
-            face_id = np.sort(order[cuts[p]:cuts[p + 1]])
-            arrays = _part_arrays(scene, offsets, face_id)
-            group = root.create_group(f"part_{p:04d}")
-            for name, array in arrays.items():
-                group.create_array(name, data=array, chunks=_chunks(array))
-            part_corners = triangles[face_id].reshape(-1, 3)
-            part_faces.append(int(len(face_id)))
-            part_bounds.append([part_corners.min(axis=0).tolist(),
-                                        part_corners.max(axis=0).tolist()])
-        root.attrs["hsr"] = json.loads(json.dumps(meta))
-        if os.path.lexists(out):
-            _remove(out)
-        os.replace(os.path.join(tmp, "store"), out)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return open_partitioned(out)
+    meta = _metadata(parts, n_faces, (lo, hi), instances)
+    for k, inst in enumerate(scene.instances):
+        if isinstance(instances[k]["texture"], dict):  # an image given as an array
+            image = np.ascontiguousarray(inst.mesh.texture)
+            root.create_array(instances[k]["texture"]["array"], data=image,
+                              chunks=image.shape)
+    for p in range(parts):
+        face_id = np.sort(order[cuts[p]:cuts[p + 1]])
+        arrays = _part_arrays(scene, offsets, face_id)
+        corners = triangles[face_id].reshape(-1, 3)  # world space, whatever the instances
+        arrays["box"] = [corners.min(axis=0).tolist(), corners.max(axis=0).tolist()]
+        _add_part(root, meta, p, arrays)
+    return meta
+
+
+def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLike,
+                       overwrite: bool = False, chunk: int = 1 << 20) -> PartitionedScene:
+    """:func:`partition` of a binary PLY of triangles, read ``chunk`` faces at a time so
+    that memory stays near 40 bytes a face (vertex positions, one Morton code and one
+    part number per face, and one part's faces at a time) where loading the mesh takes
+    about 140. The same parts as loading the file and partitioning it (the same Morton
+    order and cuts); only geometry is kept (a PLY's colours are not). Raises
+    :class:`~hsr.errors.MeshError` for a file :mod:`hsr.scene.ply` cannot stream and
+    :class:`PartitionError` as :func:`partition` does."""
+    require_extra("hsr partition", "zarr")
+    out = _check_out(out, overwrite)
+    layout = read_layout(path)
+    _check_parts(parts, layout.n_faces)
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise PartitionError(f"chunk must be a positive integer, got {chunk!r}")
+
+    def write(root, scratch) -> dict:
+        return _write_streamed(layout, parts, root, scratch, chunk)
+
+    return _write_store(out, write)
+
+
+def _write_streamed(layout, parts: int, root, scratch: str, chunk: int) -> dict:
+    positions = read_positions(layout)
+    # Pass 1: which vertices the faces use (the box is theirs, as Scene.bounds() says).
+    used = np.zeros(layout.n_vertices, dtype=bool)
+    for _, corners in face_chunks(layout, chunk):
+        used[corners.ravel()] = True
+    if not used.any():
+        raise PartitionError(f"{layout.path}: no faces")
+    lo, hi = positions[used].min(axis=0), positions[used].max(axis=0)
+    del used
+    # Pass 2: a Morton code per face, from its centroid (the formula morton_order uses).
+    codes = np.empty(layout.n_faces, dtype=np.uint64)
+    for start, corners in face_chunks(layout, chunk):
+        codes[start:start + len(corners)] = morton_codes(
+            positions[corners].mean(axis=1), lo, hi)
+    # The parts: runs of the stable Morton order, as the in-memory path cuts them.
+    part_of = np.empty(layout.n_faces, dtype=np.uint16)
+    order = np.argsort(codes, kind="stable")
+    del codes
+    cuts = np.linspace(0, layout.n_faces, parts + 1).round().astype(np.int64)
+    for p in range(parts):
+        part_of[order[cuts[p]:cuts[p + 1]]] = p
+    del order
+    # Pass 3: each chunk's faces appended to their part's scratch files, in file order.
+    for start, corners in face_chunks(layout, chunk):
+        mine = part_of[start:start + len(corners)]
+        for p in np.unique(mine):
+            sel = np.flatnonzero(mine == p)
+            with open(os.path.join(scratch, f"{p}.faces"), "ab") as f:
+                corners[sel].astype(np.int64).tofile(f)
+            with open(os.path.join(scratch, f"{p}.ids"), "ab") as f:
+                (sel + start).astype(np.int64).tofile(f)
+    del part_of
+    name = os.path.basename(layout.path)
+    instance = {"name": name, "mesh_name": name, "model": np.eye(4).ravel().tolist(),
+                "opacity": 1.0, "face_offset": 0, "attributes": [], "texture": None}
+    meta = _metadata(parts, layout.n_faces, (lo, hi), [instance])
+    # Pass 4: one part at a time from its scratch files into the store.
+    for p in range(parts):
+        faces_p = np.fromfile(os.path.join(scratch, f"{p}.faces"), dtype=np.int64)
+        face_id = np.fromfile(os.path.join(scratch, f"{p}.ids"), dtype=np.int64)
+        vertices, remapped = np.unique(faces_p, return_inverse=True)
+        used = positions[vertices]  # one instance, identity model: world = model space
+        _add_part(root, meta, p, {"box": [used.min(axis=0).tolist(),
+                                          used.max(axis=0).tolist()],
+                                  "positions": used, "vertex_id": vertices.astype(np.int64),
+                                  "faces": remapped.reshape(-1, 3).astype(np.int64),
+                                  "face_id": face_id,
+                                  "vertex_start": np.array([0, len(vertices)],
+                                                           dtype=np.int64)})
+        os.remove(os.path.join(scratch, f"{p}.faces"))
+        os.remove(os.path.join(scratch, f"{p}.ids"))
+    return meta
 
 
 def _chunks(array: np.ndarray) -> tuple:
@@ -162,13 +282,14 @@ def _part_arrays(scene: Scene, offsets: np.ndarray, face_id: np.ndarray) -> dict
     into the model-space vertices they use, instance by instance, and their per-face
     attributes (zeros for the faces of instances that have none)."""
     owner = np.searchsorted(offsets, face_id, side="right") - 1
-    positions, faces, vertex_start = [], [], [0]
+    positions, vertex_ids, faces, vertex_start = [], [], [], [0]
     attributes: dict = {}
     for k, inst in enumerate(scene.instances):
         local = face_id[owner == k] - offsets[k]
         corners = inst.mesh.faces[local]
         used, remapped = np.unique(corners, return_inverse=True)
         positions.append(inst.mesh.positions[used])
+        vertex_ids.append(used)
         faces.append(remapped.reshape(-1, 3) + vertex_start[-1])
         vertex_start.append(vertex_start[-1] + len(used))
         for name, (shape, dtype) in FACE_ATTRIBUTES.items():
@@ -177,6 +298,7 @@ def _part_arrays(scene: Scene, offsets: np.ndarray, face_id: np.ndarray) -> dict
                 np.zeros((len(local),) + shape, dtype) if values is None
                 else np.asarray(values, dtype)[local])
     arrays = {"positions": np.concatenate(positions).astype(np.float64),
+              "vertex_id": np.concatenate(vertex_ids).astype(np.int64),
               "faces": np.concatenate(faces).astype(np.int64).reshape(-1, 3),
               "face_id": face_id.astype(np.int64),
               "vertex_start": np.asarray(vertex_start, dtype=np.int64)}

@@ -13,6 +13,7 @@ Layout of ``STORE`` (a folder)::
     part_0000/faces           (F, 3) int64 into positions
     part_0000/face_id         (F,) int64 global face ids, ascending
     part_0000/vertex_start    (I + 1,) int64 where each instance's vertices begin
+    part_0000/vertex_id       (V,) int64 each vertex's index in its instance's mesh
 
     part_0000/corner_uv, corner_normals, face_colors, corner_colors
                               per-face attributes, where any instance has them
@@ -112,26 +113,69 @@ class PartitionedScene:
         """``(scene, face_id)``: part ``p`` as a Scene of the original instances' faces
         that fall in it (in global order), and (F,) int64 the global id of each of its
         faces. Raises :class:`PartitionError` for a part that does not exist."""
-        import zarr
-
-        if isinstance(p, bool) or not isinstance(p, (int, np.integer)) \
-                or not 0 <= p < self.parts:
-            raise PartitionError(f"part must be in 0..{self.parts - 1}, got {p!r}")
-        group = zarr.open_group(os.path.join(self.path, f"part_{p:04d}"), mode="r")
-        arrays = {name: np.asarray(array[...]) for name, array in group.arrays()}
-        positions, faces = arrays["positions"], arrays["faces"]
-        face_id, vertex_start = arrays["face_id"], arrays["vertex_start"]
-        offsets = self.face_offsets()
-        owner = np.searchsorted(offsets, face_id, side="right") - 1
+        arrays = self._arrays(p)
+        positions, faces, face_id = arrays["positions"], arrays["faces"], arrays["face_id"]
         instances = []
-        for k, inst in enumerate(self.instances):
-            mine = owner == k
-            if not mine.any():
-                continue
-            lo, hi = vertex_start[k], vertex_start[k + 1]
+        for k, mine, lo, hi in self._instance_runs(arrays):
+            inst = self.instances[k]
             attributes = {name: arrays[name][mine] for name in inst["attributes"]}
             mesh = Mesh(positions[lo:hi], faces[mine] - lo, name=inst["mesh_name"],
                         texture=self._texture(inst["texture"]), **attributes)
             instances.append(Instance(mesh, np.asarray(inst["model"]).reshape(4, 4),
                                       inst["opacity"], inst["name"]))
         return Scene(instances), face_id
+
+    def assemble(self) -> Scene:
+        """The whole scene in memory again, from every part: each instance's faces in
+        their original order over the vertices they use (in their original order), with
+        their attributes and textures, as :func:`hsr.load_scene` gave it less unused
+        vertices. Needs the memory the whole scene needs (what hsr prune of a store
+        uses to grow rings and write the result; rendering stays part by part)."""
+        gathered: dict = {}
+        for p in range(self.parts):
+            arrays = self._arrays(p)
+            for k, mine, lo, hi in self._instance_runs(arrays):
+                vertex_id = arrays["vertex_id"][lo:hi]
+                got = gathered.setdefault(k, {"ids": [], "faces": [], "vertex_id": [],
+                                              "positions": [], "attributes": {}})
+                got["ids"].append(arrays["face_id"][mine])
+                got["faces"].append(vertex_id[arrays["faces"][mine] - lo])
+                got["vertex_id"].append(vertex_id)
+                got["positions"].append(arrays["positions"][lo:hi])
+                for name in self.instances[k]["attributes"]:
+                    got["attributes"].setdefault(name, []).append(arrays[name][mine])
+        instances = []
+        for k in sorted(gathered):
+            got, inst = gathered[k], self.instances[k]
+            order = np.argsort(np.concatenate(got["ids"]), kind="stable")
+            vertex_id, first = np.unique(np.concatenate(got["vertex_id"]), return_index=True)
+            faces = np.searchsorted(vertex_id, np.concatenate(got["faces"])[order])
+            attributes = {name: np.concatenate(parts)[order]
+                          for name, parts in got["attributes"].items()}
+            mesh = Mesh(np.concatenate(got["positions"])[first], faces,
+                        name=inst["mesh_name"], texture=self._texture(inst["texture"]),
+                        **attributes)
+            instances.append(Instance(mesh, np.asarray(inst["model"]).reshape(4, 4),
+                                      inst["opacity"], inst["name"]))
+        return Scene(instances)
+
+    def _arrays(self, p: int) -> dict:
+        """Every array of part ``p``, read."""
+        import zarr
+
+        if isinstance(p, bool) or not isinstance(p, (int, np.integer)) \
+                or not 0 <= p < self.parts:
+            raise PartitionError(f"part must be in 0..{self.parts - 1}, got {p!r}")
+        group = zarr.open_group(os.path.join(self.path, f"part_{p:04d}"), mode="r")
+        return {name: np.asarray(array[...]) for name, array in group.arrays()}
+
+    def _instance_runs(self, arrays: dict):
+        """``(instance, its faces' mask, first vertex, end vertex)`` for each original
+        instance with faces in the part whose ``arrays`` these are."""
+        offsets = self.face_offsets()
+        owner = np.searchsorted(offsets, arrays["face_id"], side="right") - 1
+        vertex_start = arrays["vertex_start"]
+        for k in range(len(self.instances)):
+            mine = owner == k
+            if mine.any():
+                yield k, mine, vertex_start[k], vertex_start[k + 1]

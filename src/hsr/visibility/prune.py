@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..scene.mesh import Mesh, Scene, SceneLike, _kept, as_scene
+from ..scene.partitioned import PartitionedScene
 from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
 
 __all__ = ["prune", "decide", "Decision", "auto_size", "VisibilityWarning", "keep_faces",
@@ -79,7 +80,7 @@ def auto_size(scene: Scene) -> int:
 def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
            level: str = "faces", keep_neighbors: int | None = None, min_pixels: int = 1,
            seed: int = 0, max_views: int = AUTO_MAX_VIEWS, client: Any = None,
-           progress: bool | None = None,
+           progress: bool | None = None, count_on: PartitionedScene | None = None,
            **options) -> Decision:
     """Which faces to keep: :func:`face_visibility` over ``views`` at ``size``, then
     :func:`keep_faces` (``level``, ``keep_neighbors``, ``min_pixels``).
@@ -99,11 +100,18 @@ def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
     small enough to fall between the pixel centres of every view), else to 0.
     ``size="auto"``: :func:`auto_size`.
 
+    A partitioned scene (:func:`hsr.partition`'s store) is counted sort-last, part by
+    part (``count_on``: the store whose whole scene ``scene`` is, when the caller has
+    assembled it already); its rings are grown on the assembled scene.
+
     Raises :class:`VisibilityError` for bad views, size, level, thresholds or
     ``max_views``, and what :func:`face_visibility` raises."""
     from ..scene import views as view_sets
 
+    if isinstance(scene, PartitionedScene):
+        count_on, scene = scene, scene.assemble()
     scene = as_scene(scene)
+    counted = scene if count_on is None else count_on
     auto, fixed = split_auto(views)
     if keep_neighbors is None:
         keep_neighbors = AUTO_RINGS if auto else 0
@@ -117,7 +125,7 @@ def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
     first = fixed + ([f"sphere:{AUTO_FIRST}"] if auto else [])
     cameras = cameras_for(scene, first, width / height, options.get("near", 0.1),
                           options.get("far", 100.0))
-    counts = face_visibility(scene, cameras, (width, height), **run)
+    counts = face_visibility(counted, cameras, (width, height), **run)
     keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
     if not auto:
         return Decision(counts, keep, tuple(cameras), (width, height), len(cameras), True)
@@ -130,7 +138,7 @@ def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
         directions = rng.normal(size=(more, 3))
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
         added = [view_sets.framed(bounds, d, width / height) for d in directions]
-        counts = counts + face_visibility(scene, added, (width, height), **run)
+        counts = counts + face_visibility(counted, added, (width, height), **run)
         cameras += added
         grown = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
         if np.array_equal(grown, keep):
@@ -149,10 +157,15 @@ def prune(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *, le
     ``views="auto"`` (the default) and ``size="auto"`` choose the views until the
     decision is stable (:func:`decide`, which also takes ``seed``, ``max_views``,
     ``client`` and the render options); a warning says when it did not settle.
-    ``counts``: per-face pixel counts already measured (then no view is rendered).
+    ``counts``: per-face pixel counts already measured (then no view is rendered). A
+    partitioned scene is counted part by part and assembled to be cut (see
+    :func:`decide`).
 
     Raises :class:`VisibilityError` for a bad level, threshold or ring count, or when
     nothing is visible (an empty scene is not a scene)."""
+    if isinstance(scene, PartitionedScene):
+        options = dict(options, count_on=scene)
+        scene = scene.assemble()
     scene = as_scene(scene)
     if counts is not None:
         if keep_neighbors is None:
