@@ -544,3 +544,37 @@ def test_prune_of_a_store_equals_prune_of_the_scene(models_dir, tmp_path, monkey
     assert code == 0, err
     written = hsr.load(tmp_path / "kept.ply")
     assert written.n_faces == len(kept)
+
+
+def test_long_work_shows_progress_only_when_asked_or_on_a_terminal(tie_stores, tmp_path,
+                                                                   capsys):
+    from hsr.scene.partition import partition_streamed
+
+    _, stores = tie_stores
+    render_partitioned(stores[2], tie_cameras(), 32, 24)
+    assert capsys.readouterr().err == ""  # piped: quiet
+    render_partitioned(stores[2], tie_cameras(), 32, 24, progress=True)
+    assert "sort-last" in capsys.readouterr().err
+    hsr.write_mesh(hsr.scenes.terrain_mesh(5000), tmp_path / "t.ply")
+    partition_streamed(tmp_path / "t.ply", 2, tmp_path / "a.zarr")
+    assert capsys.readouterr().err == ""
+    partition_streamed(tmp_path / "t.ply", 2, tmp_path / "b.zarr", progress=True)
+    assert "partition" in capsys.readouterr().err
+
+
+def test_batch_of_a_store_on_local_worker_processes(tie_stores, tmp_path):
+    """hsr.batch.render_views(STORE, workers=2): a local cluster of two processes shares
+    the parts; the ids equal hsr.render's."""
+    pytest.importorskip("distributed")
+    from hsr.batch import render_views
+    from hsr.batch.tasks import place_cameras
+
+    scene, stores = tie_stores
+    result = render_views(stores[3].path, "sphere:3", (64, 48), ("ids",), tmp_path / "out",
+                          workers=2)
+    assert result.rendered == 3 and result.failed == 0
+    cams = place_cameras(stores[3], ("set", "sphere", 3, 20.0), (64, 48))
+    stem = os.path.splitext(os.path.basename(stores[3].path))[0]
+    for view, cam in enumerate(cams):
+        got = np.load(tmp_path / "out" / stem / "ids" / f"{view:04d}.npy")
+        assert np.array_equal(got, hsr.render(scene, cam, 64, 48).face_id)

@@ -154,8 +154,21 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         if format != "files" or resume:
             raise BatchError("a partitioned scene writes files (format files), without "
                              "resume, for now")
-        return _run_partitioned(client, models[0], stems, spec, (width, height), outputs,
-                                out, render_options, views_per_task)
+        if progress is None:
+            progress = sys.stderr.isatty()
+        own_cluster = None
+        if client is None and workers is not None:  # else part by part in this process
+            from distributed import Client
+
+            own_cluster = local_cluster(workers, 0)
+            client = Client(own_cluster)
+        try:
+            return _run_partitioned(client, models[0], stems, spec, (width, height),
+                                    outputs, out, render_options, views_per_task, progress)
+        finally:
+            if own_cluster is not None:
+                client.close()
+                own_cluster.close()
     start = time.perf_counter()
     own_cluster = None
     if client is None:
@@ -235,7 +248,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
 
 
 def _run_partitioned(client, store_path, stems, spec, size, outputs, out, options,
-                     views_per_task) -> BatchResult:
+                     views_per_task, progress) -> BatchResult:
     """``render_views`` of one partitioned scene: sort-last on ``client`` (or here without
     one, part after part), the composited frames written on the client as a plain
     model's would be; each view's manifest row names the parts its task group rendered,
@@ -256,7 +269,8 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     per_task = views_per_task or max(1, (4 << 20) // (size[0] * size[1]))
     frames = render_partitioned(store, cameras, size[0], size[1],
                                 outputs=tuple(o for o in outputs if o in COMPOSITED),
-                                client=client, views_per_task=per_task, **options)
+                                client=client, views_per_task=per_task, progress=progress,
+                                **options)
     names = {"color": "color", "window_depth": "depth", "eye_depth": "eye_depth",
              "distance": "distance", "normals": "normals", "ids": "face_id",
              "object_ids": "object_id"}

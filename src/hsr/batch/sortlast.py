@@ -30,6 +30,7 @@ a tree over K parts moves K - 1 of them per view, in ceil(log2 K) levels.
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..geometry.state import RenderState
+from ..parallel import progress_bar
 from ..render import render
 from ..scene.camera import Camera
 from ..scene.partitioned import PartitionedScene, PartitionError, open_partitioned
@@ -141,7 +143,8 @@ def _merge(a: dict, b: dict, depth_func: str) -> dict:
 
 def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
                        height: int, outputs: tuple = ("color",), client: Any = None,
-                       views_per_task: int = 8, **options) -> list:
+                       views_per_task: int = 8, progress: bool | None = None,
+                       **options) -> list:
     """Sort-last render of the partitioned scene ``store`` (a path or an opened
     :class:`PartitionedScene`) from each of ``cameras``: a list of
     :class:`CompositeFrame`, each equal to :func:`hsr.render` of the whole scene with the
@@ -152,7 +155,8 @@ def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
     part, so every task of that part runs where it is), each task renders one part for
     ``views_per_task`` views, and the partial frames are composited in a binary tree on
     the workers; only the final frames come back. Without one, the same runs here, part
-    after part. Raises :class:`~hsr.scene.partitioned.PartitionError` for options that
+    after part. A progress bar shows on a terminal (``progress``: force it on or off).
+    Raises :class:`~hsr.scene.partitioned.PartitionError` for options that
     compositing cannot honour (see the module) and :class:`~hsr.errors.CameraError` for
     cameras that are not hsr Cameras."""
     from ..errors import CameraError
@@ -175,23 +179,31 @@ def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
                              f"{views_per_task!r}")
     func = state.depth_func.value
     groups = [cameras[k:k + views_per_task] for k in range(0, len(cameras), views_per_task)]
-    if client is None:
-        # Part by part, each read once and dropped before the next: one part in memory.
-        merged: list = [None] * len(groups)
-        for p in range(store.parts):
-            loaded = _load(store.path, p)
-            for g, group in enumerate(groups):
-                part = _render_loaded(loaded, group, width, height, outputs, options)
-                merged[g] = part if merged[g] is None else _merge(merged[g], part, func)
-            del loaded
-    else:
-        merged = _on_dask(client, store, groups, width, height, outputs, options, func)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    with progress_bar(progress, store.parts * len(cameras), "sort-last",
+                      unit="part-view") as bar:
+        if client is None:
+            # Part by part, each read once and dropped before the next: one part in memory.
+            merged: list = [None] * len(groups)
+            for p in range(store.parts):
+                loaded = _load(store.path, p)
+                for g, group in enumerate(groups):
+                    part = _render_loaded(loaded, group, width, height, outputs, options)
+                    merged[g] = part if merged[g] is None else _merge(merged[g], part, func)
+                    bar.update(len(group))
+                del loaded
+        else:
+            merged = _on_dask(client, store, groups, width, height, outputs, options, func,
+                              bar)
     return [frame for group in merged for frame in _frames(store, group)]
 
 
-def _on_dask(client, store, groups, width, height, outputs, options, func) -> list:
+def _on_dask(client, store, groups, width, height, outputs, options, func, bar) -> list:
     """One load future per part (its scene stays in that worker's memory), a task per
     (part, group of views) that depends on it, a binary reduction tree per group."""
+    from distributed import as_completed
+
     loaded = [client.submit(_load, store.path, p, pure=False) for p in range(store.parts)]
     finals = []
     for group in groups:
@@ -202,6 +214,10 @@ def _on_dask(client, store, groups, width, height, outputs, options, func) -> li
                      for k in range(0, len(level) - 1, 2)]
             level = pairs + ([level[-1]] if len(level) % 2 else [])
         finals.append(level[0])
+        del level  # only the tree's root is held: partial frames go once merged
+    views = {future.key: store.parts * len(group) for future, group in zip(finals, groups)}
+    for future in as_completed(finals):
+        bar.update(views[future.key])
     results = client.gather(finals)
     del loaded  # the parts leave the workers' memory with their futures
     return results

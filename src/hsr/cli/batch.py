@@ -48,7 +48,9 @@ def add_parser(sub) -> None:
                    "tcp://10.0.0.5:8786 (default: a local cluster on this machine)")
     g.add_argument("--workers", type=int, help="size of the local cluster (default: one per "
                    "core): single-threaded worker processes for views under 512x512 pixels, "
-                   "threads of one worker in this process for larger ones")
+                   "threads of one worker in this process for larger ones; for a "
+                   "partitioned scene, N worker processes sharing its parts (default: "
+                   "part after part in this process)")
     g.add_argument("--views-per-task", type=int, metavar="N", help="views in one task "
                    "(default: about 4M pixels, at least four tasks per worker)")
     g = b.add_argument_group("rendering")

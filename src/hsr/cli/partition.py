@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("partition", help="split a scene into parts for sort-last rendering",
@@ -29,7 +31,8 @@ def run(args) -> int:
         scene = args.models[0]  # streamed: its faces never all sit in memory
     else:
         scene, _ = load_models(args.models, "partition")
-    store = partition(scene, args.parts, args.out, overwrite=args.force)
+    store = partition(scene, args.parts, args.out, overwrite=args.force,
+                      progress=not args.quiet and sys.stderr.isatty())
     if not args.quiet:
         sizes = store.part_faces
         print(f"wrote {store.path}: {store.n_faces:,} faces in {store.parts} parts "

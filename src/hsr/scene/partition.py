@@ -15,11 +15,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 import tempfile
 
 import numpy as np
 
 from ..errors import require_extra
+from ..parallel import progress_bar
 from .load import load_scene
 from .mesh import Scene, SceneLike, as_scene
 from .partitioned import (
@@ -70,18 +72,19 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
 
 
 def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
-              overwrite: bool = False) -> PartitionedScene:
+              overwrite: bool = False, progress: bool | None = None) -> PartitionedScene:
     """Split ``scene`` (a Scene, Mesh, path, ...) into ``parts`` spatially coherent parts
     and write them to the Zarr store ``out`` (see the module); returns it opened. A
     binary PLY path is streamed (:func:`partition_streamed`): its faces never all sit in
-    memory. Raises :class:`PartitionError` for a part count outside
+    memory; it shows a progress bar on a terminal (``progress`` forces it on or off).
+    Raises :class:`PartitionError` for a part count outside
     1..min(faces, 65536), an ``out`` that exists (unless ``overwrite``) or whose folder
     does not, :class:`~hsr.errors.MeshError` for a model that does not load and
     :class:`~hsr.errors.MissingExtraError` without Zarr."""
     require_extra("hsr partition", "zarr")
     out = _check_out(out, overwrite)
     if isinstance(scene, (str, os.PathLike)) and is_binary_ply(os.fspath(scene)):
-        return partition_streamed(scene, parts, out, overwrite)
+        return partition_streamed(scene, parts, out, overwrite, progress=progress)
     if isinstance(scene, (str, os.PathLike)):
         scene = load_scene(scene)
     scene = as_scene(scene)
@@ -176,7 +179,8 @@ def _write_in_memory(scene: Scene, parts: int, root) -> dict:
 
 
 def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLike,
-                       overwrite: bool = False, chunk: int = 1 << 20) -> PartitionedScene:
+                       overwrite: bool = False, chunk: int = 1 << 20,
+                       progress: bool | None = None) -> PartitionedScene:
     """:func:`partition` of a binary PLY of triangles, read ``chunk`` faces at a time so
     that memory stays near 40 bytes a face (vertex positions, one Morton code and one
     part number per face, and one part's faces at a time) where loading the mesh takes
@@ -191,18 +195,24 @@ def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLi
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise PartitionError(f"chunk must be a positive integer, got {chunk!r}")
 
+    if progress is None:
+        progress = sys.stderr.isatty()
+
     def write(root, scratch) -> dict:
-        return _write_streamed(layout, parts, root, scratch, chunk)
+        # The bar counts faces read (three passes) and parts written (one face each).
+        with progress_bar(progress, 4 * layout.n_faces, "partition", unit="face") as bar:
+            return _write_streamed(layout, parts, root, scratch, chunk, bar)
 
     return _write_store(out, write)
 
 
-def _write_streamed(layout, parts: int, root, scratch: str, chunk: int) -> dict:
+def _write_streamed(layout, parts: int, root, scratch: str, chunk: int, bar) -> dict:
     positions = read_positions(layout)
     # Pass 1: which vertices the faces use (the box is theirs, as Scene.bounds() says).
     used = np.zeros(layout.n_vertices, dtype=bool)
     for _, corners in face_chunks(layout, chunk):
         used[corners.ravel()] = True
+        bar.update(len(corners))
     if not used.any():
         raise PartitionError(f"{layout.path}: no faces")
     lo, hi = positions[used].min(axis=0), positions[used].max(axis=0)
@@ -212,6 +222,7 @@ def _write_streamed(layout, parts: int, root, scratch: str, chunk: int) -> dict:
     for start, corners in face_chunks(layout, chunk):
         codes[start:start + len(corners)] = morton_codes(
             positions[corners].mean(axis=1), lo, hi)
+        bar.update(len(corners))
     # The parts: runs of the stable Morton order, as the in-memory path cuts them.
     part_of = np.empty(layout.n_faces, dtype=np.uint16)
     order = np.argsort(codes, kind="stable")
@@ -229,6 +240,7 @@ def _write_streamed(layout, parts: int, root, scratch: str, chunk: int) -> dict:
                 corners[sel].astype(np.int64).tofile(f)
             with open(os.path.join(scratch, f"{p}.ids"), "ab") as f:
                 (sel + start).astype(np.int64).tofile(f)
+        bar.update(len(corners))
     del part_of
     name = os.path.basename(layout.path)
     instance = {"name": name, "mesh_name": name, "model": np.eye(4).ravel().tolist(),
@@ -249,6 +261,7 @@ def _write_streamed(layout, parts: int, root, scratch: str, chunk: int) -> dict:
                                                            dtype=np.int64)})
         os.remove(os.path.join(scratch, f"{p}.faces"))
         os.remove(os.path.join(scratch, f"{p}.ids"))
+        bar.update(len(face_id))
     return meta
 
 
