@@ -5,7 +5,7 @@ Dask (``dask.distributed``) is imported only when a batch runs (``pip install
 from typing import Any
 
 from .plan import OUTPUTS, BatchError, parse_views
-from .sortlast import CompositeFrame, composite, render_partitioned
+from .sortlast import CompositeFrame, composite, each_partitioned, render_partitioned
 
 
 def render_views(*args: Any, **kwargs: Any) -> Any:
@@ -23,4 +23,4 @@ def render_views(*args: Any, **kwargs: Any) -> Any:
 
 
 __all__ = ["render_views", "parse_views", "OUTPUTS", "BatchError", "render_partitioned",
-           "composite", "CompositeFrame"]
+           "each_partitioned", "composite", "CompositeFrame"]

@@ -255,7 +255,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     the faces they loaded and their milliseconds."""
     from ..scene.partitioned import open_partitioned
     from .sortlast import OUTPUTS as COMPOSITED
-    from .sortlast import render_partitioned
+    from .sortlast import each_partitioned
     from .tasks import _write_files, place_cameras
 
     start = time.perf_counter()
@@ -267,26 +267,28 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
                  else ("all", list(given)))
     cameras = place_cameras(store, placement, size)
     per_task = views_per_task or max(1, (4 << 20) // (size[0] * size[1]))
-    frames = render_partitioned(store, cameras, size[0], size[1],
-                                outputs=tuple(o for o in outputs if o in COMPOSITED),
-                                client=client, views_per_task=per_task, progress=progress,
-                                **options)
     names = {"color": "color", "window_depth": "depth", "eye_depth": "eye_depth",
              "distance": "distance", "normals": "normals", "ids": "face_id",
              "object_ids": "object_id"}
     for name in outputs:
         os.makedirs(os.path.dirname(output_path(out, stem, name, 0)), exist_ok=True)
-    rows = []
-    for view, frame in enumerate(frames):
-        _write_files(out, stem, view, {name: getattr(frame, names[name]) for name in outputs})
-        rows.append({"model": store_path, "view": view, "status": "ok", "error": None,
-                     # the view's share of its group's part renders
-                     "ms": round(sum(s["ms"] / s["views"] for s in frame.stats), 3),
-                     "parts": [s["part"] for s in frame.stats],
-                     "faces_loaded": [s["faces_loaded"] for s in frame.stats]})
+    rows, busy = [], 0.0
+    # Each group is written as it is composited and dropped: the client holds a group.
+    for first, frames in each_partitioned(
+            store, cameras, size[0], size[1],
+            outputs=tuple(o for o in outputs if o in COMPOSITED), client=client,
+            views_per_task=per_task, progress=progress, **options):
+        busy += sum(s["ms"] for s in frames[0].stats) / 1000.0
+        for view, frame in enumerate(frames, first):
+            _write_files(out, stem, view, {name: getattr(frame, names[name])
+                                           for name in outputs})
+            rows.append({"model": store_path, "view": view, "status": "ok", "error": None,
+                         # the view's share of its group's part renders
+                         "ms": round(sum(s["ms"] / s["views"] for s in frame.stats), 3),
+                         "parts": [s["part"] for s in frame.stats],
+                         "faces_loaded": [s["faces_loaded"] for s in frame.stats]})
+    rows.sort(key=lambda r: r["view"])
     _describe(out, stem, cameras, size, outputs, "files")
-    busy = sum(s["ms"] for group in {id(f.stats): f.stats for f in frames}.values()
-               for s in group) / 1000.0
     result = BatchResult(rows, os.path.join(out, "manifest.json"),
                          time.perf_counter() - start, busy)
     _write_manifest(result, spec, size, outputs, "files", options)

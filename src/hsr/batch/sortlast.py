@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,7 +44,7 @@ from ..render import render
 from ..scene.camera import Camera
 from ..scene.partitioned import PartitionedScene, PartitionError, open_partitioned
 
-__all__ = ["CompositeFrame", "render_partitioned", "composite", "OUTPUTS"]
+__all__ = ["CompositeFrame", "render_partitioned", "each_partitioned", "composite", "OUTPUTS"]
 
 # Outputs a sort-last render can return, beside the face ids and window depth it always has.
 OUTPUTS = ("color", "eye_depth", "distance", "normals")
@@ -159,6 +160,21 @@ def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
     Raises :class:`~hsr.scene.partitioned.PartitionError` for options that
     compositing cannot honour (see the module) and :class:`~hsr.errors.CameraError` for
     cameras that are not hsr Cameras."""
+    done = sorted(each_partitioned(store, cameras, width, height, outputs, client,
+                                   views_per_task, progress, **options),
+                  key=lambda item: item[0])
+    return [frame for _, frames in done for frame in frames]
+
+
+def each_partitioned(store: PartitionedScene | str, cameras: list, width: int, height: int,
+                     outputs: tuple = ("color",), client: Any = None,
+                     views_per_task: int = 8, progress: bool | None = None,
+                     **options) -> Iterator[tuple]:
+    """:func:`render_partitioned`, group by group as each is composited: yields
+    ``(index of the group's first camera, [CompositeFrame, ...])``, in the order the
+    groups finish (on a Dask client; here, all at the end, since parts go one after
+    another). A caller that writes each group and drops it holds a group of frames, not
+    the job's. Raises what :func:`render_partitioned` raises, before any work."""
     from ..errors import CameraError
     from ..geometry.viewport import check_size
 
@@ -181,8 +197,15 @@ def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
     groups = [cameras[k:k + views_per_task] for k in range(0, len(cameras), views_per_task)]
     if progress is None:
         progress = sys.stderr.isatty()
-    with progress_bar(progress, store.parts * len(cameras), "sort-last",
-                      unit="part-view") as bar:
+    return _each(store, groups, width, height, outputs, options, func, client,
+                 progress_bar(progress, store.parts * len(cameras), "sort-last",
+                              unit="part-view"), views_per_task)
+
+
+def _each(store, groups, width, height, outputs, options, func, client, bar,
+          per_task) -> Iterator[tuple]:
+    """The generator behind :func:`each_partitioned` (the checks ran before it starts)."""
+    with bar:
         if client is None:
             # Part by part, each read once and dropped before the next: one part in memory.
             merged: list = [None] * len(groups)
@@ -193,15 +216,19 @@ def render_partitioned(store: PartitionedScene | str, cameras: list, width: int,
                     merged[g] = part if merged[g] is None else _merge(merged[g], part, func)
                     bar.update(len(group))
                 del loaded
+            for g, group in enumerate(merged):
+                yield g * per_task, _frames(store, group)
         else:
-            merged = _on_dask(client, store, groups, width, height, outputs, options, func,
-                              bar)
-    return [frame for group in merged for frame in _frames(store, group)]
+            for g, group in _on_dask(client, store, groups, width, height, outputs, options,
+                                     func, bar):
+                yield g * per_task, _frames(store, group)
 
 
-def _on_dask(client, store, groups, width, height, outputs, options, func, bar) -> list:
+def _on_dask(client, store, groups, width, height, outputs, options, func,
+             bar) -> Iterator[tuple]:
     """One load future per part (its scene stays in that worker's memory), a task per
-    (part, group of views) that depends on it, a binary reduction tree per group."""
+    (part, group of views) that depends on it, a binary reduction tree per group; yields
+    ``(group index, composited group)`` as each root finishes, then lets it go."""
     from distributed import as_completed
 
     loaded = [client.submit(_load, store.path, p, pure=False) for p in range(store.parts)]
@@ -215,12 +242,13 @@ def _on_dask(client, store, groups, width, height, outputs, options, func, bar) 
             level = pairs + ([level[-1]] if len(level) % 2 else [])
         finals.append(level[0])
         del level  # only the tree's root is held: partial frames go once merged
-    views = {future.key: store.parts * len(group) for future, group in zip(finals, groups)}
-    for future in as_completed(finals):
-        bar.update(views[future.key])
-    results = client.gather(finals)
+    index = {future.key: g for g, future in enumerate(finals)}
+    for future, result in as_completed(finals, with_results=True):
+        g = index[future.key]
+        bar.update(store.parts * len(groups[g]))
+        yield g, result
+        future.release()  # the workers may drop the frames now
     del loaded  # the parts leave the workers' memory with their futures
-    return results
 
 
 def _load(path: str, p: int) -> tuple:

@@ -19,20 +19,26 @@ def add_parser(sub) -> None:
                    "folder)")
     p.add_argument("--force", action="store_true", help="replace STORE if it is a "
                    "partitioned scene already")
+    p.add_argument("--stream", action="store_true", help="read one MODEL (binary PLY or "
+                   "OBJ) in chunks, so it may be larger than memory; geometry only (a binary "
+                   "PLY of geometry alone streams anyway)")
     p.add_argument("--quiet", action="store_true", help="no summary")
 
 
 def run(args) -> int:
     from ..scene.partition import partition
     from ..scene.ply import is_binary_ply
-    from .options import load_models
+    from .options import CliError, load_models
 
-    if len(args.models) == 1 and is_binary_ply(args.models[0]):
-        scene = args.models[0]  # streamed: its faces never all sit in memory
+    if args.stream and len(args.models) != 1:
+        raise CliError("--stream reads one MODEL file")
+    if len(args.models) == 1 and (args.stream or is_binary_ply(args.models[0])):
+        scene = args.models[0]  # partition() decides: streamed, or loaded
     else:
         scene, _ = load_models(args.models, "partition")
     store = partition(scene, args.parts, args.out, overwrite=args.force,
-                      progress=not args.quiet and sys.stderr.isatty())
+                      progress=not args.quiet and sys.stderr.isatty(),
+                      stream=True if args.stream else None)
     if not args.quiet:
         sizes = store.part_faces
         print(f"wrote {store.path}: {store.n_faces:,} faces in {store.parts} parts "

@@ -177,9 +177,17 @@ def _validate_arrays(positions, faces, name):
             f"{name}: face {f} has vertex index {int(faces[bad][0])} outside "
             f"0..{len(positions) - 1}"
         )
-    finite = np.isfinite(positions).all(axis=1)
     used = np.zeros(len(positions), dtype=bool)
     used[faces.ravel()] = True
+    extent = check_used_positions(positions, used, name)
+    return np.ascontiguousarray(positions), np.ascontiguousarray(faces), extent
+
+
+def check_used_positions(positions: np.ndarray, used: np.ndarray, name: str) -> float:
+    """The largest absolute coordinate of the ``used`` vertices; raises
+    :class:`~hsr.errors.MeshError` for one that is NaN, infinite or beyond
+    :data:`MAX_COORDINATE` (unused vertices may hold anything)."""
+    finite = np.isfinite(positions).all(axis=1)
     if not finite[used].all():
         v = int(np.argwhere(~finite & used)[0][0])
         raise MeshError(f"{name}: vertex {v} has a NaN or infinite coordinate")
@@ -191,8 +199,7 @@ def _validate_arrays(positions, faces, name):
         raise MeshError(f"{name}: vertex {v} has a coordinate beyond +-{MAX_COORDINATE:g} "
                         f"({np.abs(positions[v]).max():g}); products of coordinates must stay "
                         f"finite in float64")
-    extent = float(magnitude[used].max())
-    return np.ascontiguousarray(positions), np.ascontiguousarray(faces), extent
+    return float(magnitude[used].max())
 
 
 def _colors(values, name, what) -> np.ndarray:

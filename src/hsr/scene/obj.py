@@ -119,15 +119,16 @@ class _Scanned:
         self.mat_events, self.mtllibs = mat_events, mtllibs
 
 
-def scan_careful(text: str, name: str) -> _Scanned:
-    """Line by line: sort the statements by tag, keeping line numbers."""
+def scan_careful(text: str, name: str, first_line: int = 1) -> _Scanned:
+    """Line by line: sort the statements by tag, keeping line numbers (``first_line``:
+    the number of the text's first line, for a chunk of a longer file)."""
     v_rows: list = []
     vt_rows: list = []
     vn_rows: list = []
     f_rows, f_lines, f_nv, f_nt, f_nn = [], [], [], [], []
     mat_events: list[tuple[int, str]] = []
     mtllibs: list[str] = []
-    for lineno, line in enumerate(text.split("\n"), 1):
+    for lineno, line in enumerate(text.split("\n"), first_line):
         if not line:
             continue
         tag, _, rest = line.partition(" ")

@@ -23,7 +23,8 @@ import numpy as np
 from ..errors import require_extra
 from ..parallel import progress_bar
 from .load import load_scene
-from .mesh import Scene, SceneLike, as_scene
+from .mesh import Scene, SceneLike, as_scene, check_used_positions
+from .obj_stream import ObjStream
 from .partitioned import (
     KIND,
     VERSION,
@@ -72,19 +73,30 @@ def _spread_bits(v: np.ndarray) -> np.ndarray:
 
 
 def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
-              overwrite: bool = False, progress: bool | None = None) -> PartitionedScene:
+              overwrite: bool = False, progress: bool | None = None,
+              stream: bool | None = None) -> PartitionedScene:
     """Split ``scene`` (a Scene, Mesh, path, ...) into ``parts`` spatially coherent parts
-    and write them to the Zarr store ``out`` (see the module); returns it opened. A
-    binary PLY path is streamed (:func:`partition_streamed`): its faces never all sit in
-    memory; it shows a progress bar on a terminal (``progress`` forces it on or off).
+    and write them to the Zarr store ``out`` (see the module); returns it opened.
+    ``stream``: read a path (binary PLY or OBJ) in chunks (:func:`partition_streamed`),
+    so its faces never all sit in memory, keeping geometry only; by default (None) a
+    binary PLY that holds nothing but geometry streams and everything else is loaded. A
+    streamed file shows a progress bar on a terminal (``progress`` forces it on or off).
     Raises :class:`PartitionError` for a part count outside
     1..min(faces, 65536), an ``out`` that exists (unless ``overwrite``) or whose folder
     does not, :class:`~hsr.errors.MeshError` for a model that does not load and
     :class:`~hsr.errors.MissingExtraError` without Zarr."""
     require_extra("hsr partition", "zarr")
     out = _check_out(out, overwrite)
-    if isinstance(scene, (str, os.PathLike)) and is_binary_ply(os.fspath(scene)):
-        return partition_streamed(scene, parts, out, overwrite, progress=progress)
+    if stream not in (None, True, False):
+        raise PartitionError(f"stream must be True, False or None, got {stream!r}")
+    if isinstance(scene, (str, os.PathLike)):
+        path = os.fspath(scene)
+        if stream is None:
+            stream = is_binary_ply(path) and read_layout(path).geometry_only
+        if stream:
+            return partition_streamed(path, parts, out, overwrite, progress=progress)
+    elif stream:
+        raise PartitionError("stream=True reads a file: give its path")
     if isinstance(scene, (str, os.PathLike)):
         scene = load_scene(scene)
     scene = as_scene(scene)
@@ -181,58 +193,77 @@ def _write_in_memory(scene: Scene, parts: int, root) -> dict:
 def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLike,
                        overwrite: bool = False, chunk: int = 1 << 20,
                        progress: bool | None = None) -> PartitionedScene:
-    """:func:`partition` of a binary PLY of triangles, read ``chunk`` faces at a time so
-    that memory stays near 40 bytes a face (vertex positions, one Morton code and one
-    part number per face, and one part's faces at a time) where loading the mesh takes
-    about 140. The same parts as loading the file and partitioning it (the same Morton
-    order and cuts); only geometry is kept (a PLY's colours are not). Raises
-    :class:`~hsr.errors.MeshError` for a file :mod:`hsr.scene.ply` cannot stream and
-    :class:`PartitionError` as :func:`partition` does."""
+    """:func:`partition` of a binary PLY of triangles or a Wavefront OBJ, read ``chunk``
+    faces (OBJ: 64 MB of text) at a time so that memory stays near 40 bytes a face
+    (vertex positions, one Morton code and one part number per face, and one part's
+    faces at a time) where loading the mesh takes about 140. The same faces and parts as
+    loading the file and partitioning it (the same Morton order and cuts); only geometry
+    is kept (colours, texture coordinates and materials are not). Raises
+    :class:`~hsr.errors.MeshError` for a file that does not stream (see
+    :mod:`hsr.scene.ply`, :mod:`hsr.scene.obj_stream`) and :class:`PartitionError` as
+    :func:`partition` does."""
     require_extra("hsr partition", "zarr")
     out = _check_out(out, overwrite)
-    layout = read_layout(path)
-    _check_parts(parts, layout.n_faces)
+    path = os.fspath(path)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise PartitionError(f"chunk must be a positive integer, got {chunk!r}")
-
+    is_obj = path.lower().endswith(".obj")
+    layout = None if is_obj else read_layout(path)
+    if layout is not None:
+        _check_parts(parts, layout.n_faces)
     if progress is None:
         progress = sys.stderr.isatty()
 
     def write(root, scratch) -> dict:
+        source = ObjStream(path, scratch) if layout is None else _PlySource(layout)
+        _check_parts(parts, source.n_faces)
         # The bar counts faces read (three passes) and parts written (one face each).
-        with progress_bar(progress, 4 * layout.n_faces, "partition", unit="face") as bar:
-            return _write_streamed(layout, parts, root, scratch, chunk, bar)
+        with progress_bar(progress, 4 * source.n_faces, "partition", unit="face") as bar:
+            return _write_streamed(source, parts, root, scratch, chunk, bar)
 
     return _write_store(out, write)
 
 
-def _write_streamed(layout, parts: int, root, scratch: str, chunk: int, bar) -> dict:
-    positions = read_positions(layout)
+class _PlySource:
+    """A binary PLY as :func:`_write_streamed` reads it (the face source protocol that
+    :class:`~hsr.scene.obj_stream.ObjStream` follows too)."""
+
+    def __init__(self, layout) -> None:
+        self.layout = layout
+        self.name = os.path.basename(layout.path)
+        self.n_faces, self.n_vertices = layout.n_faces, layout.n_vertices
+        self.positions = read_positions(layout)
+
+    def face_chunks(self, chunk: int):
+        return face_chunks(self.layout, chunk)
+
+
+def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> dict:
+    positions = source.positions
     # Pass 1: which vertices the faces use (the box is theirs, as Scene.bounds() says).
-    used = np.zeros(layout.n_vertices, dtype=bool)
-    for _, corners in face_chunks(layout, chunk):
+    used = np.zeros(source.n_vertices, dtype=bool)
+    for _, corners in source.face_chunks(chunk):
         used[corners.ravel()] = True
         bar.update(len(corners))
-    if not used.any():
-        raise PartitionError(f"{layout.path}: no faces")
+    check_used_positions(positions, used, source.name)  # what Mesh checks
     lo, hi = positions[used].min(axis=0), positions[used].max(axis=0)
     del used
     # Pass 2: a Morton code per face, from its centroid (the formula morton_order uses).
-    codes = np.empty(layout.n_faces, dtype=np.uint64)
-    for start, corners in face_chunks(layout, chunk):
+    codes = np.empty(source.n_faces, dtype=np.uint64)
+    for start, corners in source.face_chunks(chunk):
         codes[start:start + len(corners)] = morton_codes(
             positions[corners].mean(axis=1), lo, hi)
         bar.update(len(corners))
     # The parts: runs of the stable Morton order, as the in-memory path cuts them.
-    part_of = np.empty(layout.n_faces, dtype=np.uint16)
+    part_of = np.empty(source.n_faces, dtype=np.uint16)
     order = np.argsort(codes, kind="stable")
     del codes
-    cuts = np.linspace(0, layout.n_faces, parts + 1).round().astype(np.int64)
+    cuts = np.linspace(0, source.n_faces, parts + 1).round().astype(np.int64)
     for p in range(parts):
         part_of[order[cuts[p]:cuts[p + 1]]] = p
     del order
     # Pass 3: each chunk's faces appended to their part's scratch files, in file order.
-    for start, corners in face_chunks(layout, chunk):
+    for start, corners in source.face_chunks(chunk):
         mine = part_of[start:start + len(corners)]
         for p in np.unique(mine):
             sel = np.flatnonzero(mine == p)
@@ -242,19 +273,19 @@ def _write_streamed(layout, parts: int, root, scratch: str, chunk: int, bar) -> 
                 (sel + start).astype(np.int64).tofile(f)
         bar.update(len(corners))
     del part_of
-    name = os.path.basename(layout.path)
-    instance = {"name": name, "mesh_name": name, "model": np.eye(4).ravel().tolist(),
-                "opacity": 1.0, "face_offset": 0, "attributes": [], "texture": None}
-    meta = _metadata(parts, layout.n_faces, (lo, hi), [instance])
+    instance = {"name": source.name, "mesh_name": source.name,
+                "model": np.eye(4).ravel().tolist(), "opacity": 1.0, "face_offset": 0,
+                "attributes": [], "texture": None}
+    meta = _metadata(parts, source.n_faces, (lo, hi), [instance])
     # Pass 4: one part at a time from its scratch files into the store.
     for p in range(parts):
         faces_p = np.fromfile(os.path.join(scratch, f"{p}.faces"), dtype=np.int64)
         face_id = np.fromfile(os.path.join(scratch, f"{p}.ids"), dtype=np.int64)
         vertices, remapped = np.unique(faces_p, return_inverse=True)
-        used = positions[vertices]  # one instance, identity model: world = model space
-        _add_part(root, meta, p, {"box": [used.min(axis=0).tolist(),
-                                          used.max(axis=0).tolist()],
-                                  "positions": used, "vertex_id": vertices.astype(np.int64),
+        used_p = positions[vertices]  # one instance, identity model: world = model space
+        _add_part(root, meta, p, {"box": [used_p.min(axis=0).tolist(),
+                                          used_p.max(axis=0).tolist()],
+                                  "positions": used_p, "vertex_id": vertices.astype(np.int64),
                                   "faces": remapped.reshape(-1, 3).astype(np.int64),
                                   "face_id": face_id,
                                   "vertex_start": np.array([0, len(vertices)],

@@ -43,6 +43,14 @@ class PlyLayout:
     face_dtype: np.dtype
     index_field: str
 
+    @property
+    def geometry_only(self) -> bool:
+        """True when the file holds nothing :func:`hsr.load` would use besides positions
+        and faces (vertex normals are not used), so streaming it loses nothing."""
+        vertex = set(self.vertex_dtype.names or ()) - {"x", "y", "z", "nx", "ny", "nz"}
+        face = set(self.face_dtype.names or ()) - {"count", self.index_field}
+        return not vertex and not face
+
 
 def is_binary_ply(path: str) -> bool:
     """True when ``path`` is a regular file that starts like a binary PLY (never opens a
@@ -126,7 +134,7 @@ def _type(name: str, path: str) -> str:
 
 def read_positions(layout: PlyLayout, chunk: int = 1 << 20) -> np.ndarray:
     """(V, 3) float64 vertex positions, read a chunk of records at a time (only x, y, z
-    are kept)."""
+    are kept; not checked: unused vertices may hold anything)."""
     out = np.empty((layout.n_vertices, 3))
     with open(layout.path, "rb") as f:
         f.seek(layout.vertex_offset)
@@ -135,9 +143,7 @@ def read_positions(layout: PlyLayout, chunk: int = 1 << 20) -> np.ndarray:
             records = np.fromfile(f, dtype=layout.vertex_dtype, count=count)
             for axis, name in enumerate("xyz"):
                 out[start:start + count, axis] = records[name]
-    if not np.isfinite(out).all():
-        raise MeshError(f"{layout.path}: a vertex has a NaN or infinite coordinate")
-    return out
+    return out  # checked where the faces say which vertices are used
 
 
 def face_chunks(layout: PlyLayout, chunk: int = 1 << 20):

@@ -1,0 +1,142 @@
+"""Wavefront OBJ read in chunks of lines, for files larger than memory (``hsr partition``
+streams them): the grammar and the faces of :mod:`hsr.scene.obj`, whose normalisation,
+careful scanner and number and corner conversions run on each chunk, and geometry only
+(texture coordinates, normals and materials are checked for their indices and dropped).
+
+The file is cut at line ends, never inside a line continued by a backslash, so every
+statement is whole in one chunk. What crosses chunks is counted: the vertices,
+texture coordinates and normals defined so far (negative indices count back from them)
+and the highest index each face used (OBJ lets a face name a vertex defined later, so
+the check against the totals waits for the end of the file). Vertex positions are kept
+(24 bytes each); the triangles go to a scratch file as they are read.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..errors import MeshError
+from .files import check_regular
+from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, scan_careful
+
+__all__ = ["ObjStream", "CHUNK_BYTES"]
+
+CHUNK_BYTES = 1 << 26
+MAX_STREAM_BYTES = 1 << 42
+
+
+class ObjStream:
+    """An OBJ file converted once, chunk by chunk: ``positions`` (V, 3) float64 and
+    ``n_faces`` triangles (fan-triangulated in file order) in a scratch file of int64
+    corner indices, read back by :meth:`face_chunks`. Raises
+    :class:`~hsr.errors.MeshError` as :func:`hsr.load` does for the geometry."""
+
+    def __init__(self, path: str | os.PathLike, scratch: str,
+                 chunk_bytes: int = CHUNK_BYTES) -> None:
+        self.path = os.fspath(path)
+        check_regular(self.path, "mesh file", MAX_STREAM_BYTES)
+        self.name = os.path.basename(self.path)
+        self.faces_file = os.path.join(scratch, "obj.faces")
+        positions: list = []
+        seen = np.zeros(3, dtype=np.int64)  # v, vt, vn defined before the chunk
+        highest = np.full(3, -1, dtype=np.int64)  # highest 0-based index any face used
+        self.n_faces = 0
+        line = 1
+        with open(self.faces_file, "wb") as out:
+            for data in _line_chunks(self.path, chunk_bytes, self.name):
+                text = _normalise(data, self.name)
+                scanned = scan_careful(text, self.name, first_line=line)
+                line += text.count("\n")
+                positions.append(_numbers(scanned.v, 3, 3, self.name, "vertex"))
+                triangles = _triangles(scanned, seen, highest, self.name)
+                triangles.tofile(out)
+                self.n_faces += len(triangles)
+                seen += (len(scanned.v), len(scanned.vt), len(scanned.vn))
+        if not self.n_faces:
+            raise MeshError(f"{self.name}: mesh is empty (no faces)")
+        what = ("vertex", "texture", "normal")
+        for c in range(3):
+            if highest[c] >= seen[c]:
+                raise MeshError(f"{self.name}: {what[c]} index {int(highest[c]) + 1} "
+                                f"outside 1..{int(seen[c])}")
+        self.positions = np.concatenate(positions)
+        self.n_vertices = len(self.positions)
+
+    def face_chunks(self, chunk: int = 1 << 20):
+        """Yield ``(first face index, (n, 3) int64 corners)`` in file order."""
+        with open(self.faces_file, "rb") as f:
+            for start in range(0, self.n_faces, chunk):
+                count = min(chunk, self.n_faces - start)
+                yield start, np.fromfile(f, dtype=np.int64, count=3 * count).reshape(-1, 3)
+
+
+def _line_chunks(path: str, chunk_bytes: int, name: str):
+    """The file's bytes in pieces of about ``chunk_bytes`` that end at a line end which
+    does not continue the line (not after a backslash)."""
+    carry = b""
+    with open(path, "rb") as f:
+        while True:
+            data = f.read(chunk_bytes)
+            if not data:
+                if carry:
+                    yield carry
+                return
+            data = carry + data
+            cut = len(data)
+            while True:
+                cut = max(data.rfind(b"\n", 0, cut), data.rfind(b"\r", 0, cut))
+                before = data[max(0, cut - 2):cut]
+                if cut < 0 or not (before.endswith(b"\\") or before == b"\\\r"):
+                    break
+            if cut < 0:
+                if len(data) > 2 * MAX_LINE_BYTES:
+                    raise MeshError(f"{name}: a line longer than {MAX_LINE_BYTES:,} bytes: "
+                                    f"not OBJ text")
+                carry = data
+                continue
+            if data[cut:cut + 1] == b"\r" and cut + 1 == len(data):
+                # A CR that may start a CR LF pair whose LF is in the next read.
+                carry = data
+                continue
+            yield data[:cut + 1]
+            carry = data[cut + 1:]
+
+
+def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.ndarray:
+    """(T, 3) int64 vertex indices of the chunk's faces, fan-triangulated as
+    :mod:`hsr.scene.obj` does; negative indices resolved against what was defined before
+    each face (``seen`` before the chunk plus the chunk's own counts); ``highest``
+    updated with the largest index of each kind."""
+    if not scanned.f:
+        return np.zeros((0, 3), dtype=np.int64)
+    counts = np.fromiter((row.count(" ") + 1 if row else 0 for row in scanned.f),
+                         dtype=np.int64, count=len(scanned.f))
+    if counts.min() < 3:
+        bad = int(np.argmax(counts < 3))
+        raise MeshError(f"{name}:{scanned.f_lines[bad]}: a face needs at least 3 vertices")
+    corner_face = np.repeat(np.arange(len(counts)), counts)
+    refs = _face_refs(" ".join(scanned.f), name, scanned.f_lines, corner_face)
+    limits = np.stack([np.asarray(scanned.f_nv), np.asarray(scanned.f_nt),
+                       np.asarray(scanned.f_nn)], axis=1)[corner_face] + seen
+    what = ("vertex", "texture", "normal")
+    resolved = np.where(refs < 0, limits + refs, refs - 1)
+    for c in range(3):
+        present = refs[:, c] != 0
+        bad = present & (resolved[:, c] < 0)
+        if c == 0:
+            bad |= ~present
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise MeshError(f"{name}:{scanned.f_lines[corner_face[k]]}: {what[c]} index "
+                            f"{int(refs[k, c])} outside 1..{int(limits[k, c])}")
+        if present.any():
+            highest[c] = max(highest[c], int(resolved[present, c].max()))
+    n_tris = counts - 2
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    tri_poly = np.repeat(np.arange(len(counts)), n_tris)
+    step = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
+    corner = np.stack([start[tri_poly], start[tri_poly] + step, start[tri_poly] + step + 1],
+                      axis=1)
+    return np.ascontiguousarray(resolved[corner, 0], dtype=np.int64)
