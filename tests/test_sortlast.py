@@ -656,3 +656,59 @@ def test_groups_come_as_they_are_composited(tie_stores):
         assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.color, b.color)
     with pytest.raises(PartitionError):
         each_partitioned(stores[3], cams, 48, 36, depth_func="never")
+
+
+def test_a_damaged_store_is_refused_in_one_line(tmp_path):
+    """A store is read from disk: damaged metadata or parts are a PartitionError naming
+    what is wrong, never an IndexError or a wrong frame."""
+    import json
+    import shutil
+
+    good = hsr.partition(tie_scene(), 3, tmp_path / "good.zarr")
+    cams = tie_cameras()[:1]
+
+    def damaged(name, change_meta=None, change_part=None):
+        path = tmp_path / name
+        shutil.copytree(good.path, path)
+        if change_meta:
+            doc = json.loads((path / "zarr.json").read_text())
+            change_meta(doc["attributes"]["hsr"])
+            (path / "zarr.json").write_text(json.dumps(doc))
+        if change_part:
+            import zarr
+
+            change_part(zarr.open_group(str(path / "part_0001"), mode="r+"))
+        return path
+
+    for name, change, match in (
+            ("parts.zarr", lambda m: m.update(parts=5), "part_faces"),
+            ("faces.zarr", lambda m: m.update(n_faces=-1), "positive"),
+            ("model.zarr", lambda m: m["instances"][0].update(model=[1, 2]), "16 finite"),
+            ("offsets.zarr", lambda m: m["instances"][1].update(face_offset=10 ** 9),
+             "offsets"),
+            ("attrs.zarr", lambda m: m["instances"][0].update(attributes=["evil"]),
+             "attributes")):
+        with pytest.raises(PartitionError, match=match):
+            open_partitioned(damaged(name, change_meta=change))
+
+    def out_of_range(group):
+        faces = group["faces"][...]
+        faces[0, 0] = 10 ** 6
+        group["faces"][...] = faces
+
+    def unsorted(group):
+        ids = group["face_id"][...]
+        group["face_id"][...] = ids[::-1]
+
+    def removed(group):
+        del group["positions"]
+
+    for name, change, match in (("range.zarr", out_of_range, "outside"),
+                                ("order.zarr", unsorted, "ascend"),
+                                ("missing.zarr", removed, "needs the arrays")):
+        store = open_partitioned(damaged(name, change_part=change))
+        with pytest.raises(PartitionError, match=match):
+            render_partitioned(store, cams, 32, 24)
+    shutil.rmtree(tmp_path / "good.zarr" / "part_0002")
+    with pytest.raises(PartitionError, match="part 2"):
+        render_partitioned(open_partitioned(tmp_path / "good.zarr"), cams, 32, 24)

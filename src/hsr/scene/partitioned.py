@@ -64,7 +64,63 @@ def open_partitioned(path: str | os.PathLike) -> PartitionedScene:
     if meta.get("version") != VERSION:
         raise PartitionError(f"{path}: partitioned scene version {meta.get('version')!r}, "
                              f"this hsr reads version {VERSION}")
+    problem = _metadata_problem(meta)
+    if problem:
+        raise PartitionError(f"{path}: damaged partitioned scene: {problem}")
     return PartitionedScene(path, meta)
+
+
+def _metadata_problem(meta: dict) -> str | None:
+    """What is wrong with a store's metadata (written by hsr, but read from disk: a file
+    may be damaged or made by hand), or None."""
+    def count(value, low=0) -> bool:
+        return isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+    parts, n_faces, instances = meta.get("parts"), meta.get("n_faces"), meta.get("instances")
+    if not count(parts, 1) or not count(n_faces, 1):
+        return "parts and n_faces must be positive integers"
+    sizes, boxes = meta.get("part_faces"), meta.get("part_bounds")
+    if not (isinstance(sizes, list) and len(sizes) == parts and all(map(count, sizes))
+            and sum(sizes) == n_faces):
+        return "part_faces must be one face count per part, adding up to n_faces"
+    if not isinstance(boxes, list) or len(boxes) != parts:
+        return "part_bounds must be one box per part"
+    try:
+        for box in boxes + [meta.get("bounds")]:
+            if np.asarray(box, dtype=np.float64).shape != (2, 3):
+                return "a box is not 2 x 3 numbers"
+    except (TypeError, ValueError):
+        return "a box is not 2 x 3 numbers"
+    if not isinstance(instances, list) or not instances:
+        return "instances must be a non-empty list"
+    offsets: list = []
+    for inst in instances:
+        if not isinstance(inst, dict):
+            return "an instance is not an object"
+        try:
+            model = np.asarray(inst.get("model"), dtype=np.float64)
+            opacity = float(inst.get("opacity", "nan"))
+        except (TypeError, ValueError):
+            return "an instance's model or opacity is not numbers"
+        if model.shape != (16,) or not np.isfinite(model).all() or not 0 <= opacity <= 1:
+            return "an instance's model must be 16 finite numbers, its opacity in 0..1"
+        attributes = inst.get("attributes")
+        if not isinstance(attributes, list) or not set(attributes) <= set(_ATTRIBUTES):
+            return f"an instance's attributes must be among {', '.join(_ATTRIBUTES)}"
+        texture = inst.get("texture")
+        if texture is not None and not isinstance(texture, str) and not (
+                isinstance(texture, dict) and isinstance(texture.get("array"), str)):
+            return "an instance's texture must be a path, an array's name or null"
+        offsets.append(inst.get("face_offset"))
+    if not all(map(count, offsets)) or offsets[0] != 0 or offsets != sorted(offsets) \
+            or offsets[-1] >= n_faces:
+        return "instance face offsets must ascend from 0 below n_faces"
+    return None
+
+
+# The per-face attributes a part may hold and the shape of one face's value.
+_ATTRIBUTES = {"corner_uv": (3, 2), "corner_normals": (3, 3), "face_colors": (3,),
+               "corner_colors": (3, 3)}
 
 
 class PartitionedScene:
@@ -166,8 +222,50 @@ class PartitionedScene:
         if isinstance(p, bool) or not isinstance(p, (int, np.integer)) \
                 or not 0 <= p < self.parts:
             raise PartitionError(f"part must be in 0..{self.parts - 1}, got {p!r}")
-        group = zarr.open_group(os.path.join(self.path, f"part_{p:04d}"), mode="r")
-        return {name: np.asarray(array[...]) for name, array in group.arrays()}
+        try:
+            group = zarr.open_group(os.path.join(self.path, f"part_{p:04d}"), mode="r")
+            arrays = {name: np.asarray(array[...]) for name, array in group.arrays()}
+        except Exception as exc:  # noqa: BLE001 - zarr's errors for a damaged folder vary
+            raise PartitionError(f"{self.path}: part {p} cannot be read "
+                                 f"({type(exc).__name__}: {str(exc)[:120]})") from None
+        problem = self._part_problem(p, arrays)
+        if problem:
+            raise PartitionError(f"{self.path}: damaged part {p}: {problem}")
+        return arrays
+
+    def _part_problem(self, p: int, arrays: dict) -> str | None:
+        """What is wrong with part ``p``'s arrays, or None: every index in range, the
+        shapes agreeing with the metadata, before anything is built from them."""
+        names = ("positions", "faces", "face_id", "vertex_start", "vertex_id")
+        if any(name not in arrays for name in names):
+            return f"it needs the arrays {', '.join(names)}"
+        positions, faces = arrays["positions"], arrays["faces"]
+        face_id, starts = arrays["face_id"], arrays["vertex_start"]
+        n_faces = self.part_faces[p]
+        if positions.ndim != 2 or positions.shape[1] != 3 or positions.dtype.kind != "f":
+            return "positions must be (V, 3) floats"
+        for name in ("faces", "face_id", "vertex_start", "vertex_id"):
+            if arrays[name].dtype.kind not in "iu":
+                return f"{name} must be integers"
+        if faces.shape != (n_faces, 3) or face_id.shape != (n_faces,):
+            return f"faces and face_id must hold the {n_faces:,} faces the metadata says"
+        if arrays["vertex_id"].shape != (len(positions),):
+            return "vertex_id must have one entry per position"
+        if starts.shape != (len(self.instances) + 1,) or starts[0] != 0 \
+                or starts[-1] != len(positions) or np.any(np.diff(starts) < 0):
+            return "vertex_start must ascend from 0 to the vertex count, one per instance"
+        if n_faces and (face_id.min() < 0 or face_id.max() >= self.n_faces
+                        or np.any(np.diff(face_id) <= 0)):
+            return "face_id must ascend strictly within 0..n_faces - 1"
+        owner = np.searchsorted(self.face_offsets(), face_id, side="right") - 1
+        if n_faces and (np.any(faces < starts[owner][:, None])
+                        or np.any(faces >= starts[owner + 1][:, None])):
+            return "a face indexes a vertex outside its instance's range"
+        for inst in self.instances:
+            for name in inst["attributes"]:
+                if name not in arrays or arrays[name].shape != (n_faces,) + _ATTRIBUTES[name]:
+                    return f"{name} must hold one value per face"
+        return None
 
     def _instance_runs(self, arrays: dict):
         """``(instance, its faces' mask, first vertex, end vertex)`` for each original
