@@ -712,3 +712,43 @@ def test_a_damaged_store_is_refused_in_one_line(tmp_path):
     shutil.rmtree(tmp_path / "good.zarr" / "part_0002")
     with pytest.raises(PartitionError, match="part 2"):
         render_partitioned(open_partitioned(tmp_path / "good.zarr"), cams, 32, 24)
+
+
+def test_batch_of_a_store_to_zarr_and_resumed(tie_stores, tmp_path, monkeypatch):
+    """--format zarr writes the composited views into a store of their own (ids equal to
+    hsr.render's); --resume skips every view already done, and redoes one whose mark is
+    cleared; the input store is never the output."""
+    pytest.importorskip("distributed")
+    import zarr
+
+    from hsr.batch import BatchError, render_views
+    from hsr.batch.tasks import place_cameras
+
+    scene, stores = tie_stores
+    store = stores[2]
+    stem = os.path.splitext(os.path.basename(store.path))[0]
+    out = tmp_path / "out"
+    first = render_views(store.path, "sphere:4", (48, 36), ("ids", "color"), out,
+                         format="zarr")
+    assert first.rendered == 4
+    group = zarr.open_group(str(out / f"{stem}.zarr"), mode="r")
+    cams = place_cameras(store, ("set", "sphere", 4, 20.0), (48, 36))
+    for view, cam in enumerate(cams):
+        want = hsr.render(scene, cam, 48, 36)
+        assert np.array_equal(group["ids"][view], want.face_id)
+        assert np.array_equal(group["color"][view], want.color)
+    again = render_views(store.path, "sphere:4", (48, 36), ("ids", "color"), out,
+                         format="zarr", resume=True)
+    assert again.skipped == 4 and again.rendered == 0
+    zarr.open_group(str(out / f"{stem}.zarr"), mode="r+")["done"][2] = 0
+    redo = render_views(store.path, "sphere:4", (48, 36), ("ids", "color"), out,
+                        format="zarr", resume=True)
+    assert redo.rendered == 1 and [r["view"] for r in redo.rows if r["status"] == "ok"] == [2]
+    files = render_views(store.path, "sphere:4", (48, 36), ("ids",), tmp_path / "files")
+    assert files.rendered == 4
+    assert render_views(store.path, "sphere:4", (48, 36), ("ids",), tmp_path / "files",
+                        resume=True).skipped == 4
+    monkeypatch.chdir(os.path.dirname(store.path))
+    with pytest.raises(BatchError, match="the partitioned scene itself"):
+        render_views(os.path.basename(store.path), "sphere:2", (32, 24), ("ids",), ".",
+                     format="zarr")

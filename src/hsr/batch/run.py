@@ -151,9 +151,10 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         progress = sys.stderr.isatty()
 
     if partitioned:
-        if format != "files" or resume:
-            raise BatchError("a partitioned scene writes files (format files), without "
-                             "resume, for now")
+        target = os.path.abspath(os.path.join(out, f"{stems[models[0]]}.zarr"))
+        if format == "zarr" and target == os.path.abspath(models[0]):
+            raise BatchError(f"--format zarr would write {target}, the partitioned scene "
+                             f"itself: choose another --out")
         if progress is None:
             progress = sys.stderr.isatty()
         own_cluster = None
@@ -164,7 +165,8 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
             client = Client(own_cluster)
         try:
             return _run_partitioned(client, models[0], stems, spec, (width, height),
-                                    outputs, out, render_options, views_per_task, progress)
+                                    outputs, out, render_options, views_per_task, progress,
+                                    format, resume)
         finally:
             if own_cluster is not None:
                 client.close()
@@ -248,7 +250,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
 
 
 def _run_partitioned(client, store_path, stems, spec, size, outputs, out, options,
-                     views_per_task, progress) -> BatchResult:
+                     views_per_task, progress, fmt, resume) -> BatchResult:
     """``render_views`` of one partitioned scene: sort-last on ``client`` (or here without
     one, part after part), the composited frames written on the client as a plain
     model's would be; each view's manifest row names the parts its task group rendered,
@@ -256,7 +258,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     from ..scene.partitioned import open_partitioned
     from .sortlast import OUTPUTS as COMPOSITED
     from .sortlast import each_partitioned
-    from .tasks import _write_files, place_cameras
+    from .tasks import _write_files, _write_zarr, place_cameras
 
     start = time.perf_counter()
     store = open_partitioned(store_path)
@@ -270,28 +272,40 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     names = {"color": "color", "window_depth": "depth", "eye_depth": "eye_depth",
              "distance": "distance", "normals": "normals", "ids": "face_id",
              "object_ids": "object_id"}
-    for name in outputs:
-        os.makedirs(os.path.dirname(output_path(out, stem, name, 0)), exist_ok=True)
-    rows, busy = [], 0.0
+    todo = _todo(out, stem, len(cameras), size, outputs, fmt, resume)
+    rows = [{"model": store_path, "view": v, "status": "skipped", "error": None, "ms": 0.0}
+            for v in sorted(set(range(len(cameras))) - set(todo))]
+    busy = 0.0
+    if fmt == "files":
+        for name in outputs:
+            os.makedirs(os.path.dirname(output_path(out, stem, name, 0)), exist_ok=True)
+    zarr_store = os.path.join(out, f"{stem}.zarr")
     # Each group is written as it is composited and dropped: the client holds a group.
-    for first, frames in each_partitioned(
-            store, cameras, size[0], size[1],
-            outputs=tuple(o for o in outputs if o in COMPOSITED), client=client,
-            views_per_task=per_task, progress=progress, **options):
+    groups = each_partitioned(store, [cameras[v] for v in todo], size[0], size[1],
+                              outputs=tuple(o for o in outputs if o in COMPOSITED),
+                              client=client, views_per_task=per_task, progress=progress,
+                              **options) if todo else ()
+    for first, frames in groups:
         busy += sum(s["ms"] for s in frames[0].stats) / 1000.0
-        for view, frame in enumerate(frames, first):
-            _write_files(out, stem, view, {name: getattr(frame, names[name])
-                                           for name in outputs})
+        for k, frame in enumerate(frames, first):
+            view = todo[k]
+            arrays = {name: getattr(frame, names[name]) for name in outputs}
+            if fmt == "files":
+                _write_files(out, stem, view, arrays)
+            else:
+                _write_zarr(zarr_store, view, arrays)
             rows.append({"model": store_path, "view": view, "status": "ok", "error": None,
                          # the view's share of its group's part renders
                          "ms": round(sum(s["ms"] / s["views"] for s in frame.stats), 3),
                          "parts": [s["part"] for s in frame.stats],
                          "faces_loaded": [s["faces_loaded"] for s in frame.stats]})
     rows.sort(key=lambda r: r["view"])
-    _describe(out, stem, cameras, size, outputs, "files")
+    _describe(out, stem, cameras, size, outputs, fmt)
+    if fmt == "files":
+        _remove_stale_temporaries(out, [stem], outputs)
     result = BatchResult(rows, os.path.join(out, "manifest.json"),
                          time.perf_counter() - start, busy)
-    _write_manifest(result, spec, size, outputs, "files", options)
+    _write_manifest(result, spec, size, outputs, fmt, options)
     return result
 
 
