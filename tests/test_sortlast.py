@@ -637,6 +637,12 @@ def test_an_obj_partitions_streaming_from_the_command_line(models_dir, tmp_path,
     code, err = run_cli(["partition", model, model, "--parts", "2", "--out", "t.zarr",
                          "--stream"])
     assert code == 2 and "one MODEL" in err[0]
+    glb = glb_cases(tmp_path)[0]
+    code, err = run_cli(["partition", str(glb), "--parts", "2", "--out", "g.zarr",
+                         "--stream", "--quiet"])
+    assert code == 0, err
+    assert [i["name"] for i in hsr.load_scene("g.zarr").instances] == ["left", "ball",
+                                                                       "right"]
 
 
 def test_groups_come_as_they_are_composited(tie_stores):
@@ -752,3 +758,113 @@ def test_batch_of_a_store_to_zarr_and_resumed(tie_stores, tmp_path, monkeypatch)
     with pytest.raises(BatchError, match="the partitioned scene itself"):
         render_views(os.path.basename(store.path), "sphere:2", (32, 24), ("ids",), ".",
                      format="zarr")
+
+
+def glb_cases(tmp_path) -> list:
+    """GLB files as trimesh writes them and as tests/test_scenes_gltf.py edits them: three
+    transformed nodes, a shared mesh in a reordered tree, two primitives in one mesh, and
+    a model hsr writes with its materials."""
+    from test_scenes_gltf import glb_bytes, rewrite_glb, three_nodes
+
+    scene, _, _ = three_nodes()
+    paths = [tmp_path / "three.glb", tmp_path / "tree.glb", tmp_path / "prims.glb",
+             tmp_path / "written.glb"]
+    paths[0].write_bytes(glb_bytes(scene))
+
+    def tree(h):
+        names = [n["name"] for n in h["nodes"]]
+        left, ball, right = (names.index(k) for k in ("left", "ball", "right"))
+        h["nodes"][right]["mesh"] = h["nodes"][left]["mesh"]
+        h["nodes"][left]["children"] = [ball]
+        h["scenes"][h.get("scene", 0)]["nodes"] = [right, left]
+
+    def prims(h):
+        names = [n["name"] for n in h["nodes"]]
+        left, ball = names.index("left"), names.index("ball")
+        h["meshes"][h["nodes"][left]["mesh"]]["primitives"] += \
+            h["meshes"][h["nodes"][ball]["mesh"]]["primitives"]
+        h["scenes"][h.get("scene", 0)]["nodes"] = [left]
+
+    paths[1].write_bytes(rewrite_glb(glb_bytes(scene), tree))
+    paths[2].write_bytes(rewrite_glb(glb_bytes(scene), prims))
+    hsr.write_mesh(tie_scene(), paths[3])
+    return paths
+
+
+def test_a_glb_partitions_streaming_into_the_instances_load_scene_makes(tmp_path):
+    """Streamed: the same instances (names, meshes, matrices to the bit), faces, parts,
+    part boxes and scene box as partitioning hsr.load_scene's scene, and sort-last ids
+    and depth equal to hsr.render of it (colours aside: streaming keeps geometry)."""
+    from hsr.scene.partition import partition_streamed
+
+    for k, path in enumerate(glb_cases(tmp_path)):
+        loaded = hsr.load_scene(path)
+        geometry = hsr.Scene([hsr.Instance(hsr.Mesh(i.mesh.positions, i.mesh.faces,
+                                                    name=i.mesh.name), i.model, i.opacity,
+                                           i.name) for i in loaded.instances])
+        parts = min(3, geometry.n_faces)
+        streamed = partition_streamed(path, parts, tmp_path / f"s{k}.zarr", chunk=7)
+        reference = hsr.partition(geometry, parts, tmp_path / f"m{k}.zarr")
+        assert streamed.instances == reference.instances, path.name
+        assert streamed.meta["bounds"] == reference.meta["bounds"]
+        for p in range(parts):
+            a, b = streamed._arrays(p), reference._arrays(p)
+            for name in ("positions", "faces", "face_id", "vertex_start", "vertex_id"):
+                assert np.array_equal(a[name], b[name]), (path.name, p, name)
+            assert streamed.part_bounds(p).tolist() == reference.part_bounds(p).tolist()
+        cam = hsr.views.default(loaded, 4 / 3)
+        frame = render_partitioned(streamed, [cam], 96, 72, outputs=("eye_depth",))[0]
+        whole = hsr.render(loaded, cam, 96, 72)
+        assert np.array_equal(frame.face_id, whole.face_id)
+        assert np.array_equal(frame.depth, whole.depth)
+        assert np.array_equal(frame.eye_depth, whole.eye_depth)
+
+
+def test_a_glb_streaming_cannot_read_is_refused(tmp_path):
+    from test_scenes_gltf import glb_bytes, rewrite_glb, three_nodes
+
+    from hsr.scene.partition import partition_streamed
+
+    scene, _, _ = three_nodes()
+
+    def strips(h):
+        for mesh in h["meshes"]:
+            for prim in mesh["primitives"]:
+                prim["mode"] = 5
+
+    def outside(h):
+        h["bufferViews"][0]["byteLength"] = 10 ** 9
+
+    for name, edit, match in (("strips.glb", strips, "not plain triangles"),
+                              ("outside.glb", outside, "past its buffer")):
+        path = tmp_path / name
+        path.write_bytes(rewrite_glb(glb_bytes(scene), edit))
+        with pytest.raises(MeshError, match=match):
+            partition_streamed(path, 1, tmp_path / "x.zarr")
+    assert not (tmp_path / "x.zarr").exists()
+
+
+def test_hsr_batch_of_a_store_with_a_scheduler_address(tie_stores, tmp_path):
+    """The command line against a running scheduler (a LocalCluster's address, as
+    `dask scheduler` would give): the files equal hsr.render's."""
+    distributed = pytest.importorskip("distributed")
+    from conftest import run_cli
+    from hsr.batch.tasks import place_cameras
+
+    scene, stores = tie_stores
+    store = stores[3]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                  silence_logs=50) as cluster:
+        code, err = run_cli(["batch", store.path, "--views", "orbit:3", "--size", "64x48",
+                             "--outputs", "ids,window_depth", "--out", str(tmp_path / "o"),
+                             "--scheduler", cluster.scheduler_address, "--quiet"])
+    assert code == 0, err
+    stem = os.path.splitext(os.path.basename(store.path))[0]
+    cams = place_cameras(store, ("set", "orbit", 3, 20.0), (64, 48))
+    for view, cam in enumerate(cams):
+        want = hsr.render(scene, cam, 64, 48, light="studio")
+        folder = tmp_path / "o" / stem
+        assert np.array_equal(np.load(folder / "ids" / f"{view:04d}.npy"), want.face_id)
+        assert np.array_equal(np.load(folder / "window_depth" / f"{view:04d}.npy"),
+                              want.depth)

@@ -19,9 +19,9 @@ def add_parser(sub) -> None:
                    "folder)")
     p.add_argument("--force", action="store_true", help="replace STORE if it is a "
                    "partitioned scene already")
-    p.add_argument("--stream", action="store_true", help="read one MODEL (binary PLY or "
-                   "OBJ) in chunks, so it may be larger than memory; geometry only (a binary "
-                   "PLY of geometry alone streams anyway)")
+    p.add_argument("--stream", action="store_true", help="read one MODEL (binary PLY, OBJ "
+                   "or GLB) in chunks, so it may be larger than memory; geometry only (a "
+                   "binary PLY of geometry alone streams anyway)")
     p.add_argument("--quiet", action="store_true", help="no summary")
 
 

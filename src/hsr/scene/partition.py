@@ -20,8 +20,9 @@ import tempfile
 
 import numpy as np
 
-from ..errors import require_extra
+from ..errors import MeshError, require_extra
 from ..parallel import progress_bar
+from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
 from .mesh import Scene, SceneLike, as_scene, check_used_positions
 from .obj_stream import ObjStream
@@ -33,7 +34,7 @@ from .partitioned import (
     is_partitioned,
     open_partitioned,
 )
-from .ply import face_chunks, is_binary_ply, read_layout, read_positions
+from .ply import PlyLayout, face_chunks, is_binary_ply, read_layout, read_positions
 
 __all__ = ["partition", "partition_streamed", "morton_order", "morton_codes", "MAX_PARTS"]
 
@@ -77,7 +78,7 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
               stream: bool | None = None) -> PartitionedScene:
     """Split ``scene`` (a Scene, Mesh, path, ...) into ``parts`` spatially coherent parts
     and write them to the Zarr store ``out`` (see the module); returns it opened.
-    ``stream``: read a path (binary PLY or OBJ) in chunks (:func:`partition_streamed`),
+    ``stream``: read a path (binary PLY, OBJ or GLB) in chunks (:func:`partition_streamed`),
     so its faces never all sit in memory, keeping geometry only; by default (None) a
     binary PLY that holds nothing but geometry streams and everything else is loaded. A
     streamed file shows a progress bar on a terminal (``progress`` forces it on or off).
@@ -193,67 +194,94 @@ def _write_in_memory(scene: Scene, parts: int, root) -> dict:
 def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLike,
                        overwrite: bool = False, chunk: int = 1 << 20,
                        progress: bool | None = None) -> PartitionedScene:
-    """:func:`partition` of a binary PLY of triangles or a Wavefront OBJ, read ``chunk``
-    faces (OBJ: 64 MB of text) at a time so that memory stays near 40 bytes a face
-    (vertex positions, one Morton code and one part number per face, and one part's
-    faces at a time) where loading the mesh takes about 140. The same faces and parts as
-    loading the file and partitioning it (the same Morton order and cuts); only geometry
-    is kept (colours, texture coordinates and materials are not). Raises
-    :class:`~hsr.errors.MeshError` for a file that does not stream (see
-    :mod:`hsr.scene.ply`, :mod:`hsr.scene.obj_stream`) and :class:`PartitionError` as
-    :func:`partition` does."""
+    """:func:`partition` of a binary PLY of triangles, a Wavefront OBJ or a binary glTF
+    (.glb), read ``chunk`` faces (OBJ: 64 MB of text) at a time so that memory stays near
+    40 bytes a face (vertex positions, one Morton code and one part number per face, and
+    one part's faces at a time) where loading the scene takes about 140. The same
+    instances, faces and parts as loading the file and partitioning it (the same Morton
+    order and cuts); only geometry is kept (colours, texture coordinates and materials
+    are not). Raises :class:`~hsr.errors.MeshError` for a file that does not stream (see
+    :mod:`hsr.scene.ply`, :mod:`hsr.scene.obj_stream`, :mod:`hsr.scene.gltf_stream`) and
+    :class:`PartitionError` as :func:`partition` does."""
     require_extra("hsr partition", "zarr")
     out = _check_out(out, overwrite)
     path = os.fspath(path)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise PartitionError(f"chunk must be a positive integer, got {chunk!r}")
-    is_obj = path.lower().endswith(".obj")
-    layout = None if is_obj else read_layout(path)
-    if layout is not None:
-        _check_parts(parts, layout.n_faces)
+    kind = ("obj" if path.lower().endswith(".obj") else "glb" if is_glb(path) else "ply")
+    if kind == "ply" and not path.lower().endswith(".ply") and not is_binary_ply(path):
+        raise MeshError(f"{path}: streaming reads binary PLY, OBJ and GLB files; load "
+                        f"this one (without --stream)")
+    source = (_Single(read_layout(path)) if kind == "ply"
+              else GlbStream(path) if kind == "glb" else None)
+    if source is not None:
+        _check_parts(parts, source.n_faces)
     if progress is None:
         progress = sys.stderr.isatty()
 
     def write(root, scratch) -> dict:
-        source = ObjStream(path, scratch) if layout is None else _PlySource(layout)
-        _check_parts(parts, source.n_faces)
+        streamed = source if source is not None else _Single(ObjStream(path, scratch))
+        _check_parts(parts, streamed.n_faces)
         # The bar counts faces read (three passes) and parts written (one face each).
-        with progress_bar(progress, 4 * source.n_faces, "partition", unit="face") as bar:
-            return _write_streamed(source, parts, root, scratch, chunk, bar)
+        with progress_bar(progress, 4 * streamed.n_faces, "partition", unit="face") as bar:
+            return _write_streamed(streamed, parts, root, scratch, chunk, bar)
 
     return _write_store(out, write)
 
 
-class _PlySource:
-    """A binary PLY as :func:`_write_streamed` reads it (the face source protocol that
-    :class:`~hsr.scene.obj_stream.ObjStream` follows too)."""
+class _Single:
+    """A one-mesh file (a binary PLY's layout, or an :class:`ObjStream`) as the source
+    :func:`_write_streamed` reads: the protocol :class:`GlbStream` follows (instances of
+    (name, mesh name, model, geometry key); positions, face counts and face chunks per
+    geometry key)."""
 
-    def __init__(self, layout) -> None:
-        self.layout = layout
-        self.name = os.path.basename(layout.path)
-        self.n_faces, self.n_vertices = layout.n_faces, layout.n_vertices
-        self.positions = read_positions(layout)
+    def __init__(self, reader) -> None:
+        self.reader = reader
+        self.name = os.path.basename(reader.path)
+        self.n_faces = reader.n_faces
+        self.instances = [(self.name, self.name, np.eye(4), 0)]
+        self.positions = {0: read_positions(reader) if isinstance(reader, PlyLayout)
+                          else reader.positions}
+        self.counts = {0: reader.n_faces}
 
-    def face_chunks(self, chunk: int):
-        return face_chunks(self.layout, chunk)
+    def face_chunks(self, key, chunk: int):
+        if isinstance(self.reader, PlyLayout):
+            return face_chunks(self.reader, chunk)
+        return self.reader.face_chunks(chunk)
+
+
+def _world(positions: np.ndarray, model: np.ndarray) -> np.ndarray:
+    """Vertices placed by ``model`` with Scene.world_triangles' arithmetic (none for the
+    identity), so the streamed centroids are the in-memory path's to the bit."""
+    if np.array_equal(model, np.eye(4)):
+        return positions
+    return positions @ model[:3, :3].T + model[:3, 3]
 
 
 def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> dict:
-    positions = source.positions
-    # Pass 1: which vertices the faces use (the box is theirs, as Scene.bounds() says).
-    used = np.zeros(source.n_vertices, dtype=bool)
-    for _, corners in source.face_chunks(chunk):
-        used[corners.ravel()] = True
-        bar.update(len(corners))
-    check_used_positions(positions, used, source.name)  # what Mesh checks
-    lo, hi = positions[used].min(axis=0), positions[used].max(axis=0)
-    del used
-    # Pass 2: a Morton code per face, from its centroid (the formula morton_order uses).
+    instances = source.instances
+    offsets = np.concatenate([[0], np.cumsum([source.counts[key]
+                                               for *_, key in instances])]).astype(np.int64)
+    # Pass 1: which vertices each geometry's faces use; the scene's box is that of the
+    # used vertices placed by each instance (Scene.bounds()).
+    used = {key: np.zeros(len(source.positions[key]), dtype=bool) for key in source.positions}
+    for key in used:
+        for _, corners in source.face_chunks(key, chunk):
+            used[key][corners.ravel()] = True
+            bar.update(len(corners) * sum(1 for *_, k in instances if k == key))
+        check_used_positions(source.positions[key], used[key], source.name)
+    points = np.concatenate([
+        source.positions[key][used[key]] @ model[:3, :3].T + model[:3, 3]
+        for _, _, model, key in instances])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    del points
+    # Pass 2: a Morton code per face, from its world centroid (morton_order's formula).
     codes = np.empty(source.n_faces, dtype=np.uint64)
-    for start, corners in source.face_chunks(chunk):
-        codes[start:start + len(corners)] = morton_codes(
-            positions[corners].mean(axis=1), lo, hi)
-        bar.update(len(corners))
+    for k, (_, _, model, key) in enumerate(instances):
+        world = _world(source.positions[key], model)
+        for start, corners in source.face_chunks(key, chunk):
+            at = offsets[k] + start
+            codes[at:at + len(corners)] = morton_codes(world[corners].mean(axis=1), lo, hi)
     # The parts: runs of the stable Morton order, as the in-memory path cuts them.
     part_of = np.empty(source.n_faces, dtype=np.uint16)
     order = np.argsort(codes, kind="stable")
@@ -262,36 +290,44 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
     for p in range(parts):
         part_of[order[cuts[p]:cuts[p + 1]]] = p
     del order
-    # Pass 3: each chunk's faces appended to their part's scratch files, in file order.
-    for start, corners in source.face_chunks(chunk):
-        mine = part_of[start:start + len(corners)]
-        for p in np.unique(mine):
-            sel = np.flatnonzero(mine == p)
-            with open(os.path.join(scratch, f"{p}.faces"), "ab") as f:
-                corners[sel].astype(np.int64).tofile(f)
-            with open(os.path.join(scratch, f"{p}.ids"), "ab") as f:
-                (sel + start).astype(np.int64).tofile(f)
-        bar.update(len(corners))
+    # Pass 3: each chunk's faces to their part's scratch file, as (face id, corners).
+    for k, (*_, key) in enumerate(instances):
+        for start, corners in source.face_chunks(key, chunk):
+            at = offsets[k] + start
+            mine = part_of[at:at + len(corners)]
+            for p in np.unique(mine):
+                sel = np.flatnonzero(mine == p)
+                rows = np.column_stack([sel + at, corners[sel]]).astype(np.int64)
+                with open(os.path.join(scratch, f"{p}.faces"), "ab") as f:
+                    rows.tofile(f)
+            bar.update(len(corners))
     del part_of
-    instance = {"name": source.name, "mesh_name": source.name,
-                "model": np.eye(4).ravel().tolist(), "opacity": 1.0, "face_offset": 0,
-                "attributes": [], "texture": None}
-    meta = _metadata(parts, source.n_faces, (lo, hi), [instance])
-    # Pass 4: one part at a time from its scratch files into the store.
+    meta = _metadata(parts, source.n_faces, (lo, hi), [
+        {"name": name, "mesh_name": mesh_name, "model": np.asarray(model).ravel().tolist(),
+         "opacity": 1.0, "face_offset": int(offsets[k]), "attributes": [], "texture": None}
+        for k, (name, mesh_name, model, _) in enumerate(instances)])
+    # Pass 4: one part at a time from its scratch file into the store.
     for p in range(parts):
-        faces_p = np.fromfile(os.path.join(scratch, f"{p}.faces"), dtype=np.int64)
-        face_id = np.fromfile(os.path.join(scratch, f"{p}.ids"), dtype=np.int64)
-        vertices, remapped = np.unique(faces_p, return_inverse=True)
-        used_p = positions[vertices]  # one instance, identity model: world = model space
-        _add_part(root, meta, p, {"box": [used_p.min(axis=0).tolist(),
-                                          used_p.max(axis=0).tolist()],
-                                  "positions": used_p, "vertex_id": vertices.astype(np.int64),
-                                  "faces": remapped.reshape(-1, 3).astype(np.int64),
-                                  "face_id": face_id,
-                                  "vertex_start": np.array([0, len(vertices)],
-                                                           dtype=np.int64)})
+        rows = np.fromfile(os.path.join(scratch, f"{p}.faces"), dtype=np.int64).reshape(-1, 4)
+        face_id, owner = rows[:, 0], np.searchsorted(offsets, rows[:, 0], side="right") - 1
+        positions, vertex_ids, faces, starts, corners_world = [], [], [], [0], []
+        for k, (_, _, model, key) in enumerate(instances):
+            local = rows[owner == k, 1:]
+            vertices, remapped = np.unique(local, return_inverse=True)
+            positions.append(source.positions[key][vertices])
+            vertex_ids.append(vertices)
+            faces.append(remapped.reshape(-1, 3) + starts[-1])
+            starts.append(starts[-1] + len(vertices))
+            if len(local):
+                corners_world.append(_world(source.positions[key], model)[vertices])
+        box = np.concatenate(corners_world)
+        _add_part(root, meta, p, {
+            "box": [box.min(axis=0).tolist(), box.max(axis=0).tolist()],
+            "positions": np.concatenate(positions), "vertex_id":
+            np.concatenate(vertex_ids).astype(np.int64),
+            "faces": np.concatenate(faces).astype(np.int64).reshape(-1, 3),
+            "face_id": face_id, "vertex_start": np.asarray(starts, dtype=np.int64)})
         os.remove(os.path.join(scratch, f"{p}.faces"))
-        os.remove(os.path.join(scratch, f"{p}.ids"))
         bar.update(len(face_id))
     return meta
 

@@ -1,0 +1,224 @@
+"""A binary glTF (.glb) read for the streamed partition: the instances exactly as
+:func:`hsr.load_scene` makes them, the geometry straight from the file, a chunk at a time.
+
+The node tree (which nodes hold meshes, their order, names and world matrices) is what
+hsr.load_scene reads through trimesh; to get it bit for bit without loading the buffers,
+the same reader loads a *skeleton* of the file: its JSON with every primitive's data
+replaced by one small triangle whose corners encode (mesh, primitive), and no materials.
+The instances it gives carry the real names and matrices, and their first corner says
+which primitive's positions and indices to read. Those are read from the GLB's binary
+chunk through their accessors (float32 VEC3 positions; unsigned 8, 16 or 32-bit
+indices, or none), geometry only. Primitives that are not plain triangles (other modes,
+sparse or compressed accessors, required extensions) are refused: hsr.load_scene
+reads those, streaming does not.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import struct
+
+import numpy as np
+
+from ..errors import MeshError
+from .files import check_regular
+
+__all__ = ["GlbStream", "is_glb"]
+
+MAX_STREAM_BYTES = 1 << 42
+MAX_JSON_BYTES = 1 << 26
+_INDEX_TYPES = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}
+
+
+def is_glb(path: str) -> bool:
+    """True when ``path`` is a regular file that starts like a binary glTF."""
+    if not os.path.isfile(path):
+        return False
+    with open(path, "rb") as f:
+        return f.read(4) == b"glTF"
+
+
+class GlbStream:
+    """The instances of a .glb (``instances``: name, mesh name, 4x4 model matrix and a
+    geometry key, in hsr.load_scene's order), each geometry's ``positions`` (V, 3)
+    float64, and :meth:`face_chunks` of a geometry. Raises
+    :class:`~hsr.errors.MeshError` for a file it cannot stream (see the module)."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = os.fspath(path)
+        check_regular(self.path, "mesh file", MAX_STREAM_BYTES)
+        self.name = os.path.basename(self.path)
+        self.header, self.bin_offset, self.bin_length = _chunks(self.path)
+        header = self.header
+        if header.get("extensionsRequired"):
+            raise MeshError(f"{self.name}: streaming does not read required extensions "
+                            f"{header['extensionsRequired']}")
+        self.instances = _instances(self.path, header)
+        self.positions: dict = {}
+        self.counts: dict = {}
+        for key in {inst[3] for inst in self.instances}:
+            primitive = _primitive(header, key, self.name)
+            self.positions[key] = self._read(primitive["attributes"]["POSITION"], "VEC3",
+                                             (5126,)).astype(np.float64)
+            if "indices" in primitive:
+                self.counts[key] = _accessor(header, primitive["indices"], self.name)[
+                    "count"] // 3
+            else:
+                self.counts[key] = len(self.positions[key]) // 3
+        self.n_faces = sum(self.counts[inst[3]] for inst in self.instances)
+
+    def face_chunks(self, key: tuple, chunk: int = 1 << 20):
+        """Yield ``(first face, (n, 3) int64 corners)`` of geometry ``key``, in order."""
+        primitive = _primitive(self.header, key, self.name)
+        n = self.counts[key]
+        vertices = len(self.positions[key])
+        for start in range(0, n, chunk):
+            count = min(chunk, n - start)
+            if "indices" in primitive:
+                corners = self._read(primitive["indices"], "SCALAR", tuple(_INDEX_TYPES),
+                                     3 * start, 3 * count).astype(np.int64)
+            else:
+                corners = np.arange(3 * start, 3 * (start + count), dtype=np.int64)
+            corners = corners.reshape(-1, 3)
+            if corners.size and corners.max() >= vertices:
+                raise MeshError(f"{self.name}: a face indexes outside the "
+                                f"{vertices:,} vertices of mesh {key[0]}")
+            yield start, corners
+
+    def _read(self, index: int, kind: str, types: tuple, first: int = 0,
+              count: int | None = None) -> np.ndarray:
+        """Elements ``first .. first + count - 1`` of accessor ``index`` from the binary
+        chunk (its data checked to lie inside the chunk)."""
+        acc = _accessor(self.header, index, self.name)
+        if acc.get("type") != kind or acc.get("componentType") not in types \
+                or acc.get("sparse") or acc.get("normalized") or "bufferView" not in acc:
+            raise MeshError(f"{self.name}: accessor {index} is not a plain {kind} "
+                            f"accessor streaming reads")
+        view = _item(self.header, "bufferViews", acc["bufferView"], self.name)
+        if view.get("buffer", 0) != 0:
+            raise MeshError(f"{self.name}: streaming reads the GLB's own binary chunk only")
+        dtype = np.dtype(_INDEX_TYPES.get(acc["componentType"], np.float32)).newbyteorder("<")
+        width = 3 if kind == "VEC3" else 1
+        stride = int(view.get("byteStride", dtype.itemsize * width))
+        total = int(acc["count"])
+        count = total - first if count is None else count
+        start = int(view.get("byteOffset", 0)) + int(acc.get("byteOffset", 0))
+        end = start + stride * (total - 1) + dtype.itemsize * width if total else start
+        limit = int(view.get("byteOffset", 0)) + int(view.get("byteLength", 0))
+        if end > limit or limit > self.bin_length:
+            raise MeshError(f"{self.name}: accessor {index} reaches past its buffer")
+        if count == 0:
+            return np.zeros((0, width) if width > 1 else (0,), dtype=dtype)
+        row = dtype.itemsize * width
+        with open(self.path, "rb") as f:
+            f.seek(self.bin_offset + start + stride * first)
+            raw = np.fromfile(f, dtype=np.uint8, count=stride * (count - 1) + row)
+        if len(raw) != stride * (count - 1) + row:
+            raise MeshError(f"{self.name}: accessor {index} is cut short")
+        # Interleaved rows (byteStride): each element's bytes, gathered without a copy.
+        rows = np.lib.stride_tricks.as_strided(raw, shape=(count, row), strides=(stride, 1))
+        values = np.ascontiguousarray(rows).view(dtype)
+        return values.reshape(count, width) if width > 1 else values.reshape(count)
+
+
+def _chunks(path: str) -> tuple:
+    """(JSON header, offset of the binary chunk's data, its length) of a GLB."""
+    with open(path, "rb") as f:
+        head = f.read(20)
+        if len(head) < 20 or head[:4] != b"glTF":
+            raise MeshError(f"{path}: not a binary glTF file")
+        length, kind = struct.unpack_from("<I4s", head, 12)
+        if kind != b"JSON" or length > MAX_JSON_BYTES:
+            raise MeshError(f"{path}: the first GLB chunk is not JSON of at most "
+                            f"{MAX_JSON_BYTES:,} bytes")
+        try:
+            header = json.loads(f.read(length))
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise MeshError(f"{path}: not a glTF file ({exc})") from None
+        bin_head = f.read(8)
+        if len(bin_head) < 8 or bin_head[4:] != b"BIN\x00":
+            raise MeshError(f"{path}: no binary chunk to stream")
+        bin_length = struct.unpack_from("<I", bin_head)[0]
+        return header, 20 + length + 8, bin_length
+
+
+def _item(header: dict, kind: str, index, name: str) -> dict:
+    items = header.get(kind)
+    if not isinstance(items, list) or not isinstance(index, int) \
+            or not 0 <= index < len(items) or not isinstance(items[index], dict):
+        raise MeshError(f"{name}: {kind} {index!r} does not exist")
+    return items[index]
+
+
+def _accessor(header: dict, index, name: str) -> dict:
+    acc = _item(header, "accessors", index, name)
+    if not isinstance(acc.get("count"), int) or acc["count"] < 0:
+        raise MeshError(f"{name}: accessor {index} has no count")
+    return acc
+
+
+def _primitive(header: dict, key: tuple, name: str) -> dict:
+    mesh = _item(header, "meshes", key[0], name)
+    primitives = mesh.get("primitives")
+    if not isinstance(primitives, list) or not 0 <= key[1] < len(primitives):
+        raise MeshError(f"{name}: mesh {key[0]} has no primitive {key[1]}")
+    primitive = primitives[key[1]]
+    if primitive.get("mode", 4) != 4 or primitive.get("extensions") \
+            or "POSITION" not in primitive.get("attributes", {}):
+        raise MeshError(f"{name}: mesh {key[0]} primitive {key[1]} is not plain triangles "
+                        f"with positions; streaming does not read it (hsr.load_scene does)")
+    return primitive
+
+
+def _instances(path: str, header: dict) -> list:
+    """(name, mesh name, model matrix, (mesh, primitive)) of every instance, from
+    hsr.load_scene's reader run on the skeleton of the file (see the module)."""
+    import trimesh
+
+    from .load import _file_scene
+
+    skeleton = {k: v for k, v in header.items()
+                if k in ("asset", "scene", "scenes", "nodes")}
+    data = bytearray()
+    views, accessors, meshes = [], [], []
+    for m, mesh in enumerate(header.get("meshes") or []):
+        prims = []
+        for p, prim in enumerate((mesh or {}).get("primitives") or []):
+            corners = np.array([[m, p, 0], [m + 0.5, p, 0], [m, p + 0.5, 0]], dtype="<f4")
+            views.append({"buffer": 0, "byteOffset": len(data), "byteLength": 36})
+            data += corners.tobytes()
+            accessors.append({"bufferView": len(views) - 1, "componentType": 5126,
+                              "count": 3, "type": "VEC3",
+                              "min": corners.min(0).tolist(), "max": corners.max(0).tolist()})
+            prims.append({"attributes": {"POSITION": len(accessors) - 1},
+                          "mode": (prim or {}).get("mode", 4)})
+        meshes.append({"primitives": prims, **({"name": mesh["name"]} if isinstance(
+            mesh, dict) and "name" in mesh else {})})
+    skeleton.update(meshes=meshes, accessors=accessors, bufferViews=views,
+                    buffers=[{"byteLength": len(data)}])
+    nodes = []
+    for node in header.get("nodes") or []:
+        nodes.append({k: v for k, v in (node or {}).items()
+                      if k in ("name", "children", "matrix", "translation", "rotation",
+                               "scale", "mesh")})
+    skeleton["nodes"] = nodes
+    text = json.dumps(skeleton).encode()
+    text += b" " * (-len(text) % 4)
+    data += b"\0" * (-len(data) % 4)
+    glb = (struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text) + 8 + len(data))
+           + struct.pack("<I4s", len(text), b"JSON") + text
+           + struct.pack("<I4s", len(data), b"BIN\x00") + bytes(data))
+    try:
+        loaded = trimesh.load(io.BytesIO(glb), file_type="glb", process=False)
+    except Exception as exc:  # noqa: BLE001 - trimesh's errors on a malformed tree vary
+        raise MeshError(f"{path}: cannot read its node tree ({type(exc).__name__}: "
+                        f"{exc})") from None
+    scene = _file_scene(loaded, skeleton, path)
+    out = []
+    for inst in scene.instances:
+        m, p = (int(round(c)) for c in inst.mesh.positions[0, :2])
+        out.append((inst.name, inst.mesh.name, np.asarray(inst.model, dtype=np.float64),
+                    (m, p)))
+    return out
