@@ -204,13 +204,7 @@ def _build(path, name, s: _Scanned) -> Mesh:
                             f"{int(ref[k])} outside 1..{totals[c]}")
         resolved[:, c] = np.where(present, idx, -1)
 
-    # Fan triangulation in file order: polygon (c0, c1, ..., cn-1) -> (c0, ck, ck+1).
-    n_tris = counts - 2
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    tri_poly = np.repeat(np.arange(len(counts)), n_tris)
-    step = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
-    corner = np.stack([start[tri_poly], start[tri_poly] + step, start[tri_poly] + step + 1],
-                      axis=1)
+    corner, tri_poly = fan_corners(counts)
     faces = resolved[corner, 0]
     corner_uv = uvs[resolved[corner, 1]] if len(uvs) and (resolved[:, 1] >= 0).all() else None
     corner_normals = (normals[resolved[corner, 2]]
@@ -224,6 +218,19 @@ def _build(path, name, s: _Scanned) -> Mesh:
     face_colors, texture = _read_materials(path, s.mtllibs, materials, poly_mat[tri_poly])
     return Mesh(positions, faces, corner_uv=corner_uv, corner_normals=corner_normals,
                 face_colors=face_colors, texture=texture, name=name)
+
+
+def fan_corners(counts: np.ndarray) -> tuple:
+    """Fan triangulation in file order, polygon (c0, c1, ..., cn-1) -> (c0, ck, ck+1), of
+    polygons with ``counts`` corners stored one after another: ``(corner (T, 3) indices
+    into the corners, the polygon of each triangle (T,))``."""
+    n_tris = counts - 2
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    tri_poly = np.repeat(np.arange(len(counts)), n_tris)
+    step = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
+    corner = np.stack([start[tri_poly], start[tri_poly] + step, start[tri_poly] + step + 1],
+                      axis=1)
+    return corner, tri_poly
 
 
 def _numbers(rows, min_count, keep, name, what) -> np.ndarray:

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import MeshError
 from .files import check_regular
-from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, scan_careful
+from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, fan_corners, scan_careful
 
 __all__ = ["ObjStream", "CHUNK_BYTES"]
 
@@ -133,10 +133,5 @@ def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.
                             f"{int(refs[k, c])} outside 1..{int(limits[k, c])}")
         if present.any():
             highest[c] = max(highest[c], int(resolved[present, c].max()))
-    n_tris = counts - 2
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    tri_poly = np.repeat(np.arange(len(counts)), n_tris)
-    step = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris) + 1
-    corner = np.stack([start[tri_poly], start[tri_poly] + step, start[tri_poly] + step + 1],
-                      axis=1)
+    corner, _ = fan_corners(counts)
     return np.ascontiguousarray(resolved[corner, 0], dtype=np.int64)
