@@ -95,21 +95,33 @@ def test_nodes_become_instances_in_file_order(tmp_path):
                                            ("box", "right", moves["right"])], np.asarray))
 
 
+def shared_tree(h):
+    """three_nodes' JSON edited: both boxes use one glTF mesh; the roots are listed
+    right-then-left and the ball is a child of the left box."""
+    names = [n["name"] for n in h["nodes"]]
+    left, ball, right = (names.index(k) for k in ("left", "ball", "right"))
+    h["nodes"][right]["mesh"] = h["nodes"][left]["mesh"]
+    h["nodes"][left]["children"] = [ball]
+    h["scenes"][h.get("scene", 0)]["nodes"] = [right, left]
+
+
+def two_primitives(h):
+    """three_nodes' JSON edited: the ball's primitive added to the box's mesh, the left
+    box the only root."""
+    names = [n["name"] for n in h["nodes"]]
+    left, ball = names.index("left"), names.index("ball")
+    box_mesh, ball_mesh = h["nodes"][left]["mesh"], h["nodes"][ball]["mesh"]
+    h["meshes"][box_mesh]["primitives"] += h["meshes"][ball_mesh]["primitives"]
+    h["scenes"][h.get("scene", 0)]["nodes"] = [left]
+
+
 def test_shared_meshes_trees_and_primitives(tmp_path):
     """Edited JSON: both boxes use one glTF mesh (one hsr Mesh, shared); the roots are
     listed right-then-left and the ball is a child of the left box (its transform composed
     with its parent's); a mesh with two primitives gives NODE/1, NODE/2."""
     scene, parts, moves = three_nodes()
-
-    def edit(h):
-        names = [n["name"] for n in h["nodes"]]
-        left, ball, right = (names.index(k) for k in ("left", "ball", "right"))
-        h["nodes"][right]["mesh"] = h["nodes"][left]["mesh"]
-        h["nodes"][left]["children"] = [ball]
-        h["scenes"][h.get("scene", 0)]["nodes"] = [right, left]
-
     path = tmp_path / "tree.glb"
-    path.write_bytes(rewrite_glb(glb_bytes(scene), edit))
+    path.write_bytes(rewrite_glb(glb_bytes(scene), shared_tree))
     loaded = hsr.load_scene(str(path))
     assert [i.name for i in loaded.instances] == ["right", "left", "ball"]
     assert loaded.instances[0].mesh is loaded.instances[1].mesh
@@ -117,14 +129,6 @@ def test_shared_meshes_trees_and_primitives(tmp_path):
                                ("box", "left", moves["left"]),
                                ("ball", "ball", moves["left"] @ moves["ball"])])
     same_render(loaded, expected)
-
-    def two_primitives(h):
-        names = [n["name"] for n in h["nodes"]]
-        left, ball = names.index("left"), names.index("ball")
-        box_mesh, ball_mesh = h["nodes"][left]["mesh"], h["nodes"][ball]["mesh"]
-        h["meshes"][box_mesh]["primitives"] += h["meshes"][ball_mesh]["primitives"]
-        h["scenes"][h.get("scene", 0)]["nodes"] = [left]
-
     path = tmp_path / "prims.glb"
     path.write_bytes(rewrite_glb(glb_bytes(scene), two_primitives))
     loaded = hsr.load_scene(str(path))

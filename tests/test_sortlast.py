@@ -764,29 +764,14 @@ def glb_cases(tmp_path) -> list:
     """GLB files as trimesh writes them and as tests/test_scenes_gltf.py edits them: three
     transformed nodes, a shared mesh in a reordered tree, two primitives in one mesh, and
     a model hsr writes with its materials."""
-    from test_scenes_gltf import glb_bytes, rewrite_glb, three_nodes
+    from test_scenes_gltf import glb_bytes, rewrite_glb, shared_tree, three_nodes, two_primitives
 
     scene, _, _ = three_nodes()
     paths = [tmp_path / "three.glb", tmp_path / "tree.glb", tmp_path / "prims.glb",
              tmp_path / "written.glb"]
     paths[0].write_bytes(glb_bytes(scene))
-
-    def tree(h):
-        names = [n["name"] for n in h["nodes"]]
-        left, ball, right = (names.index(k) for k in ("left", "ball", "right"))
-        h["nodes"][right]["mesh"] = h["nodes"][left]["mesh"]
-        h["nodes"][left]["children"] = [ball]
-        h["scenes"][h.get("scene", 0)]["nodes"] = [right, left]
-
-    def prims(h):
-        names = [n["name"] for n in h["nodes"]]
-        left, ball = names.index("left"), names.index("ball")
-        h["meshes"][h["nodes"][left]["mesh"]]["primitives"] += \
-            h["meshes"][h["nodes"][ball]["mesh"]]["primitives"]
-        h["scenes"][h.get("scene", 0)]["nodes"] = [left]
-
-    paths[1].write_bytes(rewrite_glb(glb_bytes(scene), tree))
-    paths[2].write_bytes(rewrite_glb(glb_bytes(scene), prims))
+    paths[1].write_bytes(rewrite_glb(glb_bytes(scene), shared_tree))
+    paths[2].write_bytes(rewrite_glb(glb_bytes(scene), two_primitives))
     hsr.write_mesh(tie_scene(), paths[3])
     return paths
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..algorithms.fragments import barycentrics_at
-from ..scene.mesh import normal_matrix
+from ..scene.mesh import instance_of, normal_matrix
 
 __all__ = ["surface_points", "eye_depth", "distance", "normals"]
 
@@ -60,7 +60,7 @@ def normals(scene, surface, shape, smooth: bool = False, corner_normals=None) ->
     if not len(faces):
         return out
     offsets = scene.face_offsets()
-    inst = np.searchsorted(offsets, faces, side="right") - 1
+    inst = instance_of(offsets, faces)
     result = np.zeros((len(faces), 3))
     for k in np.unique(inst):
         sel = np.flatnonzero(inst == k)

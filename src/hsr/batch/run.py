@@ -9,6 +9,7 @@ import json
 import os
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from ..errors import OutputError
@@ -155,40 +156,40 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         if format == "zarr" and target == os.path.abspath(models[0]):
             raise BatchError(f"--format zarr would write {target}, the partitioned scene "
                              f"itself: choose another --out")
-        if progress is None:
-            progress = sys.stderr.isatty()
-        own_cluster = None
-        if client is None and workers is not None:  # else part by part in this process
-            from distributed import Client
-
-            own_cluster = local_cluster(workers, 0)
-            client = Client(own_cluster)
-        try:
-            return _run_partitioned(client, models[0], stems, spec, (width, height),
+        # Without a client: --workers N local processes share the parts, else part
+        # after part in this process.
+        with _client_for(client, workers, 0, own=workers is not None) as job_client:
+            return _run_partitioned(job_client, models[0], stems, spec, (width, height),
                                     outputs, out, render_options, views_per_task, progress,
                                     format, resume)
-        finally:
-            if own_cluster is not None:
-                client.close()
-                own_cluster.close()
     start = time.perf_counter()
-    own_cluster = None
-    if client is None:
-        from distributed import Client
-
-        own_cluster = local_cluster(workers, width * height)
-        client = Client(own_cluster)
-    try:
-        rows, task_seconds = _run(client, models, stems, spec, (width, height), outputs, out,
-                                  format, resume, render_options, progress, views_per_task)
-    finally:
-        if own_cluster is not None:
-            client.close()
-            own_cluster.close()
+    with _client_for(client, workers, width * height, own=True) as job_client:
+        rows, task_seconds = _run(job_client, models, stems, spec, (width, height), outputs,
+                                  out, format, resume, render_options, progress,
+                                  views_per_task)
     result = BatchResult(rows, os.path.join(out, "manifest.json"), time.perf_counter() - start,
                          task_seconds)
     _write_manifest(result, spec, (width, height), outputs, format, render_options)
     return result
+
+
+@contextmanager
+def _client_for(client, workers, pixels: int, own: bool):
+    """``client`` when given; else, when ``own``, a client of a local cluster for views of
+    ``pixels`` pixels (:func:`local_cluster`), closed with its cluster after the job;
+    else None."""
+    if client is not None or not own:
+        yield client
+        return
+    from distributed import Client
+
+    cluster = local_cluster(workers, pixels)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
 
 
 def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, progress,
@@ -258,7 +259,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     from ..scene.partitioned import open_partitioned
     from .sortlast import OUTPUTS as COMPOSITED
     from .sortlast import each_partitioned
-    from .tasks import _write_files, _write_zarr, place_cameras
+    from .tasks import _write_files, _write_zarr, buffers, place_cameras
 
     start = time.perf_counter()
     store = open_partitioned(store_path)
@@ -269,9 +270,6 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
                  else ("all", list(given)))
     cameras = place_cameras(store, placement, size)
     per_task = views_per_task or max(1, (4 << 20) // (size[0] * size[1]))
-    names = {"color": "color", "window_depth": "depth", "eye_depth": "eye_depth",
-             "distance": "distance", "normals": "normals", "ids": "face_id",
-             "object_ids": "object_id"}
     todo = _todo(out, stem, len(cameras), size, outputs, fmt, resume)
     rows = [{"model": store_path, "view": v, "status": "skipped", "error": None, "ms": 0.0}
             for v in sorted(set(range(len(cameras))) - set(todo))]
@@ -289,7 +287,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
         busy += sum(s["ms"] for s in frames[0].stats) / 1000.0
         for k, frame in enumerate(frames, first):
             view = todo[k]
-            arrays = {name: getattr(frame, names[name]) for name in outputs}
+            arrays = buffers(frame, outputs)  # a CompositeFrame has hsr.Frame's names
             if fmt == "files":
                 _write_files(out, stem, view, arrays)
             else:

@@ -42,6 +42,7 @@ from ..geometry.state import RenderState
 from ..parallel import progress_bar
 from ..render import render
 from ..scene.camera import Camera
+from ..scene.mesh import instance_of
 from ..scene.partitioned import PartitionedScene, PartitionError, open_partitioned
 
 __all__ = ["CompositeFrame", "render_partitioned", "each_partitioned", "composite", "OUTPUTS"]
@@ -261,6 +262,9 @@ def _load(path: str, p: int) -> tuple:
 def _render_loaded(loaded: tuple, cameras, width, height, outputs, options) -> dict:
     start = time.perf_counter()
     p, scene, face_id = loaded
+    # Shading is only for the colour output (face ids, depth and the derived buffers come
+    # from visibility): counting and depth-only jobs skip it, as face_visibility does.
+    options = dict(options, color="color" in outputs)
     frames = [render(scene, cam, width, height, **options) for cam in cameras]
     local = np.stack([f.face_id for f in frames])
     result = {"face_id": np.where(local >= 0, face_id[np.maximum(local, 0)], -1),
@@ -279,7 +283,7 @@ def _frames(store: PartitionedScene, group: dict) -> list:
     out = []
     for v in range(len(frames["face_id"])):
         ids = frames["face_id"][v].astype(id_type)
-        object_id = (np.searchsorted(offsets, ids, side="right") - 1).astype(np.int32)
+        object_id = instance_of(offsets, ids).astype(np.int32)
         object_id[ids < 0] = -1
         extra = {name: frames[name][v] for name in OUTPUTS if name in frames}
         out.append(CompositeFrame(ids, frames["depth"][v], object_id, stats=group["stats"],

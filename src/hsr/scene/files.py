@@ -15,6 +15,8 @@ __all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG
 
 # Default caps on what one input file may hold: a 10M-triangle OBJ is about 500 MB.
 MAX_MESH_BYTES = 1 << 30
+# Files read in chunks (the streamed partition) exist to be larger than memory: 4 TiB.
+MAX_STREAM_BYTES = 1 << 42
 MAX_MTL_BYTES = 64 << 20
 
 

@@ -23,11 +23,10 @@ import struct
 import numpy as np
 
 from ..errors import MeshError
-from .files import check_regular
+from .files import MAX_STREAM_BYTES, check_regular
 
 __all__ = ["GlbStream", "is_glb"]
 
-MAX_STREAM_BYTES = 1 << 42
 MAX_JSON_BYTES = 1 << 26
 _INDEX_TYPES = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32}
 

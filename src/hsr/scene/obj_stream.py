@@ -18,13 +18,12 @@ import os
 import numpy as np
 
 from ..errors import MeshError
-from .files import check_regular
+from .files import MAX_STREAM_BYTES, check_regular
 from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, fan_corners, scan_careful
 
 __all__ = ["ObjStream", "CHUNK_BYTES"]
 
 CHUNK_BYTES = 1 << 26
-MAX_STREAM_BYTES = 1 << 42
 
 
 class ObjStream:

@@ -24,9 +24,10 @@ from ..errors import MeshError, require_extra
 from ..parallel import progress_bar
 from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
-from .mesh import Scene, SceneLike, as_scene, check_used_positions
+from .mesh import Scene, SceneLike, as_scene, check_used_positions, instance_of
 from .obj_stream import ObjStream
 from .partitioned import (
+    FACE_ATTRIBUTES,
     KIND,
     VERSION,
     PartitionedScene,
@@ -37,10 +38,6 @@ from .partitioned import (
 from .ply import PlyLayout, face_chunks, is_binary_ply, read_layout, read_positions
 
 __all__ = ["partition", "partition_streamed", "morton_order", "morton_codes", "MAX_PARTS"]
-
-# The per-face attributes of a Mesh a part keeps: shape of one face's value and dtype.
-FACE_ATTRIBUTES = {"corner_uv": ((3, 2), np.float64), "corner_normals": ((3, 3), np.float64),
-                   "face_colors": ((3,), np.uint8), "corner_colors": ((3, 3), np.uint8)}
 
 MAX_PARTS = 65536
 
@@ -96,10 +93,9 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
             stream = is_binary_ply(path) and read_layout(path).geometry_only
         if stream:
             return partition_streamed(path, parts, out, overwrite, progress=progress)
+        scene = load_scene(path)
     elif stream:
         raise PartitionError("stream=True reads a file: give its path")
-    if isinstance(scene, (str, os.PathLike)):
-        scene = load_scene(scene)
     scene = as_scene(scene)
     _check_parts(parts, scene.n_faces)
 
@@ -290,8 +286,12 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
     for p in range(parts):
         part_of[order[cuts[p]:cuts[p + 1]]] = p
     del order
-    # Pass 3: each chunk's faces to their part's scratch file, as (face id, corners).
-    for k, (*_, key) in enumerate(instances):
+    # Pass 3: each chunk's faces to their part's scratch file, as (face id, corners), and
+    # each part's world box from its corners (each instance placed once, not per part).
+    box_lo = np.full((parts, 3), np.inf)
+    box_hi = np.full((parts, 3), -np.inf)
+    for k, (_, _, model, key) in enumerate(instances):
+        world = _world(source.positions[key], model)
         for start, corners in source.face_chunks(key, chunk):
             at = offsets[k] + start
             mine = part_of[at:at + len(corners)]
@@ -300,7 +300,11 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
                 rows = np.column_stack([sel + at, corners[sel]]).astype(np.int64)
                 with open(os.path.join(scratch, f"{p}.faces"), "ab") as f:
                     rows.tofile(f)
+                placed = world[corners[sel].ravel()]
+                box_lo[p] = np.minimum(box_lo[p], placed.min(axis=0))
+                box_hi[p] = np.maximum(box_hi[p], placed.max(axis=0))
             bar.update(len(corners))
+        del world
     del part_of
     meta = _metadata(parts, source.n_faces, (lo, hi), [
         {"name": name, "mesh_name": mesh_name, "model": np.asarray(model).ravel().tolist(),
@@ -309,20 +313,18 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
     # Pass 4: one part at a time from its scratch file into the store.
     for p in range(parts):
         rows = np.fromfile(os.path.join(scratch, f"{p}.faces"), dtype=np.int64).reshape(-1, 4)
-        face_id, owner = rows[:, 0], np.searchsorted(offsets, rows[:, 0], side="right") - 1
-        positions, vertex_ids, faces, starts, corners_world = [], [], [], [0], []
-        for k, (_, _, model, key) in enumerate(instances):
+        face_id = rows[:, 0]
+        owner = instance_of(offsets, face_id)
+        positions, vertex_ids, faces, starts = [], [], [], [0]
+        for k, (*_, key) in enumerate(instances):
             local = rows[owner == k, 1:]
             vertices, remapped = np.unique(local, return_inverse=True)
             positions.append(source.positions[key][vertices])
             vertex_ids.append(vertices)
             faces.append(remapped.reshape(-1, 3) + starts[-1])
             starts.append(starts[-1] + len(vertices))
-            if len(local):
-                corners_world.append(_world(source.positions[key], model)[vertices])
-        box = np.concatenate(corners_world)
         _add_part(root, meta, p, {
-            "box": [box.min(axis=0).tolist(), box.max(axis=0).tolist()],
+            "box": [box_lo[p].tolist(), box_hi[p].tolist()],
             "positions": np.concatenate(positions), "vertex_id":
             np.concatenate(vertex_ids).astype(np.int64),
             "faces": np.concatenate(faces).astype(np.int64).reshape(-1, 3),
@@ -361,7 +363,7 @@ def _part_arrays(scene: Scene, offsets: np.ndarray, face_id: np.ndarray) -> dict
     """The arrays of one part: its faces (global ids ``face_id``, ascending) re-indexed
     into the model-space vertices they use, instance by instance, and their per-face
     attributes (zeros for the faces of instances that have none)."""
-    owner = np.searchsorted(offsets, face_id, side="right") - 1
+    owner = instance_of(offsets, face_id)
     positions, vertex_ids, faces, vertex_start = [], [], [], [0]
     attributes: dict = {}
     for k, inst in enumerate(scene.instances):

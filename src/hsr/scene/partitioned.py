@@ -29,7 +29,7 @@ import os
 import numpy as np
 
 from ..errors import HsrError
-from .mesh import Instance, Mesh, Scene
+from .mesh import Instance, Mesh, Scene, instance_of
 
 __all__ = ["PartitionError", "PartitionedScene", "open_partitioned", "is_partitioned"]
 
@@ -105,8 +105,8 @@ def _metadata_problem(meta: dict) -> str | None:
         if model.shape != (16,) or not np.isfinite(model).all() or not 0 <= opacity <= 1:
             return "an instance's model must be 16 finite numbers, its opacity in 0..1"
         attributes = inst.get("attributes")
-        if not isinstance(attributes, list) or not set(attributes) <= set(_ATTRIBUTES):
-            return f"an instance's attributes must be among {', '.join(_ATTRIBUTES)}"
+        if not isinstance(attributes, list) or not set(attributes) <= set(FACE_ATTRIBUTES):
+            return f"an instance's attributes must be among {', '.join(FACE_ATTRIBUTES)}"
         texture = inst.get("texture")
         if texture is not None and not isinstance(texture, str) and not (
                 isinstance(texture, dict) and isinstance(texture.get("array"), str)):
@@ -118,9 +118,10 @@ def _metadata_problem(meta: dict) -> str | None:
     return None
 
 
-# The per-face attributes a part may hold and the shape of one face's value.
-_ATTRIBUTES = {"corner_uv": (3, 2), "corner_normals": (3, 3), "face_colors": (3,),
-               "corner_colors": (3, 3)}
+# The per-face attributes of a Mesh a part may hold: the shape of one face's value and
+# the dtype they are stored in.
+FACE_ATTRIBUTES = {"corner_uv": ((3, 2), np.float64), "corner_normals": ((3, 3), np.float64),
+                   "face_colors": ((3,), np.uint8), "corner_colors": ((3, 3), np.uint8)}
 
 
 class PartitionedScene:
@@ -257,21 +258,21 @@ class PartitionedScene:
         if n_faces and (face_id.min() < 0 or face_id.max() >= self.n_faces
                         or np.any(np.diff(face_id) <= 0)):
             return "face_id must ascend strictly within 0..n_faces - 1"
-        owner = np.searchsorted(self.face_offsets(), face_id, side="right") - 1
+        owner = instance_of(self.face_offsets(), face_id)
         if n_faces and (np.any(faces < starts[owner][:, None])
                         or np.any(faces >= starts[owner + 1][:, None])):
             return "a face indexes a vertex outside its instance's range"
         for inst in self.instances:
             for name in inst["attributes"]:
-                if name not in arrays or arrays[name].shape != (n_faces,) + _ATTRIBUTES[name]:
+                shape = (n_faces,) + FACE_ATTRIBUTES[name][0]
+                if name not in arrays or arrays[name].shape != shape:
                     return f"{name} must hold one value per face"
         return None
 
     def _instance_runs(self, arrays: dict):
         """``(instance, its faces' mask, first vertex, end vertex)`` for each original
         instance with faces in the part whose ``arrays`` these are."""
-        offsets = self.face_offsets()
-        owner = np.searchsorted(offsets, arrays["face_id"], side="right") - 1
+        owner = instance_of(self.face_offsets(), arrays["face_id"])
         vertex_start = arrays["vertex_start"]
         for k in range(len(self.instances)):
             mine = owner == k

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MeshError
-from .files import check_regular
+from .files import MAX_STREAM_BYTES, check_regular
 
 __all__ = ["PlyLayout", "read_layout", "read_positions", "face_chunks", "is_binary_ply"]
 
@@ -26,7 +26,6 @@ _TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2
           "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
           "float64": "f8"}
 MAX_HEADER_BYTES = 1 << 16
-MAX_STREAM_BYTES = 1 << 42  # 4 TiB: streaming exists for files larger than memory
 
 
 @dataclass(frozen=True)
