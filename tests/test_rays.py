@@ -246,3 +246,63 @@ def test_empty_queries_and_bad_scenes():
         hsr.RayScene("missing.obj")
     with pytest.raises(hsr.HsrError):
         hsr.RayScene(hsr.scenes.cube(), threads=0)
+
+
+def test_a_bad_ray_deep_in_a_large_query_is_the_one_named():
+    """Rays are checked chunk by chunk while they are traced: the first bad ray of all
+    is reported, whichever chunk finishes first, and per-ray intervals are checked too."""
+    rays = hsr.RayScene(hsr.scenes.cube(), threads=2)
+    rng = np.random.default_rng(5)
+    origins, directions = random_rays(rays.scene.bounds(), 200_000, rng)
+    origins[150_001] = np.nan
+    directions[77_777] = 0.0
+    for query in (rays.cast, rays.occluded, rays.count):
+        with pytest.raises(RayError, match="ray 77777 is \\(0, 0, 0\\)"):
+            query(origins, directions)
+    t_max = np.full(len(origins), 5.0)
+    t_max[123_456] = 1.0
+    with pytest.raises(RayError, match="ray 123456 has t_min 2.0 > t_max 1.0"):
+        rays.cast(origins[:150_000], directions[:150_000] + 1.0, t_min=2.0,
+                  t_max=t_max[:150_000])
+
+
+def test_the_vector_box_test_equals_a_numpy_slab_test():
+    """hsr.algorithms.simd.box_entries4 (LLVM vector code) against the slab test written
+    here in NumPy on float64, lane by lane: boxes around, beside and behind the origin,
+    empty lanes (at +inf), thin boxes, and a bound cutting some boxes off."""
+    from numba import njit
+
+    from hsr.algorithms.simd import box_entries4
+
+    @njit
+    def entries(box, w, o, inv, bound):
+        return box_entries4(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound)
+
+    rng = np.random.default_rng(3)
+    n_boxes = 400
+    lo = rng.uniform(-2, 2, (n_boxes, 4, 3))
+    hi = lo + rng.exponential(0.5, (n_boxes, 4, 3)) * (rng.random((n_boxes, 4, 3)) > 0.1)
+    lo[::7, 3], hi[::7, 3] = np.inf, np.inf  # empty lanes
+    box = np.concatenate([lo.transpose(0, 2, 1).reshape(n_boxes, 12),
+                          hi.transpose(0, 2, 1).reshape(n_boxes, 12),
+                          np.zeros((n_boxes, 8))], axis=1).astype(np.float32)
+    lo32, hi32 = box[:, :12].reshape(n_boxes, 3, 4), box[:, 12:24].reshape(n_boxes, 3, 4)
+    checked = entered = 0
+    for w in range(n_boxes):
+        o = rng.uniform(-3, 3, 3)
+        aim = (lo[w, w % 3] + hi[w, w % 3]) / 2  # at a box, give or take
+        d = aim - o + rng.normal(0, 0.3, 3)
+        inv = 1.0 / d
+        bound = [np.inf, 1.7976931348623157e308, rng.uniform(0, 3)][w % 3]
+        bound = min(bound, 1.7976931348623157e308)
+        t0 = (lo32[w].astype(np.float64) - o[:, None]) * inv[:, None]
+        t1 = (hi32[w].astype(np.float64) - o[:, None]) * inv[:, None]
+        t_in = np.maximum(np.minimum(t0, t1).max(axis=0), 0.0)
+        t_out = np.maximum(t0, t1).min(axis=0)
+        want = np.where((t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound), t_in,
+                        np.inf)
+        got = np.array(entries(box, w, o, inv, bound))
+        np.testing.assert_array_equal(got, want)
+        checked += 4
+        entered += np.isfinite(want).sum()
+    assert 50 < entered < checked - 50  # both outcomes were exercised

@@ -377,10 +377,12 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
     u = cx * by - cy * bx
     v = ax * cy - ay * cx
     w = bx * ay - by * ax
-    if (u < 0.0 or v < 0.0 or w < 0.0) and (u > 0.0 or v > 0.0 or w > 0.0):
-        return -1.0, 0.0, 0.0, 0.0
     det = u + v + w
-    if det == 0.0:
+    # Outside when the edge values have mixed signs. One test of bitwise ands and ors,
+    # not short-circuit ones: each of those is a branch, and on incoherent rays their
+    # outcomes are coin flips.
+    if (((u < 0.0) | (v < 0.0) | (w < 0.0)) & ((u > 0.0) | (v > 0.0) | (w > 0.0))) | (
+            det == 0.0):
         return -1.0, 0.0, 0.0, 0.0
     if cull_code != 0:
         # Facing: the ray meets the counter-clockwise (front) side when the normal

@@ -21,12 +21,17 @@ import numpy as np
 from numba import njit
 
 from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame, sheared_corners
+from .simd import box_entries4
 
-__all__ = ["trace_range", "check_rays", "widen", "NEAREST", "ANY", "COUNT"]
+__all__ = ["trace_range", "check_rays", "widen", "pack_nodes", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
 # Children per node of the walked tree (the sorting network in trace_range is for four).
 LANES = 4
+# A walked node is one 128-byte record, two cache lines: 6 LANES float32 box bounds, then
+# LANES int32 references and LANES int32 counts (see pack_nodes).
+NODE_WORDS = 32
+REF, COUNT_AT = 6 * LANES, 7 * LANES
 
 
 @njit(cache=True, nogil=True)
@@ -115,38 +120,66 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
                 or (w == 0.0 and not _edge_owned(ax, ay, bx, by, flip)))
 
 
-@njit(cache=True, nogil=True)
-def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, wide_box,
-                wide_ref, wide_count, root_ref, root_count, wide_depth, face_offsets, out_t,
-                out_face, out_object, out_uv, out_normal, out_count):
-    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`widen` (the root a wide
-    node when ``root_count`` is 0, else a leaf of ``root_count`` slots from
-    ``root_ref``). ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss),
-    ``out_face`` (-1), ``out_object`` (the instance whose faces start at or before the
-    face in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and
-    ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY` writes
-    ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the number of
-    hits in ``out_count``. ``t_min`` / ``t_max`` are per ray. Equal nearest distances go
-    to the lower face id, so the answer does not depend on the walk (nor on how rays are
-    split between threads). Returns the triangle tests made.
+def pack_nodes(box, ref, count):
+    """The walked layout of :func:`widen`'s tree: ``(node_box, node_link)``, two views
+    of one buffer aligned to 64 bytes, each node a 128-byte record (two cache lines, one
+    read brings a node's boxes and references together): ``node_box`` (W, 32) float32,
+    the boxes in words 0 .. 23; ``node_link`` (W, 32) int32, the references in words
+    24 .. 27 and the counts in 28 .. 31 (int32: a scene has fewer than 2**31 faces,
+    which :class:`hsr.RayScene` checks). Separate int64 arrays were three records a
+    node, and random rays, whose nodes are rarely in cache, paid for each."""
+    n = len(box)
+    raw = np.empty(n * 4 * NODE_WORDS + 64, dtype=np.uint8)
+    start = -raw.ctypes.data % 64
+    record = raw[start:start + n * 4 * NODE_WORDS]
+    node_box = record.view(np.float32).reshape(n, NODE_WORDS)
+    node_link = record.view(np.int32).reshape(n, NODE_WORDS)
+    node_box[:, :REF] = box
+    node_link[:, REF:COUNT_AT] = ref
+    node_link[:, COUNT_AT:] = count
+    return node_box, node_link
 
-    The walk is ordered: at a wide node the four boxes are tested in one branch-free
-    loop (the compiler runs the lanes side by side); boxes the ray misses or enters
-    beyond the current bound are dropped, the nearest entered one is walked next and
-    the others pushed farthest first with their entry distances, each dropped when
-    popped if a hit nearer than it has been found meanwhile."""
+
+@njit(cache=True, nogil=True)
+def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
+                node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
+                out_object, out_uv, out_normal, out_count):
+    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`widen` in the layout of
+    :func:`pack_nodes` (the root a wide node when ``root_count`` is 0, else a leaf of
+    ``root_count`` slots from ``root_ref``). ``mode`` :data:`NEAREST` writes ``out_t``
+    (+inf on a miss), ``out_face`` (-1), ``out_object`` (the instance whose faces start
+    at or before the face in ``face_offsets``; -1), ``out_uv`` (the weights of corners
+    1 and 2) and ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY`
+    writes ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the
+    number of hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or one
+    for all (length 1). Equal nearest distances go to the lower face id, so the answer
+    does not depend on the walk (nor on how rays are split between threads).
+
+    The chunk's rays are checked first (:func:`check_rays`; their data is then in
+    cache for the walk); returns ``(tests, problem, ray)``: the triangle tests made, or
+    the first bad ray's problem and index with nothing traced.
+
+    The walk is ordered: at a wide node the four boxes are tested at once
+    (:func:`hsr.algorithms.simd.box_entries4`); boxes the ray misses or enters beyond
+    the current bound are dropped, the nearest entered one is walked next and the
+    others pushed farthest first with their entry distances, each dropped when popped
+    if a hit nearer than it has been found meanwhile."""
+    problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
+    if problem:
+        return 0, problem, bad
     size = (LANES - 1) * wide_depth + 2 * LANES
     stack_ref = np.empty(size, dtype=np.int64)
     stack_count = np.empty(size, dtype=np.int64)
     stack_t = np.empty(size)
-    entry = np.empty(LANES)
     sorted_t = np.empty(LANES)
     order = np.empty(LANES, dtype=np.int64)
+    per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     tests = 0
     for i in range(lo, hi):
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        t0, t1 = t_min[i], t_max[i]
+        t0 = t_min[i if per_ray[0] else 0]
+        t1 = t_max[i if per_ray[1] else 0]
         kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
         inv_dx = 1.0 / dx if dx != 0.0 else np.inf
         inv_dy = 1.0 / dy if dy != 0.0 else np.inf
@@ -164,13 +197,17 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         while walking:
             if n == 0:  # a wide node: its four children's boxes are in its record
                 if careful:
-                    for lane in range(LANES):
-                        t_in, t_out = _lane_span(wide_box, ref, lane, ox, oy, oz, inv_dx,
-                                                 inv_dy, inv_dz)
-                        hit = t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound
-                        entry[lane] = t_in if hit else np.inf
+                    k0 = _careful_entry(node_box, ref, 0, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz, bound)
+                    k1 = _careful_entry(node_box, ref, 1, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz, bound)
+                    k2 = _careful_entry(node_box, ref, 2, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz, bound)
+                    k3 = _careful_entry(node_box, ref, 3, ox, oy, oz, inv_dx, inv_dy,
+                                        inv_dz, bound)
                 else:
-                    _lanes(wide_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry)
+                    k0, k1, k2, k3 = box_entries4(node_box, ref, ox, oy, oz, inv_dx,
+                                                  inv_dy, inv_dz, bound)
                 # The lanes nearest first by a sorting network on (entry, lane) pairs
                 # (Knuth's five comparators for four keys) made of selects, not
                 # branches: which lanes a ray enters is what a random ray makes
@@ -178,31 +215,33 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                 # +inf); the nearest is walked next and the others pushed farthest
                 # first. All three pushes are written and the top moves by m - 1, so
                 # the pushes need no branch either (the stack has LANES slots spare).
-                k0, k1, k2, k3 = entry[0], entry[1], entry[2], entry[3]
                 k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
                 k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
                 k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
                 k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
                 k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
                 m = (k0 < np.inf) + (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
+                if m == 1:  # the common case below the top levels: nothing to push
+                    ref, n = node_link[ref, REF + l0], node_link[ref, COUNT_AT + l0]
+                    continue
                 if m > 0:
                     sorted_t[0], sorted_t[1], sorted_t[2], sorted_t[3] = k0, k1, k2, k3
                     order[0], order[1], order[2], order[3] = l0, l1, l2, l3
                     for j in range(LANES - 1):
                         s = max(m - 1 - j, 0)
                         lane = order[s]
-                        stack_ref[top + j] = wide_ref[ref, lane]
-                        stack_count[top + j] = wide_count[ref, lane]
+                        stack_ref[top + j] = node_link[ref, REF + lane]
+                        stack_count[top + j] = node_link[ref, COUNT_AT + lane]
                         stack_t[top + j] = sorted_t[s]
                     top += m - 1
-                    ref, n = wide_ref[ref, l0], wide_count[ref, l0]
+                    ref, n = node_link[ref, REF + l0], node_link[ref, COUNT_AT + l0]
                     continue
             else:  # a leaf: slots ref .. ref + n - 1
                 for k in range(ref, ref + n):
                     tests += 1
                     t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
                                             sz, 0, True, dx, dy, dz)
-                    if not (t0 <= t <= t1):
+                    if not ((t0 <= t) & (t <= t1)):
                         continue
                     if mode == 1:
                         count = 1
@@ -235,7 +274,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
             _hit_record(tris, best_k, best_f, face_offsets, out_object, out_normal, i)
         else:
             out_count[i] = count
-    return tests
+    return tests, 0, -1
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -259,31 +298,17 @@ def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _lanes(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, entry):
-    """``entry[lane]``: where the ray enters each of wide node ``w``'s four boxes, +inf
-    when it misses one or enters it beyond ``bound``. The slab test of
-    :func:`hsr.algorithms.bvh._box_entry` for rays with no zero direction component
-    (no 0 * inf), written without branches so the four lanes run side by side."""
-    for lane in range(LANES):
-        t0x, t1x, t0y, t1y, t0z, t1z = _lane_slabs(box, w, lane, ox, oy, oz, inv_dx,
-                                                   inv_dy, inv_dz)
-        t_in = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
-        t_out = min(min(max(t0x, t1x), max(t0y, t1y)), max(t0z, t1z))
-        hit = (t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound)
-        entry[lane] = t_in if hit else np.inf
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _lane_span(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
-    """(t_in, t_out) of the ray through lane ``lane``'s box of wide node ``w``, for a
-    ray with a zero direction component: 0 * inf (the ray in a slab's plane) is NaN,
-    and the closed slab holds such a ray for every t (see _box_entry)."""
+def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
+    """Where the ray enters lane ``lane``'s box of wide node ``w`` (+inf: missed, or
+    entered beyond ``bound``), for a ray with a zero direction component: 0 * inf (the
+    ray in a slab's plane) is NaN, and the closed slab holds such a ray for every t
+    (see _box_entry)."""
     t0x, t1x, t0y, t1y, t0z, t1z = _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy,
                                                inv_dz)
     t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
-    return t_in, t_out
+    return t_in if t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound else np.inf
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -315,11 +340,13 @@ def _hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
 
 
 @njit(cache=True, nogil=True)
-def check_rays(origins, directions, t_min, t_max):
-    """(problem, ray) of the first bad ray in one pass, (0, -1) when all are good.
-    Problems: 1 an origin not finite, 2 a direction not finite, 3 a zero direction,
-    4 t_min NaN or infinite, 5 t_max NaN, 6 t_min < 0, 7 t_min > t_max."""
-    for i in range(origins.shape[0]):
+def check_rays(lo, hi, origins, directions, t_min, t_max):
+    """(problem, ray) of the first bad ray of ``lo .. hi - 1``, (0, -1) when all are
+    good (``t_min`` / ``t_max`` per ray, or length 1 for all). Problems: 1 an origin
+    not finite, 2 a direction not finite, 3 a zero direction, 4 t_min NaN or infinite,
+    5 t_max NaN, 6 t_min < 0, 7 t_min > t_max."""
+    per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
+    for i in range(lo, hi):
         for a in range(3):
             if not np.isfinite(origins[i, a]):
                 return 1, i
@@ -327,12 +354,14 @@ def check_rays(origins, directions, t_min, t_max):
                 return 2, i
         if directions[i, 0] == 0.0 and directions[i, 1] == 0.0 and directions[i, 2] == 0.0:
             return 3, i
-        if not np.isfinite(t_min[i]):
+        t0 = t_min[i if per_ray[0] else 0]
+        t1 = t_max[i if per_ray[1] else 0]
+        if not np.isfinite(t0):
             return 4, i
-        if t_max[i] != t_max[i]:
+        if t1 != t1:
             return 5, i
-        if t_min[i] < 0.0:
+        if t0 < 0.0:
             return 6, i
-        if t_min[i] > t_max[i]:
+        if t0 > t1:
             return 7, i
     return 0, -1

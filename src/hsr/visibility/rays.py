@@ -89,25 +89,31 @@ class RayScene:
     def __init__(self, scene: SceneLike | str | os.PathLike,
                  threads: int | None = None) -> None:
         from ..algorithms.bvh import build
-        from ..algorithms.rays import LANES, widen
+        from ..algorithms.rays import LANES, pack_nodes, widen
+        from ..errors import MeshError
         from ..scene.load import load_scene
 
         check_threads(threads)
         if isinstance(scene, (str, os.PathLike)):
             scene = load_scene(scene)
         self.scene = as_scene(scene)
+        if self.scene.n_faces >= 2**31:  # the walk's references are int32
+            raise MeshError(f"a RayScene takes fewer than 2**31 faces, got "
+                            f"{self.scene.n_faces:,}")
         self.threads = threads
         self.bvh = build(self.scene)
         self.face_offsets = self.scene.face_offsets()
         bvh = self.bvh
+        self._leaf_face = bvh.tri_index.astype(np.int32)
         if bvh.node_left[0] >= 0:  # the walk's 4-wide layout (a one-leaf tree stays one)
-            self._wide = widen(bvh.node_min, bvh.node_max, bvh.node_left, bvh.node_start,
-                               bvh.node_count)
+            box, ref, count, depth = widen(bvh.node_min, bvh.node_max, bvh.node_left,
+                                           bvh.node_start, bvh.node_count)
             self._root = (0, 0)
         else:
-            self._wide = (np.full((1, 6 * LANES), np.inf, np.float32),
-                          np.zeros((1, LANES), np.int64), np.full((1, LANES), -1, np.int64), 0)
+            box = np.full((1, 6 * LANES), np.inf, np.float32)
+            ref, count, depth = np.zeros((1, LANES)), np.full((1, LANES), -1), 0
             self._root = (int(bvh.node_start[0]), int(bvh.node_count[0]))
+        self._nodes = (*pack_nodes(box, ref, count), depth)
 
     @property
     def n_faces(self) -> int:
@@ -165,39 +171,47 @@ class RayScene:
         n = len(origins)
         if n == 0:
             return
-        bvh = self.bvh
         if progress is None:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
-            box, ref, count, depth = self._wide
-            workers.run(trace_range, split_range(n, max(1, -(-n // CHUNK))), origins,
-                        directions, t0, t1, mode, bvh.corners, bvh.tri_index, box, ref,
-                        count, self._root[0], self._root[1], depth, self.face_offsets,
-                        *outputs,
-                        on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
+            node_box, node_link, depth = self._nodes
+            # Chunks of CHUNK rays or more, about 16 per thread: a chunk's hand-off
+            # costs tens of microseconds of Python.
+            chunk = max(CHUNK, n // (16 * workers.threads))
+            results = workers.run(
+                trace_range, split_range(n, max(1, -(-n // chunk))), origins, directions,
+                t0, t1, mode, self.bvh.corners, self._leaf_face, node_box, node_link,
+                self._root[0], self._root[1], depth, self.face_offsets, *outputs,
+                on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
+        # The rays are checked chunk by chunk as they are traced (their data is in cache
+        # then); the first bad ray of all is reported, whatever was traced.
+        bad = [(ray, problem) for _, problem, ray in results if problem]
+        if bad:
+            ray, problem = min(bad)
+            raise RayError(_problem(problem, ray, t0, t1))
 
     @staticmethod
     def _rays(origins, directions, t_min, t_max):
-        """(origins, directions, t_min, t_max) as contiguous float64 arrays of N rays."""
-        from ..algorithms.rays import check_rays
-
+        """(origins, directions) as contiguous (N, 3) float64 arrays, t_min and t_max as
+        float64 arrays of length N, or 1 for a value shared by all rays."""
         origins, directions = _broadcast(origins, directions)
         n = len(directions)
-        t0 = _interval(t_min, n, "t_min")
-        t1 = _interval(t_max, n, "t_max")
-        problem, k = check_rays(origins, directions, t0, t1)
-        if problem:
-            raise RayError({
-                1: f"origins must be finite; ray {k} is not",
-                2: f"directions must be finite; ray {k} is not",
-                3: f"directions must be non-zero; ray {k} is (0, 0, 0)",
-                4: f"t_min must be finite; ray {k} has {t0[k]!r}",
-                5: f"t_max must not be NaN; ray {k} has it",
-                6: f"t_min must be >= 0; ray {k} has {t0[k]!r}",
-                7: f"t_min must not exceed t_max; ray {k} has t_min {t0[k]!r} > "
-                   f"t_max {t1[k]!r}"}[problem])
-        return origins, directions, t0, t1
+        return origins, directions, _interval(t_min, n, "t_min"), _interval(t_max, n, "t_max")
+
+
+def _problem(problem: int, k: int, t0: np.ndarray, t1: np.ndarray) -> str:
+    """The message for :func:`hsr.algorithms.rays.check_rays`' problem at ray k."""
+    t_min = float(t0[k if len(t0) > 1 else 0])  # plain floats: numpy's repr is np.float64(..)
+    t_max = float(t1[k if len(t1) > 1 else 0])
+    return {1: f"origins must be finite; ray {k} is not",
+            2: f"directions must be finite; ray {k} is not",
+            3: f"directions must be non-zero; ray {k} is (0, 0, 0)",
+            4: f"t_min must be finite; ray {k} has {t_min!r}",
+            5: f"t_max must not be NaN; ray {k} has it",
+            6: f"t_min must be >= 0; ray {k} has {t_min!r}",
+            7: f"t_min must not exceed t_max; ray {k} has t_min {t_min!r} > "
+               f"t_max {t_max!r}"}[problem]
 
 
 def _real(values, what: str) -> np.ndarray:
@@ -229,10 +243,11 @@ def _broadcast(origins, directions):
 
 
 def _interval(value, n: int, what: str) -> np.ndarray:
-    """(n,) float64 from a scalar or (n,) array, NaN refused."""
+    """A float64 array of length n from an (n,) array, or of length 1 from a scalar
+    (shared by all rays; a million copies of it cost milliseconds to write)."""
     array = _real(value, what).astype(np.float64)
     if array.ndim == 0:
-        array = np.full(n, float(array))
+        return array.reshape(1)
     if array.shape != (n,):
         raise RayError(f"{what} must be a number or an array of shape ({n},), got "
                        f"{array.shape}")
