@@ -301,8 +301,9 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
         t_out = np.maximum(t0, t1).min(axis=0)
         want = np.where((t_in <= t_out * (1.0 + 4e-16) + 1e-300) & (t_in <= bound), t_in,
                         np.inf)
-        got = np.array(entries(box, w, o, inv, bound))
+        *got, mask = entries(box, w, o, inv, bound)
         np.testing.assert_array_equal(got, want)
+        assert mask == sum(1 << k for k in range(4) if want[k] < np.inf)
         checked += 4
         entered += np.isfinite(want).sum()
     assert 50 < entered < checked - 50  # both outcomes were exercised

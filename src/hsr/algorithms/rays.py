@@ -205,26 +205,31 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                                         inv_dz, bound)
                     k3 = _careful_entry(node_box, ref, 3, ox, oy, oz, inv_dx, inv_dy,
                                         inv_dz, bound)
+                    mask = ((k0 < np.inf) | (k1 < np.inf) << 1 | (k2 < np.inf) << 2
+                            | (k3 < np.inf) << 3)
                 else:
-                    k0, k1, k2, k3 = box_entries4(node_box, ref, ox, oy, oz, inv_dx,
-                                                  inv_dy, inv_dz, bound)
-                # The lanes nearest first by a sorting network on (entry, lane) pairs
-                # (Knuth's five comparators for four keys) made of selects, not
-                # branches: which lanes a ray enters is what a random ray makes
-                # unpredictable. The m entered lanes lead (a missed lane sorts last at
-                # +inf); the nearest is walked next and the others pushed farthest
-                # first. All three pushes are written and the top moves by m - 1, so
-                # the pushes need no branch either (the stack has LANES slots spare).
-                k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
-                k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
-                k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
-                k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
-                k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
-                m = (k0 < np.inf) + (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
-                if m == 1:  # the common case below the top levels: nothing to push
-                    ref, n = node_link[ref, REF + l0], node_link[ref, COUNT_AT + l0]
+                    k0, k1, k2, k3, mask = box_entries4(node_box, ref, ox, oy, oz, inv_dx,
+                                                        inv_dy, inv_dz, bound)
+                # Three of four nodes a ray visits enter none or one of their boxes
+                # (random rays at the bunny); those need no ordering.
+                if mask != 0 and mask & (mask - 1) == 0:  # one box: walk it, push nothing
+                    lane = (mask >> 1) - (mask >> 3)  # the set bit's index
+                    ref, n = node_link[ref, REF + lane], node_link[ref, COUNT_AT + lane]
                     continue
-                if m > 0:
+                if mask != 0:
+                    # The entered lanes nearest first by a sorting network on (entry,
+                    # lane) pairs (Knuth's five comparators for four keys) made of
+                    # selects, not branches. The m entered lanes lead (a missed lane
+                    # sorts last at +inf); the nearest is walked next and the others
+                    # pushed farthest first. All three pushes are written and the top
+                    # moves by m - 1, so the pushes need no branch either (the stack has
+                    # LANES slots spare).
+                    k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
+                    k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
+                    k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
+                    k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
+                    k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
+                    m = (k0 < np.inf) + (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
                     sorted_t[0], sorted_t[1], sorted_t[2], sorted_t[3] = k0, k1, k2, k3
                     order[0], order[1], order[2], order[3] = l0, l1, l2, l3
                     for j in range(LANES - 1):

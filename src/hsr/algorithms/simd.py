@@ -42,16 +42,17 @@ def _max(builder, x, y):
 
 @intrinsic
 def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
-    """``(e0, e1, e2, e3)``: where the ray enters each of the four boxes in row ``w`` of
+    """``(e0, e1, e2, e3, mask)``: where the ray enters each of the four boxes in row ``w`` of
     ``box`` (float32, a C-contiguous row starting with the lanes
     ``[lo_x * 4, lo_y * 4, lo_z * 4, hi_x * 4, hi_y * 4, hi_z * 4]``), +inf when it
     misses a box or enters it beyond ``bound``. The slab test (Kay and Kajiya 1986)
     for a ray with no zero direction component (no 0 * inf): t_in = max of the three
     slabs' near distances and 0, t_out = min of their far ones, entered when
     ``t_in <= t_out (1 + 4e-16) + 1e-300`` (the slack of
-    :func:`hsr.algorithms.bvh._box_entry`, which rounding of the distances needs)."""
-    sig = types.UniTuple(types.float64, 4)(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz,
-                                            bound)
+    :func:`hsr.algorithms.bvh._box_entry`, which rounding of the distances needs).
+    ``mask``: bit k set when box k is entered (an int64, 0 .. 15)."""
+    sig = types.Tuple((types.float64,) * 4 + (types.int64,))(box, w, ox, oy, oz, inv_dx,
+                                                             inv_dy, inv_dz, bound)
 
     def codegen(context, builder, sig, args):
         array, row, ox, oy, oz, ix, iy, iz, bound = args
@@ -85,6 +86,7 @@ def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
                                builder.fcmp_ordered("<=", t_in, _splat(builder, bound)))
         entry = builder.select(entered, t_in, ir.Constant(_D4, [float("inf")] * 4))
         values = [builder.extract_element(entry, ir.Constant(_I32, k)) for k in range(4)]
+        values.append(builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64)))
         return context.make_tuple(builder, sig.return_type, values)
 
     return sig, codegen
