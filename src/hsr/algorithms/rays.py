@@ -20,77 +20,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import _down32, _intersect, _up32, open_slabs, ray_frame, sheared_corners
+from .bvh import LANES, _intersect, careful_entries4, descend, next_box, ray_frame, sheared_corners
 from .simd import box_entries4
 
-__all__ = ["trace_range", "check_rays", "widen", "pack_nodes", "NEAREST", "ANY", "COUNT"]
+__all__ = ["trace_range", "check_rays", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
-# Children per node of the walked tree (the sorting network in trace_range is for four).
-LANES = 4
-# A walked node is one 128-byte record, two cache lines: 6 LANES float32 box bounds, then
-# LANES int32 references and LANES int32 counts (see pack_nodes).
-NODE_WORDS = 32
-REF, COUNT_AT = 6 * LANES, 7 * LANES
-
-
-@njit(cache=True, nogil=True)
-def widen(node_min, node_max, node_left, node_start, node_count):
-    """The binary BVH collapsed into a LANES-wide one (each wide node takes the two
-    children of a binary node and, while it has room, replaces the inner child of
-    largest surface area by that child's two children: Wald et al. 2008, "Getting rid of
-    packets"). Returns (box, ref, count, depth): box (W, 6 LANES) float32, the
-    children's boxes as lanes [lo_x.., lo_y.., lo_z.., hi_x.., hi_y.., hi_z..] rounded
-    outwards (an empty lane's box lies at +inf, so every ray misses it); ref, count
-    (W, LANES) int64: count > 0
-    a leaf's first slot and size, 0 a wide node's index, -1 an empty lane; depth the
-    deepest wide level. The root must be an inner node."""
-    n = node_left.shape[0]
-    box = np.full((max(n, 1), 6 * LANES), np.inf, dtype=np.float32)
-    ref = np.zeros((max(n, 1), LANES), dtype=np.int64)
-    count = np.full((max(n, 1), LANES), -1, dtype=np.int64)
-    todo_node = np.empty(n + 1, dtype=np.int64)  # binary node -> its wide node, to fill
-    todo_wide = np.empty(n + 1, dtype=np.int64)
-    todo_level = np.empty(n + 1, dtype=np.int64)
-    todo_node[0], todo_wide[0], todo_level[0] = 0, 0, 0
-    top, n_wide, depth = 1, 1, 0
-    kids = np.empty(LANES, dtype=np.int64)
-    while top > 0:
-        top -= 1
-        b, w, level = todo_node[top], todo_wide[top], todo_level[top]
-        depth = max(depth, level)
-        kids[0], kids[1] = node_left[b], node_left[b] + 1
-        m = 2
-        while m < LANES:
-            pick, best = -1, -1.0
-            for j in range(m):
-                c = kids[j]
-                if node_left[c] >= 0:
-                    dx = node_max[c, 0] - node_min[c, 0]
-                    dy = node_max[c, 1] - node_min[c, 1]
-                    dz = node_max[c, 2] - node_min[c, 2]
-                    area = dx * dy + dy * dz + dz * dx
-                    if area > best:
-                        pick, best = j, area
-            if pick < 0:
-                break
-            c = kids[pick]
-            kids[pick] = node_left[c]
-            kids[m] = node_left[c] + 1
-            m += 1
-        for lane in range(m):
-            c = kids[lane]
-            for a in range(3):
-                box[w, LANES * a + lane] = _down32(node_min[c, a])
-                box[w, LANES * (3 + a) + lane] = _up32(node_max[c, a])
-            if node_left[c] < 0:
-                ref[w, lane], count[w, lane] = node_start[c], node_count[c]
-            else:
-                ref[w, lane], count[w, lane] = n_wide, 0
-                todo_node[top], todo_wide[top], todo_level[top] = c, n_wide, level + 1
-                top += 1
-                n_wide += 1
-    return box[:n_wide].copy(), ref[:n_wide].copy(), count[:n_wide].copy(), depth
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -120,38 +55,19 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
                 or (w == 0.0 and not _edge_owned(ax, ay, bx, by, flip)))
 
 
-def pack_nodes(box, ref, count):
-    """The walked layout of :func:`widen`'s tree: ``(node_box, node_link)``, two views
-    of one buffer aligned to 64 bytes, each node a 128-byte record (two cache lines, one
-    read brings a node's boxes and references together): ``node_box`` (W, 32) float32,
-    the boxes in words 0 .. 23; ``node_link`` (W, 32) int32, the references in words
-    24 .. 27 and the counts in 28 .. 31 (int32: a scene has fewer than 2**31 faces,
-    which :class:`hsr.RayScene` checks). Separate int64 arrays were three records a
-    node, and random rays, whose nodes are rarely in cache, paid for each."""
-    n = len(box)
-    raw = np.empty(n * 4 * NODE_WORDS + 64, dtype=np.uint8)
-    start = -raw.ctypes.data % 64
-    record = raw[start:start + n * 4 * NODE_WORDS]
-    node_box = record.view(np.float32).reshape(n, NODE_WORDS)
-    node_link = record.view(np.int32).reshape(n, NODE_WORDS)
-    node_box[:, :REF] = box
-    node_link[:, REF:COUNT_AT] = ref
-    node_link[:, COUNT_AT:] = count
-    return node_box, node_link
-
-
 @njit(cache=True, nogil=True)
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
                 node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
                 out_object, out_uv, out_normal, out_count):
-    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`widen` in the layout of
-    :func:`pack_nodes` (the root a wide node when ``root_count`` is 0, else a leaf of
-    ``root_count`` slots from ``root_ref``). ``mode`` :data:`NEAREST` writes ``out_t``
-    (+inf on a miss), ``out_face`` (-1), ``out_object`` (the instance whose faces start
-    at or before the face in ``face_offsets``; -1), ``out_uv`` (the weights of corners
-    1 and 2) and ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY`
-    writes ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the
-    number of hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or one
+    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`hsr.algorithms.bvh.widen`
+    in the layout of :func:`hsr.algorithms.bvh.pack_nodes` (the root a wide node when
+    ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
+    ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss), ``out_face`` (-1),
+    ``out_object`` (the instance whose faces start at or before the face in
+    ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and
+    ``out_normal`` (the unit geometric normal as wound; 0); :data:`ANY` writes
+    ``out_count`` 1 or 0, stopping at the first hit; :data:`COUNT` writes the number of
+    hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or one
     for all (length 1). Equal nearest distances go to the lower face id, so the answer
     does not depend on the walk (nor on how rays are split between threads).
 
@@ -159,11 +75,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     cache for the walk); returns ``(tests, problem, ray)``: the triangle tests made, or
     the first bad ray's problem and index with nothing traced.
 
-    The walk is ordered: at a wide node the four boxes are tested at once
-    (:func:`hsr.algorithms.simd.box_entries4`); boxes the ray misses or enters beyond
-    the current bound are dropped, the nearest entered one is walked next and the
-    others pushed farthest first with their entry distances, each dropped when popped
-    if a hit nearer than it has been found meanwhile."""
+    The walk is the ordered one of :func:`hsr.algorithms.bvh.descend` and
+    :func:`hsr.algorithms.bvh.next_box`, pruned by the nearest hit so far (``mode``
+    NEAREST), by ``t_max`` otherwise."""
     problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
     if problem:
         return 0, problem, bad
@@ -171,8 +85,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     stack_ref = np.empty(size, dtype=np.int64)
     stack_count = np.empty(size, dtype=np.int64)
     stack_t = np.empty(size)
-    sorted_t = np.empty(LANES)
-    order = np.empty(LANES, dtype=np.int64)
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     tests = 0
     for i in range(lo, hi):
@@ -184,7 +96,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         inv_dx = 1.0 / dx if dx != 0.0 else np.inf
         inv_dy = 1.0 / dy if dy != 0.0 else np.inf
         inv_dz = 1.0 / dz if dz != 0.0 else np.inf
-        # A ray parallel to an axis needs the slab test's NaN care (see _box_entry).
+        # A ray parallel to an axis needs the slab test's NaN care (see open_slabs).
         careful = dx == 0.0 or dy == 0.0 or dz == 0.0
         best_t, best_f, best_k, bu, bv = np.inf, -1, -1, 0.0, 0.0
         count = 0
@@ -192,56 +104,22 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         # so that a missed box (entered at +inf) always fails the test.
         bound = min(t1, 1.7976931348623157e308)
         top = 0
-        ref, n = root_ref, root_count
+        ref, n = np.int64(root_ref), np.int64(root_count)
         walking = leaf_face.shape[0] > 0
         while walking:
-            if n == 0:  # a wide node: its four children's boxes are in its record
+            if n == 0:  # a wide node: walk on into its nearest entered box
                 if careful:
-                    k0 = _careful_entry(node_box, ref, 0, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz, bound)
-                    k1 = _careful_entry(node_box, ref, 1, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz, bound)
-                    k2 = _careful_entry(node_box, ref, 2, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz, bound)
-                    k3 = _careful_entry(node_box, ref, 3, ox, oy, oz, inv_dx, inv_dy,
-                                        inv_dz, bound)
-                    mask = ((k0 < np.inf) | (k1 < np.inf) << 1 | (k2 < np.inf) << 2
-                            | (k3 < np.inf) << 3)
+                    k0, k1, k2, k3, mask = careful_entries4(node_box, ref, ox, oy, oz, inv_dx,
+                                                            inv_dy, inv_dz, bound)
                 else:
                     k0, k1, k2, k3, mask = box_entries4(node_box, ref, ox, oy, oz, inv_dx,
                                                         inv_dy, inv_dz, bound)
-                # Three of four nodes a ray visits enter none or one of their boxes
-                # (random rays at the bunny); those need no ordering.
-                if mask != 0 and mask & (mask - 1) == 0:  # one box: walk it, push nothing
-                    lane = (mask >> 1) - (mask >> 3)  # the set bit's index
-                    ref, n = node_link[ref, REF + lane], node_link[ref, COUNT_AT + lane]
-                    continue
-                if mask != 0:
-                    # The entered lanes nearest first by a sorting network on (entry,
-                    # lane) pairs (Knuth's five comparators for four keys) made of
-                    # selects, not branches. The m entered lanes lead (a missed lane
-                    # sorts last at +inf); the nearest is walked next and the others
-                    # pushed farthest first. All three pushes are written and the top
-                    # moves by m - 1, so the pushes need no branch either (the stack has
-                    # LANES slots spare).
-                    k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
-                    k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
-                    k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
-                    k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
-                    k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
-                    m = (k0 < np.inf) + (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
-                    sorted_t[0], sorted_t[1], sorted_t[2], sorted_t[3] = k0, k1, k2, k3
-                    order[0], order[1], order[2], order[3] = l0, l1, l2, l3
-                    for j in range(LANES - 1):
-                        s = max(m - 1 - j, 0)
-                        lane = order[s]
-                        stack_ref[top + j] = node_link[ref, REF + lane]
-                        stack_count[top + j] = node_link[ref, COUNT_AT + lane]
-                        stack_t[top + j] = sorted_t[s]
-                    top += m - 1
-                    ref, n = node_link[ref, REF + l0], node_link[ref, COUNT_AT + l0]
+                ref, n, top, entered = descend(k0, k1, k2, k3, mask, ref, node_link, stack_ref,
+                                               stack_count, stack_t, top)
+                if entered:
                     continue
             else:  # a leaf: slots ref .. ref + n - 1
+                found = False
                 for k in range(ref, ref + n):
                     tests += 1
                     t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
@@ -249,8 +127,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                     if not ((t0 <= t) & (t <= t1)):
                         continue
                     if mode == 1:
-                        count = 1
-                        walking = False
+                        found = True
                         break
                     if mode == 2:
                         if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
@@ -261,16 +138,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                     if t < best_t or (t == best_t and f < best_f):
                         best_t, best_f, best_k, bu, bv = t, f, k, v, w
                         bound = t
-                if not walking:
+                if found:
+                    count = 1
                     break
-            # The next box still worth entering, from the stack.
-            walking = False
-            while top > 0:
-                top -= 1
-                if stack_t[top] <= bound:
-                    ref, n = stack_ref[top], stack_count[top]
-                    walking = True
-                    break
+            ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, bound)
         if mode == 0:
             out_t[i] = best_t
             out_face[i] = best_f
@@ -280,40 +151,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         else:
             out_count[i] = count
     return tests, 0, -1
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sorted_pair(ka, la, kb, lb):
-    """One comparator of a sorting network: the pairs (ka, la), (kb, lb) in order of
-    their keys, by selects (equal keys keep their order)."""
-    swap = kb < ka
-    return (kb if swap else ka), (lb if swap else la), (ka if swap else kb), (la if swap else lb)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
-    """The ray parameters (t0x, t1x, t0y, t1y, t0z, t1z) where the ray crosses the low
-    and high planes of lane ``lane``'s box of wide node ``w``, in float64."""
-    return ((np.float64(box[w, lane]) - ox) * inv_dx,
-            (np.float64(box[w, 3 * LANES + lane]) - ox) * inv_dx,
-            (np.float64(box[w, LANES + lane]) - oy) * inv_dy,
-            (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy,
-            (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz,
-            (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
-    """Where the ray enters lane ``lane``'s box of wide node ``w`` (+inf: missed, or
-    entered beyond ``bound``), for a ray with a zero direction component: 0 * inf (the
-    ray in a slab's plane) is NaN, and the closed slab holds such a ray for every t
-    (see _box_entry)."""
-    t0x, t1x, t0y, t1y, t0z, t1z = _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy,
-                                               inv_dz)
-    t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
-    t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
-    t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
-    return t_in if t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound else np.inf
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -6,8 +6,9 @@ with ``inspect_asm``: ``vmulsd``/``vminsd`` on ``xmm``, no ``ymm``), so the walk
 :func:`box_entries4` writes the same arithmetic on ``<4 x double>`` values through a
 Numba intrinsic: each operation of the scalar test (float32 bound widened to float64,
 subtract, multiply, min, max, compare) once for four lanes, in the same order and
-without fused multiply-adds, so every lane's result is bit for bit the scalar one. On
-a CPU without 256-bit vectors LLVM splits the operations; the results do not change.
+without fused multiply-adds, so every lane's result is bit for bit the scalar one
+(``_careful_entry`` without its NaN care). On a CPU without 256-bit vectors LLVM
+splits the operations; the results do not change.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     for a ray with no zero direction component (no 0 * inf): t_in = max of the three
     slabs' near distances and 0, t_out = min of their far ones, entered when
     ``t_in <= t_out (1 + 4e-16) + 1e-300`` (the slack of
-    :func:`hsr.algorithms.bvh._box_entry`, which rounding of the distances needs).
+    the scalar test, :func:`hsr.algorithms.bvh._careful_entry`, which rounding of the
+    distances needs).
     ``mask``: bit k set when box k is entered (an int64, 0 .. 15)."""
     sig = types.Tuple((types.float64,) * 4 + (types.int64,))(box, w, ox, oy, oz, inv_dx,
                                                              inv_dy, inv_dz, bound)

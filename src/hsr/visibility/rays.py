@@ -89,31 +89,15 @@ class RayScene:
     def __init__(self, scene: SceneLike | str | os.PathLike,
                  threads: int | None = None) -> None:
         from ..algorithms.bvh import build
-        from ..algorithms.rays import LANES, pack_nodes, widen
-        from ..errors import MeshError
         from ..scene.load import load_scene
 
         check_threads(threads)
         if isinstance(scene, (str, os.PathLike)):
             scene = load_scene(scene)
         self.scene = as_scene(scene)
-        if self.scene.n_faces >= 2**31:  # the walk's references are int32
-            raise MeshError(f"a RayScene takes fewer than 2**31 faces, got "
-                            f"{self.scene.n_faces:,}")
         self.threads = threads
         self.bvh = build(self.scene)
         self.face_offsets = self.scene.face_offsets()
-        bvh = self.bvh
-        self._leaf_face = bvh.tri_index.astype(np.int32)
-        if bvh.node_left[0] >= 0:  # the walk's 4-wide layout (a one-leaf tree stays one)
-            box, ref, count, depth = widen(bvh.node_min, bvh.node_max, bvh.node_left,
-                                           bvh.node_start, bvh.node_count)
-            self._root = (0, 0)
-        else:
-            box = np.full((1, 6 * LANES), np.inf, np.float32)
-            ref, count, depth = np.zeros((1, LANES)), np.full((1, LANES), -1), 0
-            self._root = (int(bvh.node_start[0]), int(bvh.node_count[0]))
-        self._nodes = (*pack_nodes(box, ref, count), depth)
 
     @property
     def n_faces(self) -> int:
@@ -175,14 +159,14 @@ class RayScene:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
-            node_box, node_link, depth = self._nodes
+            bvh = self.bvh
             # Chunks of CHUNK rays or more, about 16 per thread: a chunk's hand-off
             # costs tens of microseconds of Python.
             chunk = max(CHUNK, n // (16 * workers.threads))
             results = workers.run(
                 trace_range, split_range(n, max(1, -(-n // chunk))), origins, directions,
-                t0, t1, mode, self.bvh.corners, self._leaf_face, node_box, node_link,
-                self._root[0], self._root[1], depth, self.face_offsets, *outputs,
+                t0, t1, mode, bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
+                bvh.root_ref, bvh.root_count, bvh.wide_depth, self.face_offsets, *outputs,
                 on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
         # The rays are checked chunk by chunk as they are traced (their data is in cache
         # then); the first bad ray of all is reported, whatever was traced.
