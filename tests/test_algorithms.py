@@ -141,10 +141,31 @@ def test_ray_distance_and_barycentrics():
     assert np.abs(frame.fragments.buffers["barycentrics"][covered] - ref_bary[covered]).max() < 1e-9
 
 
-def test_bvh_invariants(models_dir):
+def _tree_shape(bvh):
+    """The tree as the nested (start, count, box) of its nodes, depth first, whatever
+    their numbering; every node must be reached exactly once from the root."""
+    seen = np.zeros(bvh.n_nodes, dtype=int)
+    shape, stack = [], [0]
+    while stack:
+        node = stack.pop()
+        seen[node] += 1
+        shape.append((bvh.node_start[node], bvh.node_count[node],
+                      *bvh.node_min[node], *bvh.node_max[node]))
+        if bvh.node_left[node] >= 0:
+            stack += [bvh.node_left[node] + 1, bvh.node_left[node]]
+    assert (seen == 1).all()  # no node twice, none unreachable (no gap left in the arrays)
+    return shape
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_bvh_invariants(models_dir, threads):
+    """cow: 5,804 faces, so with 2 or 3 threads the subtrees below the top are built in
+    parallel and their nodes renumbered; the tree must be the one thread's."""
     mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
-    bvh = rc.build(mesh)
+    bvh = rc.build(mesh, threads=threads)
+    assert _tree_shape(bvh) == _tree_shape(rc.build(mesh, threads=1))
     leaves = bvh.node_left < 0
+    assert leaves.sum() * 2 - 1 == bvh.n_nodes
     # Every non-degenerate triangle in exactly one leaf.
     in_leaves = np.concatenate([bvh.tri_index[s:s + c] for s, c in
                                 zip(bvh.node_start[leaves], bvh.node_count[leaves])])
@@ -160,6 +181,12 @@ def test_bvh_invariants(models_dir):
         tris = bvh.corners[slots]
         assert np.array_equal(tris, mesh.positions[mesh.faces[bvh.tri_index[slots]]])
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
+    # The walked 4-wide tree's leaves hold every slot once.
+    link = bvh.node_link[:, rc.REF:]
+    refs, counts = link[:, :rc.LANES], link[:, rc.LANES:]
+    slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
+                                                                counts[counts > 0])])
+    assert np.array_equal(np.sort(slots), np.arange(len(bvh.tri_index)))
 
 
 def test_bvh_reused_across_views(models_dir):

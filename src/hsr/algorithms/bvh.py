@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..parallel import split_range
+from ..parallel import Workers, split_range
 from ..scene.mesh import Scene, as_scene
 from .simd import box_entries4
 
@@ -85,8 +85,9 @@ class BVH:
         return len(self.node_left)
 
 
-def build(scene) -> BVH:
-    """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space.
+def build(scene, threads: int | None = None) -> BVH:
+    """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``
+    threads (default: numba's thread count; the tree does not depend on it).
 
     Raises :class:`~hsr.errors.MeshError` for something that is not a scene or mesh,
     or one of 2**31 faces or more.
@@ -99,7 +100,8 @@ def build(scene) -> BVH:
     tris = np.ascontiguousarray(world_triangles(scene))
     if len(tris) >= 2**31:  # the walk's references are int32
         raise MeshError(f"a BVH takes fewer than 2**31 faces, got {len(tris):,}")
-    arrays = _build(tris, _with_area(tris))
+    with Workers(threads) as workers:
+        arrays = _build(tris, _with_area(tris), workers)
     node_min, node_max, node_left, node_start, node_count, tri_index = arrays
     corners = tris[tri_index]
     if node_left[0] >= 0:
@@ -341,71 +343,119 @@ def next_box(stack_ref, stack_count, stack_t, top, bound):
     return np.int64(0), np.int64(0), top, False
 
 
-@njit(cache=True, nogil=True)
-def _build(tris, tri_index):
-    n = tri_index.shape[0]
+def _build(tris, tri_index, workers=None):
+    """The binary SAH tree over the slots ``tri_index`` (faces with area): (node_min,
+    node_max, node_left, node_start, node_count, leaf order of the faces).
+
+    In parallel (``workers``, :class:`hsr.parallel.Workers`): the top of the tree is
+    split on one thread until every open node holds at most 1 / (4 threads) of the
+    faces; those subtrees are then built on all threads at once (each in its own range
+    of faces and of node numbers, so no two threads write the same place), and the node
+    numbers closed up. The tree is the same as on one thread, node numbering aside.
+    """
+    n = len(tri_index)
+    prim, order = _prims(tris, tri_index)
     max_nodes = max(1, 2 * n)
-    node_min = np.empty((max_nodes, 3))
-    node_max = np.empty((max_nodes, 3))
-    node_left = np.full(max_nodes, -1, dtype=np.int64)
-    node_start = np.zeros(max_nodes, dtype=np.int64)
-    node_count = np.zeros(max_nodes, dtype=np.int64)
-    centroid = np.empty((n, 3))
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
+    nodes = (np.empty((max_nodes, 3)), np.empty((max_nodes, 3)),
+             np.full(max_nodes, -1, dtype=np.int64), np.zeros(max_nodes, dtype=np.int64),
+             np.zeros(max_nodes, dtype=np.int64))
+    nodes[4][0] = n  # the root holds every slot
+    threads = 1 if workers is None else workers.threads
+    cutoff = n // (4 * threads) if threads > 1 and n > 4096 else 0
+    pending = np.empty(max_nodes, dtype=np.int64)
+    # The top, on this thread: nodes of at most `cutoff` faces are left open.
+    n_top, n_pending = _grow(prim, order, *nodes, 0, 1, cutoff, pending)
+    pending = pending[:n_pending]
+    if n_pending == 0:
+        return (*(a[:n_top].copy() for a in nodes), order)
+    # Subtree k (c faces, at most 2c - 1 nodes) numbers its nodes from base[k].
+    base = n_top + np.concatenate([[0], np.cumsum(2 * nodes[4][pending] - 1)[:-1]])
+    each = np.stack([pending, base], axis=1).astype(np.int64)
+    ends = np.asarray(workers.run(_grow_subtree, np.arange(n_pending + 1), prim, order,
+                                  *nodes, each), dtype=np.int64)
+    _close_up(nodes[2], n_top, pending, base, ends)
+    keep = np.concatenate([np.arange(n_top)] + [np.arange(s, e) for s, e in zip(base, ends)])
+    return (*(a[keep] for a in nodes), order)
+
+
+@njit(cache=True, nogil=True)
+def _prims(tris, tri_index):
+    """(prim, order): each slot's box and centroid as one record [lo x3, hi x3,
+    centroid x3] (partitioned in place with ``order``, so every pass of the build reads
+    memory in sequence) and the slots' face ids."""
+    n = tri_index.shape[0]
+    prim = np.empty((n, 9))
     for k in range(n):
         t = tri_index[k]
         for a in range(3):
-            lo[k, a] = min(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
-            hi[k, a] = max(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
-            centroid[k, a] = 0.5 * (lo[k, a] + hi[k, a])
-    order = np.arange(n)
-    n_nodes = 1
-    node_start[0], node_count[0] = 0, n
-    stack = np.empty(max_nodes, dtype=np.int64)
-    stack[0] = 0
-    top = 1
+            lo = min(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
+            hi = max(tris[t, 0, a], tris[t, 1, a], tris[t, 2, a])
+            prim[k, a], prim[k, 3 + a], prim[k, 6 + a] = lo, hi, 0.5 * (lo + hi)
+    return prim, tri_index.copy()
+
+
+@njit(cache=True, nogil=True)
+def _grow_subtree(k, k_end, prim, order, node_min, node_max, node_left, node_start,
+                  node_count, each):
+    """Subtree ``k`` of :func:`_build`: node ``each[k, 0]`` split down to its leaves,
+    new nodes numbered from ``each[k, 1]``. Returns the next free number."""
+    root, base = each[k, 0], each[k, 1]
+    end, _ = _grow(prim, order, node_min, node_max, node_left, node_start, node_count,
+                   root, base, 0, np.empty(0, dtype=np.int64))
+    return end
+
+
+@njit(cache=True, nogil=True)
+def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, root,
+          next_node, cutoff, pending):
+    """Split node ``root`` (its slots node_start .. + node_count) and its descendants
+    until leaves of at most LEAF_SIZE faces, numbering new nodes from ``next_node``;
+    with ``cutoff`` > 0 a node of at most that many faces is left open and listed in
+    ``pending``. Returns (next free node number, number pending)."""
+    stack = [root]
+    n_pending = 0
     bin_lo = np.empty((N_BINS, 3))
     bin_hi = np.empty((N_BINS, 3))
     bin_n = np.empty(N_BINS, dtype=np.int64)
     left_cost = np.empty(N_BINS)
     right_cost = np.empty(N_BINS)
-    while top > 0:
-        top -= 1
-        node = stack[top]
+    while len(stack) > 0:
+        node = stack.pop()
         s, c = node_start[node], node_count[node]
-        for a in range(3):
-            node_min[node, a] = np.inf
-            node_max[node, a] = -np.inf
-        c_lo = np.full(3, np.inf)
-        c_hi = np.full(3, -np.inf)
+        # The node's box and the box of its faces' centroids, in one pass.
+        l0 = l1 = l2 = m0 = m1 = m2 = np.inf
+        h0 = h1 = h2 = n0 = n1 = n2 = -np.inf
         for k in range(s, s + c):
-            i = order[k]
-            for a in range(3):
-                node_min[node, a] = min(node_min[node, a], lo[i, a])
-                node_max[node, a] = max(node_max[node, a], hi[i, a])
-                c_lo[a] = min(c_lo[a], centroid[i, a])
-                c_hi[a] = max(c_hi[a], centroid[i, a])
+            l0, l1, l2 = min(l0, prim[k, 0]), min(l1, prim[k, 1]), min(l2, prim[k, 2])
+            h0, h1, h2 = max(h0, prim[k, 3]), max(h1, prim[k, 4]), max(h2, prim[k, 5])
+            m0, m1, m2 = min(m0, prim[k, 6]), min(m1, prim[k, 7]), min(m2, prim[k, 8])
+            n0, n1, n2 = max(n0, prim[k, 6]), max(n1, prim[k, 7]), max(n2, prim[k, 8])
+        node_min[node, 0], node_min[node, 1], node_min[node, 2] = l0, l1, l2
+        node_max[node, 0], node_max[node, 1], node_max[node, 2] = h0, h1, h2
         if c <= LEAF_SIZE:
+            continue
+        if c <= cutoff:
+            pending[n_pending] = node
+            n_pending += 1
             continue
         # Binned SAH over all three axes (Wald 2007): cost = area(L) n(L) + area(R) n(R),
         # the right sides' areas summed in one sweep from the right, the left in one
         # from the left.
         best_axis, best_split, best_cost = -1, -1, np.inf
         for a in range(3):
-            extent = c_hi[a] - c_lo[a]
+            c_lo = m0 if a == 0 else (m1 if a == 1 else m2)
+            extent = (n0 if a == 0 else (n1 if a == 1 else n2)) - c_lo
             if extent <= 0.0:
                 continue
             bin_n[:] = 0
             bin_lo[:] = np.inf
             bin_hi[:] = -np.inf
             for k in range(s, s + c):
-                i = order[k]
-                b = _bin_of(centroid[i, a], c_lo[a], extent)
+                b = _bin_of(prim[k, 6 + a], c_lo, extent)
                 bin_n[b] += 1
                 for d in range(3):
-                    bin_lo[b, d] = min(bin_lo[b, d], lo[i, d])
-                    bin_hi[b, d] = max(bin_hi[b, d], hi[i, d])
+                    bin_lo[b, d] = min(bin_lo[b, d], prim[k, d])
+                    bin_hi[b, d] = max(bin_hi[b, d], prim[k, 3 + d])
             _sweep(bin_lo, bin_hi, bin_n, 0, 1, left_cost, 1)  # bins 0 .. split - 1
             _sweep(bin_lo, bin_hi, bin_n, N_BINS - 1, -1, right_cost, 0)  # split .. last
             for split in range(1, N_BINS):
@@ -415,31 +465,42 @@ def _build(tris, tri_index):
         mid = s
         if best_axis >= 0:
             a = best_axis
-            extent = c_hi[a] - c_lo[a]
+            c_lo = m0 if a == 0 else (m1 if a == 1 else m2)
+            extent = (n0 if a == 0 else (n1 if a == 1 else n2)) - c_lo
             j = s + c - 1
             while mid <= j:
-                i = order[mid]
-                b = _bin_of(centroid[i, a], c_lo[a], extent)
-                if b < best_split:
+                if _bin_of(prim[mid, 6 + a], c_lo, extent) < best_split:
                     mid += 1
                 else:
                     order[mid], order[j] = order[j], order[mid]
+                    for q in range(9):
+                        prim[mid, q], prim[j, q] = prim[j, q], prim[mid, q]
                     j -= 1
         if mid == s or mid == s + c:  # no useful split: halve in index order
             mid = s + c // 2
-        left = n_nodes
-        n_nodes += 2
+        left = next_node
+        next_node += 2
         node_left[node] = left
         node_start[left], node_count[left] = s, mid - s
         node_start[left + 1], node_count[left + 1] = mid, s + c - mid
-        stack[top] = left
-        stack[top + 1] = left + 1
-        top += 2
-    leaf_tris = np.empty(n, dtype=np.int64)
-    for k in range(n):
-        leaf_tris[k] = tri_index[order[k]]
-    return (node_min[:n_nodes].copy(), node_max[:n_nodes].copy(), node_left[:n_nodes].copy(),
-            node_start[:n_nodes].copy(), node_count[:n_nodes].copy(), leaf_tris)
+        stack.append(left + 1)
+        stack.append(left)
+    return next_node, n_pending
+
+
+@njit(cache=True, nogil=True)
+def _close_up(node_left, n_top, pending, base, ends):
+    """Renumber child references for the node arrays with the gaps between subtrees
+    closed (subtree k's nodes base[k] .. ends[k] - 1 move to just after subtree
+    k - 1's): those inside subtree k and its root's, ``pending[k]``."""
+    start = n_top
+    for k in range(base.shape[0]):
+        shift = base[k] - start
+        node_left[pending[k]] -= shift
+        for node in range(base[k], ends[k]):
+            if node_left[node] >= 0:
+                node_left[node] -= shift
+        start += ends[k] - base[k]
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -48,7 +48,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         used = None
     else:
         if bvh is None:
-            bvh = build(view.scene)
+            bvh = build(view.scene, workers.threads)
         elif not isinstance(bvh, BVH):
             raise RenderError(f"raycast option bvh must be an hsr.raycast.BVH (from "
                               f"hsr.raycast.build), got {type(bvh).__name__}")

@@ -96,7 +96,7 @@ class RayScene:
             scene = load_scene(scene)
         self.scene = as_scene(scene)
         self.threads = threads
-        self.bvh = build(self.scene)
+        self.bvh = build(self.scene, threads)
         self.face_offsets = self.scene.face_offsets()
 
     @property
