@@ -29,7 +29,7 @@ from ..scene.mesh import Scene, as_scene
 from .simd import box_entries4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
-           "careful_entries4", "descend", "next_box"]
+           "careful_entries4", "descend", "next_box", "careful_packet_entries"]
 
 LEAF_SIZE = 4
 N_BINS = 16
@@ -321,6 +321,21 @@ def descend(k0, k1, k2, k3, mask, ref, node_link, stack_ref, stack_count, stack_
     _push(stack_ref, stack_count, stack_t, top + 2, node_link, ref, l1, k1)
     return (np.int64(node_link[ref, REF + l0]), np.int64(node_link[ref, COUNT_AT + l0]),
             top + m, True)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def careful_packet_entries(box, w, rays, bound, out):
+    """:func:`hsr.algorithms.simd.packet_entries4` ray by ray with the NaN care of
+    :func:`_careful_entry`, for a packet holding a ray with a zero direction
+    component."""
+    mask = 0
+    for r in range(4):
+        for k in range(LANES):
+            e = _careful_entry(box, w, k, rays[0, r], rays[1, r], rays[2, r], rays[3, r],
+                               rays[4, r], rays[5, r], bound[r])
+            out[k, r] = e
+            mask |= (e < np.inf) << (4 * k + r)
+    return mask
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -17,7 +17,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_entries4"]
+__all__ = ["box_entries4", "packet_entries4"]
 
 _I32 = ir.IntType(32)
 _F4 = ir.VectorType(ir.FloatType(), 4)
@@ -41,6 +41,42 @@ def _max(builder, x, y):
     return builder.select(builder.fcmp_ordered(">", x, y), x, y)
 
 
+def _i64(value):
+    return ir.Constant(ir.IntType(64), value)
+
+
+def _row_pointer(context, builder, array_type, array, row):
+    """A float* to the start of row ``row`` of a 2-D float32 array."""
+    ary = context.make_array(array_type)(context, builder, array)
+    stride = cgutils.unpack_tuple(builder, ary.strides, 2)[0]
+    raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+    return builder.bitcast(builder.gep(raw, [builder.mul(row, stride)]),
+                           ir.FloatType().as_pointer())
+
+
+def _slab_test(builder, planes, origin, inv, bound):
+    """(entry, entered) per lane: the slab test on four lanes of float64 vectors,
+    ``planes`` the six bounds (lo x, y, z, hi x, y, z), ``origin`` and ``inv`` the
+    ray's three coordinates, ``bound`` the farthest entry kept. Every operation is the
+    scalar test's (Kay and Kajiya 1986), in its order: t_in = max of the slabs' near
+    distances and 0, t_out = min of their far ones, entered when
+    ``t_in <= t_out (1 + 4e-16) + 1e-300`` and ``t_in <= bound``."""
+    near, far = [], []
+    for a in range(3):
+        t0 = builder.fmul(builder.fsub(planes[a], origin[a]), inv[a])
+        t1 = builder.fmul(builder.fsub(planes[3 + a], origin[a]), inv[a])
+        near.append(_min(builder, t0, t1))
+        far.append(_max(builder, t0, t1))
+    zero = ir.Constant(_D4, [0.0] * 4)
+    t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
+    t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
+    slack = builder.fadd(builder.fmul(t_out, ir.Constant(_D4, [1.0 + 4e-16] * 4)),
+                         ir.Constant(_D4, [1e-300] * 4))
+    entered = builder.and_(builder.fcmp_ordered("<=", t_in, slack),
+                           builder.fcmp_ordered("<=", t_in, bound))
+    return builder.select(entered, t_in, ir.Constant(_D4, [float("inf")] * 4)), entered
+
+
 @intrinsic
 def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     """``(e0, e1, e2, e3, mask)``: where the ray enters each of the four boxes in row ``w`` of
@@ -59,36 +95,58 @@ def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     def codegen(context, builder, sig, args):
         array, row, ox, oy, oz, ix, iy, iz, bound = args
         row = context.cast(builder, row, sig.args[1], types.intp)
-        ary = context.make_array(sig.args[0])(context, builder, array)
-        stride = cgutils.unpack_tuple(builder, ary.strides, 2)[0]
-        raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
-        base = builder.bitcast(builder.gep(raw, [builder.mul(row, stride)]),
-                               ir.FloatType().as_pointer())
+        base = _row_pointer(context, builder, sig.args[0], array, row)
 
-        def lanes(k):
-            """The k-th group of four float32 values of the row, as float64."""
-            p = builder.bitcast(builder.gep(base, [ir.Constant(ir.IntType(64), 4 * k)]),
-                                _F4.as_pointer())
+        def lanes(q):
+            """Bound q (lo x, y, z, hi x, y, z) of the four boxes, as float64."""
+            p = builder.bitcast(builder.gep(base, [_i64(4 * q)]), _F4.as_pointer())
             return builder.fpext(builder.load(p, align=4), _D4)
 
-        origin = [_splat(builder, x) for x in (ox, oy, oz)]
-        inv = [_splat(builder, x) for x in (ix, iy, iz)]
-        near, far = [], []
-        for a in range(3):
-            t0 = builder.fmul(builder.fsub(lanes(a), origin[a]), inv[a])
-            t1 = builder.fmul(builder.fsub(lanes(3 + a), origin[a]), inv[a])
-            near.append(_min(builder, t0, t1))
-            far.append(_max(builder, t0, t1))
-        zero = ir.Constant(_D4, [0.0] * 4)
-        t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
-        t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
-        slack = builder.fadd(builder.fmul(t_out, ir.Constant(_D4, [1.0 + 4e-16] * 4)),
-                             ir.Constant(_D4, [1e-300] * 4))
-        entered = builder.and_(builder.fcmp_ordered("<=", t_in, slack),
-                               builder.fcmp_ordered("<=", t_in, _splat(builder, bound)))
-        entry = builder.select(entered, t_in, ir.Constant(_D4, [float("inf")] * 4))
+        entry, entered = _slab_test(builder, [lanes(q) for q in range(6)],
+                                    [_splat(builder, x) for x in (ox, oy, oz)],
+                                    [_splat(builder, x) for x in (ix, iy, iz)],
+                                    _splat(builder, bound))
         values = [builder.extract_element(entry, ir.Constant(_I32, k)) for k in range(4)]
         values.append(builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64)))
         return context.make_tuple(builder, sig.return_type, values)
+
+    return sig, codegen
+
+
+@intrinsic
+def packet_entries4(typingctx, box, w, rays, bound, out):
+    """The slab test of :func:`box_entries4` for four rays at once (a packet; Wald et
+    al. 2001) against each of the four boxes of row ``w``: ``rays`` (6, 4) float64, the
+    rows origin x, y, z and inverse direction x, y, z of the four rays; ``bound`` (4,)
+    each ray's bound. Writes ``out[k, r]``, where ray r enters box k (+inf: missed, or
+    entered beyond its bound), and returns the mask of entries, bit ``4 k + r``. The
+    lanes are rays here, not boxes: each ray's arithmetic is the scalar test's, in the
+    same order, so its entries are bit for bit those of the one-ray test."""
+    sig = types.int64(box, w, rays, bound, out)
+
+    def codegen(context, builder, sig, args):
+        array, row, rays, bound, out = args
+        row = context.cast(builder, row, sig.args[1], types.intp)
+        base = _row_pointer(context, builder, sig.args[0], array, row)
+
+        def vectors(ty, value):
+            data = context.make_array(ty)(context, builder, value).data
+            return builder.bitcast(data, _D4.as_pointer())
+
+        ray = vectors(sig.args[2], rays)
+        origin = [builder.load(builder.gep(ray, [_i64(a)]), align=8) for a in range(3)]
+        inv = [builder.load(builder.gep(ray, [_i64(3 + a)]), align=8) for a in range(3)]
+        limit = builder.load(vectors(sig.args[3], bound), align=8)
+        entries = vectors(sig.args[4], out)
+        mask = _i64(0)
+        for k in range(4):
+            # Bound q (lo x, y, z, hi x, y, z) of box k, in all four lanes.
+            planes = [_splat(builder, builder.fpext(builder.load(builder.gep(
+                base, [_i64(4 * q + k)])), ir.DoubleType())) for q in range(6)]
+            entry, entered = _slab_test(builder, planes, origin, inv, limit)
+            builder.store(entry, builder.gep(entries, [_i64(k)]), align=8)
+            bits = builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64))
+            mask = builder.or_(mask, builder.shl(bits, _i64(4 * k)))
+        return mask
 
     return sig, codegen
