@@ -103,7 +103,11 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
         t0 = t_min[i if per_ray[0] else 0]
         t1 = t_max[i if per_ray[1] else 0]
-        kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
+        # The triangle test's frame, made at the first leaf: three of four random rays
+        # at the bunny reach none.
+        framed = False
+        kx = ky = kz = 0
+        sx = sy = sz = okx = oky = okz = 0.0
         inv_dx = 1.0 / dx if dx != 0.0 else np.inf
         inv_dy = 1.0 / dy if dy != 0.0 else np.inf
         inv_dz = 1.0 / dz if dz != 0.0 else np.inf
@@ -131,6 +135,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                     continue
             else:  # a leaf: slots ref .. ref + n - 1
                 found = False
+                if not framed:
+                    kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx,
+                                                                      dy, dz)
+                    framed = True
                 for k in range(ref, ref + n):
                     tests += 1
                     t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
