@@ -697,11 +697,11 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                             continue
                     else:  # a leaf: its slots ref .. ref + n - 1
                         for k in range(ref, ref + n):
-                            f = leaf_face[k]
                             tests += 1
                             t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx,
                                                     sy, sz, cull_code, front_ccw, dx, dy, dz)
-                            if 0.0 <= t <= 1.0:
+                            if (0.0 <= t) & (t <= 1.0):
+                                f = leaf_face[k]
                                 z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
                                 if best_f < 0 or z < best_z or (z == best_z and (
                                         f > best_f if lequal else f < best_f)):
