@@ -338,6 +338,16 @@ def careful_packet_entries(box, w, rays, bound, out):
     return mask
 
 
+@njit(cache=True, nogil=True)
+def walk_stack(wide_depth):
+    """(references, counts, entries) of a walk's stack: each wide node walked leaves at
+    most three siblings behind, plus the spare slots :func:`descend` writes. Sized once
+    per walk: an array re-bound inside the loop (grown on demand) costs reference
+    counting at every step, more than doubling the walk's time."""
+    size = (LANES - 1) * wide_depth + 2 * LANES
+    return np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64), np.empty(size)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _push(stack_ref, stack_count, stack_t, at, node_link, ref, lane, t):
     """Stack slot ``at``: lane ``lane`` of wide node ``ref``, entered at ``t``."""
@@ -644,13 +654,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
     """Rows r_lo .. r_hi - 1. With ``use_bvh``, ``tris`` holds the BVH's corners in leaf
     order and ``leaf_face`` each slot's face id; without, the faces in order."""
     n_tris = tris.shape[0]
-    # Each wide node walked leaves at most three siblings behind, plus the spare slots
-    # descend writes. Sized once: an array re-bound inside the loop (grown on demand)
-    # costs reference counting at every step, more than doubling the walk's time.
-    size = (LANES - 1) * wide_depth + 2 * LANES
-    stack_ref = np.empty(size, dtype=np.int64)
-    stack_count = np.empty(size, dtype=np.int64)
-    stack_t = np.empty(size)
+    stack_ref, stack_count, stack_t = walk_stack(wide_depth)
     tests = 0
     for r in range(r_lo, r_hi):
         y_ndc = 1.0 - (r + 0.5) * 2.0 / height

@@ -22,7 +22,6 @@ from numba import njit
 
 from .bvh import (
     COUNT_AT,
-    LANES,
     REF,
     _intersect,
     careful_entries4,
@@ -31,6 +30,7 @@ from .bvh import (
     next_box,
     ray_frame,
     sheared_corners,
+    walk_stack,
 )
 from .simd import box_entries4, packet_entries4
 
@@ -92,10 +92,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
     if problem:
         return 0, problem, bad
-    size = (LANES - 1) * wide_depth + 2 * LANES
-    stack_ref = np.empty(size, dtype=np.int64)
-    stack_count = np.empty(size, dtype=np.int64)
-    stack_t = np.empty(size)
+    stack_ref, stack_count, stack_t = walk_stack(wide_depth)
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     tests = 0
     for i in range(lo, hi):
@@ -190,11 +187,9 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
     problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
     if problem:
         return 0, problem, bad
-    size = (LANES - 1) * wide_depth + 2 * LANES
-    stack_ref = np.empty(size, dtype=np.int64)
-    stack_count = np.empty(size, dtype=np.int64)
-    stack_rays = np.empty(size, dtype=np.int64)
-    stack_t = np.empty((size, 4))
+    stack_ref, stack_count, _ = walk_stack(wide_depth)
+    stack_rays = np.empty(len(stack_ref), dtype=np.int64)
+    stack_t = np.empty((len(stack_ref), 4))  # each ray's entry
     rays = np.empty((6, 4))  # origin x, y, z and inverse direction x, y, z per ray
     frame = np.empty((11, 4))  # sx, sy, sz, okx, oky, okz, dx, dy, dz, t_min, t_max
     axes = np.empty((3, 4), dtype=np.int64)
@@ -244,8 +239,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                 # as an inlined function taking the arrays it ran 40% slower (Numba
                 # counts references to arrays handed to an inlined function).
                 mask16 &= active * 0x1111
-                entered = mask16 != 0
-                if entered:
+                if mask16 != 0:
                     c0, c1 = mask16 & 15, (mask16 >> 4) & 15
                     c2, c3 = (mask16 >> 8) & 15, mask16 >> 12
                     k0, k1, k2, k3 = (_nearest(entries, 0, c0), _nearest(entries, 1, c1),
@@ -255,31 +249,17 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                     k0, l0, c0, k2, l2, c2 = _sorted_triple(k0, l0, c0, k2, l2, c2)
                     k1, l1, c1, k3, l3, c3 = _sorted_triple(k1, l1, c1, k3, l3, c3)
                     k1, l1, c1, k2, l2, c2 = _sorted_triple(k1, l1, c1, k2, l2, c2)
-                    if c3 != 0:
-                        stack_ref[top] = node_link[ref, REF + l3]
-                        stack_count[top] = node_link[ref, COUNT_AT + l3]
-                        stack_rays[top] = c3
-                        stack_t[top, 0], stack_t[top, 1] = entries[l3, 0], entries[l3, 1]
-                        stack_t[top, 2], stack_t[top, 3] = entries[l3, 2], entries[l3, 3]
-                        top += 1
-                    if c2 != 0:
-                        stack_ref[top] = node_link[ref, REF + l2]
-                        stack_count[top] = node_link[ref, COUNT_AT + l2]
-                        stack_rays[top] = c2
-                        stack_t[top, 0], stack_t[top, 1] = entries[l2, 0], entries[l2, 1]
-                        stack_t[top, 2], stack_t[top, 3] = entries[l2, 2], entries[l2, 3]
-                        top += 1
-                    if c1 != 0:
-                        stack_ref[top] = node_link[ref, REF + l1]
-                        stack_count[top] = node_link[ref, COUNT_AT + l1]
-                        stack_rays[top] = c1
-                        stack_t[top, 0], stack_t[top, 1] = entries[l1, 0], entries[l1, 1]
-                        stack_t[top, 2], stack_t[top, 3] = entries[l1, 2], entries[l1, 3]
-                        top += 1
+                    for lane, rays_in in ((l3, c3), (l2, c2), (l1, c1)):
+                        if rays_in != 0:
+                            stack_ref[top] = node_link[ref, REF + lane]
+                            stack_count[top] = node_link[ref, COUNT_AT + lane]
+                            stack_rays[top] = rays_in
+                            stack_t[top, 0], stack_t[top, 1] = entries[lane, 0], entries[lane, 1]
+                            stack_t[top, 2], stack_t[top, 3] = entries[lane, 2], entries[lane, 3]
+                            top += 1
                     ref, n = (np.int64(node_link[ref, REF + l0]),
                               np.int64(node_link[ref, COUNT_AT + l0]))
                     active = c0
-                if entered:
                     continue
             else:  # a leaf: each walking ray tests its triangles
                 for r in range(4):
