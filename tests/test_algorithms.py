@@ -232,3 +232,28 @@ def test_deep_unbalanced_bvh_walks_like_the_naive_loop():
         assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
         seen |= set(np.unique(a.face_id).tolist())
     assert len(seen) > 4
+
+
+def test_deep_unbalanced_bvh_built_in_parallel_is_the_same_tree():
+    """5,000 triangles at x = 2^k/8 ... (a tree far deeper than balanced, as in the test
+    above, but large enough for the parallel build): the subtrees built on two and
+    three threads, renumbered and closed up, make the one thread's tree, and the ray
+    caster walks it like the naive loop."""
+    n = 5000
+    x = 2.0 ** (np.arange(n) / 8.0 - 300.0)
+    z = -1.0 - 1e-4 * np.arange(n)
+    one = np.ones(n)
+    corners = np.stack([np.stack([x, -one, z], 1), np.stack([1.5 * x, -one, z], 1),
+                        np.stack([x, one, z], 1)], 1)
+    mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    one_thread = _tree_shape(rc.build(mesh, threads=1))
+    for threads in (2, 3):
+        bvh = rc.build(mesh, threads=threads)
+        assert _tree_shape(bvh) == one_thread
+    assert bvh.wide_depth > 2 * np.log(n) / np.log(4)
+    cam = hsr.Camera(eye=(1e-3, 0, 2), target=(1e-3, 0, -1), up=(0, 1, 0), fov_y=60,
+                     near=0.1, far=100)
+    a = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"bvh": bvh})
+    b = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"accel": "none"})
+    assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
+    assert (a.face_id >= 0).mean() > 0.2
