@@ -408,3 +408,19 @@ def test_huge_finite_rays_are_not_refused():
     hits = rays.cast(origins, directions, t_max=1e300)
     assert hits.face_id[0] == -1 and hits.face_id[1] >= 0
     assert rays.count(origins, directions).tolist() == [0, 2]
+
+
+def test_bad_rays_in_a_coherent_query_raise_only_the_error():
+    """Camera-like rays with a zero direction and a NaN origin among them: the check for
+    packets meets them first and must stay quiet (no NumPy warning), the walk refuses."""
+    import warnings
+
+    rays = hsr.RayScene(hsr.scenes.cube())
+    origins = np.tile([0.0, 0.0, 5.0], (4000, 1))
+    directions = np.tile([0.0, 0.0, -1.0], (4000, 1)) + np.linspace(0, 1e-3, 4000)[:, None]
+    directions[8] = 0.0
+    origins[12] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(RayError, match="ray 8 is \\(0, 0, 0\\)"):
+            rays.cast(origins, directions)

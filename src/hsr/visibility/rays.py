@@ -201,9 +201,10 @@ def _coherent(origins: np.ndarray, directions: np.ndarray, size: float) -> bool:
     first = np.linspace(0, n_runs - 1, min(256, n_runs)).astype(np.int64) * 4
     index = first[:, None] + np.arange(4)
     o, d = origins[index], directions[index]
-    unit = d / np.linalg.norm(d, axis=2, keepdims=True)
-    close = (np.abs(o - o[:, :1]).max(axis=(1, 2)) <= 1e-2 * size) & (
-        np.einsum("rkc,rc->rk", unit, unit[:, 0]).min(axis=1) >= 0.999)
+    with np.errstate(all="ignore"):  # bad rays (NaN, zero) are refused by the walk
+        unit = d / np.linalg.norm(d, axis=2, keepdims=True)
+        close = (np.abs(o - o[:, :1]).max(axis=(1, 2)) <= 1e-2 * size) & (
+            np.einsum("rkc,rc->rk", unit, unit[:, 0]).min(axis=1) >= 0.999)
     return bool(close.mean() >= 0.75)
 
 
