@@ -17,8 +17,9 @@ its scene lazily), Embree's likewise. Each query runs in blocks of ``--repeat`` 
 alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
 (below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
 (``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``
-(``--only-batch`` runs just that). Runs on demand, never in the test suite; a missing peer
-is left out.
+(``--only-batch`` runs just that). ``--memory`` prints instead the resident memory a
+ray scene adds per face, hsr's and Open3D's, each built in a fresh process. Runs on
+demand, never in the test suite; a missing peer is left out.
 """
 
 from __future__ import annotations
@@ -149,6 +150,41 @@ def batch_vs_open3d(views: int, size: int) -> None:
           f"{theirs / mine:.2f}")
 
 
+def scene_memory(spec: str, peer: str) -> float | None:
+    """Bytes per face that building a ray scene of ``spec`` adds to a fresh process's
+    resident memory (hsr's ``RayScene``, or Open3D's ``RaycastingScene`` after its
+    first query commits it), the model loaded before the first reading; None without
+    the peer."""
+    import subprocess
+
+    code = f"""
+import gc, os, sys
+import numpy as np
+sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
+from common import load_model
+import hsr
+def rss():
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+mesh, _ = load_model({spec!r})
+if {peer!r} == "hsr":
+    hsr.RayScene(hsr.scenes.cube())  # compiled code is not the scene's
+    gc.collect(); before = rss()
+    scene = hsr.RayScene(mesh)
+else:
+    import open3d as o3d
+    gc.collect(); before = rss()
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(mesh.positions.astype(np.float32)),
+                        o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    scene.cast_rays(o3d.core.Tensor(np.zeros((1, 6), np.float32)))
+gc.collect()
+print((rss() - before) / mesh.n_faces)
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    return float(done.stdout.split()[-1]) if done.returncode == 0 else None
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", default=[
@@ -160,9 +196,20 @@ def main(argv=None):
                         help="views of the batch comparison (0: skip it)")
     parser.add_argument("--batch-size", type=int, default=512)
     parser.add_argument("--only-batch", action="store_true", help="just the batch comparison")
+    parser.add_argument("--memory", action="store_true",
+                        help="just the memory a ray scene adds per face, hsr and Open3D")
     args = parser.parse_args(argv)
     if args.only_batch:
         batch_vs_open3d(args.batch_views, args.batch_size)
+        return 0
+    if args.memory:
+        print("| model | resident bytes per face: hsr RayScene | Open3D | hsr / Open3D |")
+        print("|---|---|---|---|")
+        for spec in args.models:
+            mine, theirs = scene_memory(spec, "hsr"), scene_memory(spec, "open3d")
+            ratio = f"{mine / theirs:.2f}" if mine and theirs else "-"
+            print(f"| {os.path.basename(spec)} | {mine:.0f} | "
+                  f"{'-' if theirs is None else f'{theirs:.0f}'} | {ratio} |")
         return 0
     rng = np.random.default_rng(0)
     print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "
