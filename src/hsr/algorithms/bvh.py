@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from ..parallel import Workers, split_range
-from ..scene.mesh import Scene, as_scene
+from ..scene.mesh import Scene, SceneLike, as_scene
 from .simd import box_entries4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
@@ -85,7 +85,7 @@ class BVH:
         return len(self.node_left)
 
 
-def build(scene, threads: int | None = None) -> BVH:
+def build(scene: SceneLike, threads: int | None = None) -> BVH:
     """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``
     threads (default: numba's thread count; the tree does not depend on it).
 
