@@ -153,8 +153,9 @@ def batch_vs_open3d(views: int, size: int) -> None:
 def scene_memory(spec: str, peer: str) -> float | None:
     """Bytes per face that building a ray scene of ``spec`` adds to a fresh process's
     resident memory (hsr's ``RayScene``, or Open3D's ``RaycastingScene`` after its
-    first query commits it), the model loaded before the first reading; None without
-    the peer."""
+    first query commits it): the model loaded and the code compiled before the first
+    reading, freed memory handed back (``malloc_trim``) before both; None without the
+    peer."""
     import subprocess
 
     code = f"""
@@ -163,22 +164,25 @@ import numpy as np
 sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
 from common import load_model
 import hsr
+import ctypes
+libc = ctypes.CDLL("libc.so.6")
 def rss():
+    gc.collect()
+    libc.malloc_trim(0)  # freed scratch back to the system: count what is held
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 mesh, _ = load_model({spec!r})
 if {peer!r} == "hsr":
-    hsr.RayScene(hsr.scenes.cube())  # compiled code is not the scene's
-    gc.collect(); before = rss()
+    hsr.RayScene(load_model("terrain:20000")[0])  # compiled code is not the scene's
+    before = rss()
     scene = hsr.RayScene(mesh)
 else:
     import open3d as o3d
-    gc.collect(); before = rss()
+    before = rss()
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(mesh.positions.astype(np.float32)),
                         o3d.core.Tensor(mesh.faces.astype(np.uint32)))
     scene.cast_rays(o3d.core.Tensor(np.zeros((1, 6), np.float32)))
-gc.collect()
 print((rss() - before) / mesh.n_faces)
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -257,3 +257,20 @@ def test_deep_unbalanced_bvh_built_in_parallel_is_the_same_tree():
     b = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"accel": "none"})
     assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
     assert (a.face_id >= 0).mean() > 0.2
+
+
+def test_binary_boxes_kept_in_float32_hold_what_they_bound():
+    """The BVH keeps its binary boxes in float32 rounded outwards: every value, from
+    tiny to beyond float32's range, lies inside its rounding, which is the nearest
+    float32 on that side (NumPy's float32 neighbours as the reference)."""
+    rng = np.random.default_rng(8)
+    values = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-50, 50, 2000),
+                             [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
+    down, up = rc._outwards32(values, -np.inf), rc._outwards32(values, np.inf)
+    assert down.dtype == up.dtype == np.float32
+    assert (down.astype(np.float64) <= values).all() and (up.astype(np.float64) >= values).all()
+    exact = down.astype(np.float64) == values
+    assert (down[exact] == up[exact]).all()
+    # Otherwise one float32 step apart: nothing float32 lies between.
+    with np.errstate(over="ignore"):  # the step above the largest float32 is inf
+        assert (np.nextafter(down[~exact], np.float32(np.inf)) == up[~exact]).all()

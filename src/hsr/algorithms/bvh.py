@@ -50,9 +50,10 @@ def world_triangles(scene: Scene) -> np.ndarray:
 class BVH:
     """A bounding volume hierarchy over a scene's world-space triangles.
 
-    As built (binary, binned SAH): node_min, node_max : (N, 3) boxes; node_left : (N,)
-    first child (the second is ``node_left + 1``) or -1 for a leaf; node_start,
-    node_count : (N,) a leaf's range of slots; tri_index : (T,) the face id in each slot
+    As built (binary, binned SAH): node_min, node_max : (N, 3) float32 boxes (rounded
+    outwards from the float64 ones the build used); node_left : (N,) int32 first child
+    (the second is ``node_left + 1``) or -1 for a leaf; node_start, node_count : (N,)
+    int32 a leaf's range of slots; tri_index : (T,) int32 the face id in each slot
     (degenerate faces are left out); corners : (T, 3, 3) float64 world-space corners of
     each slot's face (stored in leaf order, so a leaf's triangles are read in one run of
     memory); n_faces : the scene's face count.
@@ -60,8 +61,8 @@ class BVH:
     As walked: node_box (W, 32) float32 and node_link (W, 32) int32, the 4-wide tree of
     :func:`widen` in the records of :func:`pack_nodes`; the root a wide node when
     root_count is 0, else a leaf of root_count slots from root_ref; wide_depth the
-    deepest wide level (it sizes the walk's stack); leaf_face (T,) int32, tri_index
-    for the walk.
+    deepest wide level (it sizes the walk's stack); leaf_face, the walk's name for
+    tri_index (the same array).
     """
 
     node_min: np.ndarray
@@ -113,11 +114,26 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
         ref, count, depth = np.zeros((1, LANES)), np.full((1, LANES), -1), 0
         root = (int(node_start[0]), int(node_count[0]))
     node_box, node_link = pack_nodes(box, ref, count)
-    return BVH(node_min, node_max, node_left, node_start, node_count, tri_index,
-               corners=corners, n_faces=len(tris), node_box=node_box, node_link=node_link,
-               root_ref=root[0], root_count=root[1], wide_depth=depth,
-               leaf_face=tri_index.astype(np.int32),
+    # The binary tree is kept for reading, in half the bytes: its boxes in float32
+    # rounded outwards (still holding what they bound), its indices in int32.
+    tri_index = tri_index.astype(np.int32)
+    return BVH(_outwards32(node_min, -np.inf), _outwards32(node_max, np.inf),
+               node_left.astype(np.int32), node_start.astype(np.int32),
+               node_count.astype(np.int32), tri_index, corners=corners, n_faces=len(tris),
+               node_box=node_box, node_link=node_link, root_ref=root[0],
+               root_count=root[1], wide_depth=depth, leaf_face=tri_index,
                build_ms=1e3 * (time.perf_counter() - t0))
+
+
+def _outwards32(values: np.ndarray, towards: float) -> np.ndarray:
+    """``values`` in float32, each rounded towards ``towards`` (-inf: down, +inf: up)
+    where float32 cannot hold it exactly (beyond float32's range: to +-inf, or the
+    largest float32 on the inner side)."""
+    with np.errstate(over="ignore"):
+        rounded = values.astype(np.float32)
+    moved = rounded < values if towards > 0 else rounded > values
+    rounded[moved] = np.nextafter(rounded[moved], np.float32(towards))
+    return rounded
 
 
 @njit(cache=True, nogil=True)
