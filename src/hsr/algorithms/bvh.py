@@ -29,7 +29,8 @@ from ..scene.mesh import Scene, SceneLike, as_scene
 from .simd import box_entries4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
-           "careful_entries4", "descend", "next_box", "careful_packet_entries"]
+           "inverse_direction", "careful_entries4", "descend", "next_box",
+           "careful_packet_entries"]
 
 LEAF_SIZE = 4
 N_BINS = 16
@@ -252,6 +253,14 @@ def pack_nodes(box, ref, count):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def inverse_direction(dx, dy, dz):
+    """(1 / dx, 1 / dy, 1 / dz, careful) for the slab tests: +inf for a zero component,
+    and ``careful`` when there is one (0 * inf is NaN there; see :func:`open_slabs`)."""
+    return (1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf,
+            1.0 / dz if dz != 0.0 else np.inf, dx == 0.0 or dy == 0.0 or dz == 0.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _sorted_pair(ka, la, kb, lb):
     """One comparator of a sorting network: the pairs (ka, la), (kb, lb) in order of
     their keys, by selects (equal keys keep their order)."""
@@ -384,7 +393,7 @@ def next_box(stack_ref, stack_count, stack_t, top, bound):
     return np.int64(0), np.int64(0), top, False
 
 
-def _build(tris, tri_index, workers=None):
+def _build(tris, tri_index, workers):
     """The binary SAH tree over the slots ``tri_index`` (faces with area): (node_min,
     node_max, node_left, node_start, node_count, leaf order of the faces).
 
@@ -401,8 +410,7 @@ def _build(tris, tri_index, workers=None):
              np.full(max_nodes, -1, dtype=np.int64), np.zeros(max_nodes, dtype=np.int64),
              np.zeros(max_nodes, dtype=np.int64))
     nodes[4][0] = n  # the root holds every slot
-    threads = 1 if workers is None else workers.threads
-    cutoff = n // (4 * threads) if threads > 1 and n > 4096 else 0
+    cutoff = n // (4 * workers.threads) if workers.threads > 1 and n > 4096 else 0
     pending = np.empty(max_nodes, dtype=np.int64)
     # The top, on this thread: nodes of at most `cutoff` faces are left open.
     n_top, n_pending = _grow(prim, order, *nodes, 0, 1, cutoff, pending)
@@ -696,10 +704,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
             t_bound = 1.0  # no box entered beyond this can hold a hit at least as good
             bu = bv = bw = 0.0
             if use_bvh and leaf_face.shape[0] > 0:
-                inv_dx = 1.0 / dx if dx != 0.0 else np.inf
-                inv_dy = 1.0 / dy if dy != 0.0 else np.inf
-                inv_dz = 1.0 / dz if dz != 0.0 else np.inf
-                careful = dx == 0.0 or dy == 0.0 or dz == 0.0
+                inv_dx, inv_dy, inv_dz, careful = inverse_direction(dx, dy, dz)
                 top = 0
                 ref, n = np.int64(root_ref), np.int64(root_count)
                 walking = True

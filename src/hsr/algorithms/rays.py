@@ -27,6 +27,7 @@ from .bvh import (
     careful_entries4,
     careful_packet_entries,
     descend,
+    inverse_direction,
     next_box,
     ray_frame,
     sheared_corners,
@@ -37,6 +38,9 @@ from .simd import box_entries4, packet_entries4
 __all__ = ["trace_range", "trace_packets", "check_rays", "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
+# A walk's bound starts at t_max made finite, so that a missed box (entered at +inf)
+# always fails the test against it.
+LARGEST = 1.7976931348623157e308
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -105,16 +109,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
         framed = False
         kx = ky = kz = 0
         sx = sy = sz = okx = oky = okz = 0.0
-        inv_dx = 1.0 / dx if dx != 0.0 else np.inf
-        inv_dy = 1.0 / dy if dy != 0.0 else np.inf
-        inv_dz = 1.0 / dz if dz != 0.0 else np.inf
         # A ray parallel to an axis needs the slab test's NaN care (see open_slabs).
-        careful = dx == 0.0 or dy == 0.0 or dz == 0.0
+        inv_dx, inv_dy, inv_dz, careful = inverse_direction(dx, dy, dz)
         best_t, best_f, best_k, bu, bv = np.inf, -1, -1, 0.0, 0.0
         count = 0
-        # No box entered beyond the bound can hold a hit that matters; a finite bound,
-        # so that a missed box (entered at +inf) always fails the test.
-        bound = min(t1, 1.7976931348623157e308)
+        # No box entered beyond the bound can hold a hit that matters.
+        bound = min(t1, LARGEST)
         top = 0
         ref, n = np.int64(root_ref), np.int64(root_count)
         walking = leaf_face.shape[0] > 0
@@ -214,12 +214,10 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
             frame[9, r] = t_min[i if per_ray[0] else 0]
             frame[10, r] = t_max[i if per_ray[1] else 0]
             rays[0, r], rays[1, r], rays[2, r] = ox, oy, oz
-            rays[3, r] = 1.0 / dx if dx != 0.0 else np.inf
-            rays[4, r] = 1.0 / dy if dy != 0.0 else np.inf
-            rays[5, r] = 1.0 / dz if dz != 0.0 else np.inf
-            careful |= dx == 0.0 or dy == 0.0 or dz == 0.0
+            rays[3, r], rays[4, r], rays[5, r], parallel = inverse_direction(dx, dy, dz)
+            careful |= parallel
             # A ray past the end enters nothing (every entry is >= 0).
-            bound[r] = min(frame[10, r], 1.7976931348623157e308) if first + r < hi else -1.0
+            bound[r] = min(frame[10, r], LARGEST) if first + r < hi else -1.0
             best_t[r], best_f[r], best_k[r] = np.inf, -1, -1
             best_uv[r, 0] = best_uv[r, 1] = 0.0
             count[r] = 0

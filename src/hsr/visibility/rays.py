@@ -110,8 +110,7 @@ class RayScene:
                 f"{self.bvh.n_nodes:,} nodes built in {self.bvh.build_ms:.0f} ms>")
 
     def cast(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
-             t_max: float = np.inf,
-             progress: bool | None = None) -> RayHits:
+             t_max: float = np.inf, progress: bool | None = None) -> RayHits:
         """The nearest hit of each ray (see :class:`RayHits`). ``origins``: (N, 3), or
         (3,) for one origin shared by all rays; ``directions``: (N, 3), any non-zero
         length; both any real dtype (computed in float64). ``t_min``, ``t_max``:
@@ -127,16 +126,14 @@ class RayScene:
         return hits
 
     def occluded(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
-             t_max: float = np.inf,
-                 progress: bool | None = None) -> np.ndarray:
+                 t_max: float = np.inf, progress: bool | None = None) -> np.ndarray:
         """(N,) bool: whether each ray meets any surface with ``t`` in
         ``[t_min, t_max]`` (its walk stops at the first one). Arguments as
         :meth:`cast`."""
         return self._counted(1, origins, directions, t_min, t_max, progress).astype(bool)
 
     def count(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
-             t_max: float = np.inf,
-              progress: bool | None = None) -> np.ndarray:
+              t_max: float = np.inf, progress: bool | None = None) -> np.ndarray:
         """(N,) int32: how many times each ray crosses the surface with ``t`` in
         ``[t_min, t_max]``. Watertight: a ray through a shared edge or vertex of a
         closed mesh counts it once, so an odd count with ``t_max = inf`` means the
