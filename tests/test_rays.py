@@ -339,6 +339,44 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
     assert 50 < entered < checked - 50  # both outcomes were exercised
 
 
+def test_the_lane_keys_sort_like_python_and_round_entries_down():
+    """hsr.algorithms.simd.sorted_keys4 (a vector sorting network on the entries' bits)
+    against Python's sort of (entry rounded down to four units in the last place, lane)
+    pairs, the rounding done here on NumPy's view of the bits: equal entries, zeros,
+    +inf (missed lanes), tiny and huge values; each key's lane is in its two low bits and
+    its entry, read back, lies at most three units in the last place below the true one
+    (never above it: the walk's pruning compares it with the bound)."""
+    from numba import njit
+
+    from hsr.algorithms.simd import float_bits, sorted_keys4
+
+    @njit
+    def keys(e):
+        return sorted_keys4(e[0], e[1], e[2], e[3])
+
+    @njit
+    def bits(x):
+        return float_bits(x)
+
+    rng = np.random.default_rng(11)
+    pool = np.array([0.0, 0.0, 1.0, 1.0, 5e-324, 1e-300, 0.5, 2.0, 1e300, np.inf, np.inf])
+    for trial in range(3000):
+        e = (rng.choice(pool, 4) if trial % 2 else rng.exponential(1.0, 4)
+             * (rng.random(4) > 0.2) + np.where(rng.random(4) < 0.3, np.inf, 0.0))
+        got = keys(e)
+        coarse = e.view(np.int64) >> 2
+        assert [k & 3 for k in got] == [lane for _, lane in sorted(zip(coarse, range(4)))]
+        if len(set(coarse)) == 4:  # no near-ties: the order of the values themselves
+            assert [k & 3 for k in got] == list(np.argsort(e, kind="stable"))
+        for k in got:
+            true = e[k & 3]
+            back = np.int64(k & ~3).view(np.float64)
+            assert back <= true and bits(true) - (k & ~3) <= 3
+    # The walk compares keys with a bound's bits: -0.0 (a hit at t = -0.0 >= t_min 0)
+    # must read as the least bound, not a negative integer below every key.
+    assert bits(-0.0 + 0.0) == 0 and bits(np.inf) > bits(1.7976931348623157e308)
+
+
 def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     """The packet walk against the one-ray walk (two traversals that share only the
     box and triangle tests) on every query, with per-ray intervals, rays parallel to

@@ -26,7 +26,7 @@ from numba import njit
 
 from ..parallel import Workers, split_range
 from ..scene.mesh import Scene, SceneLike, as_scene
-from .simd import box_entries4
+from .simd import box_entries4, float_bits, sorted_keys4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
            "inverse_direction", "careful_entries4", "descend", "next_box",
@@ -261,14 +261,6 @@ def inverse_direction(dx, dy, dz):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _sorted_pair(ka, la, kb, lb):
-    """One comparator of a sorting network: the pairs (ka, la), (kb, lb) in order of
-    their keys, by selects (equal keys keep their order)."""
-    swap = kb < ka
-    return (kb if swap else ka), (lb if swap else la), (ka if swap else kb), (la if swap else lb)
-
-
-@njit(cache=True, nogil=True, inline="always")
 def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     """The ray parameters (t0x, t1x, t0y, t1y, t0z, t1z) where the ray crosses the low
     and high planes of lane ``lane``'s box of wide node ``w``, in float64."""
@@ -326,25 +318,20 @@ def descend(k0, k1, k2, k3, mask, ref, node_link, stack_ref, stack_count, stack_
         lane = (mask >> 1) - (mask >> 3)  # the set bit's index
         return (np.int64(node_link[ref, REF + lane]), np.int64(node_link[ref, COUNT_AT + lane]),
                 top, True)
-    # The lanes nearest first by a sorting network on (entry, lane) pairs (Knuth's five
-    # comparators for four keys) made of selects, not branches: which lanes a ray
-    # enters is what a random ray makes unpredictable. The entered lanes lead (a missed
-    # lane sorts last at +inf); the nearest is walked next and the m others pushed
-    # farthest first. All three pushes are written and the top moves by m, so the
-    # pushes need no branch either (the stack has LANES slots spare).
-    k0, l0, k1, l1 = _sorted_pair(k0, 0, k1, 1)
-    k2, l2, k3, l3 = _sorted_pair(k2, 2, k3, 3)
-    k0, l0, k2, l2 = _sorted_pair(k0, l0, k2, l2)
-    k1, l1, k3, l3 = _sorted_pair(k1, l1, k3, l3)
-    k1, l1, k2, l2 = _sorted_pair(k1, l1, k2, l2)
-    m = (k1 < np.inf) + (k2 < np.inf) + (k3 < np.inf)
+    # The lanes nearest first (sorted_keys4: a sorting network without branches, since
+    # which lanes a ray enters is what a random ray makes unpredictable). The entered
+    # lanes lead (a missed lane sorts last, at +inf); the nearest is walked next and the
+    # m others pushed farthest first. All three pushes are written and the top moves by
+    # m, so the pushes need no branch either (the stack has LANES slots spare).
+    s0, s1, s2, s3 = sorted_keys4(k0, k1, k2, k3)
+    m = (mask & 1) + ((mask >> 1) & 1) + ((mask >> 2) & 1) + (mask >> 3) - 1
     # Slots top .. top + m - 1 take the m-th .. first entered lane after the nearest.
     _push(stack_ref, stack_count, stack_t, top, node_link, ref,
-          l3 if m == 3 else (l2 if m == 2 else l1), k3 if m == 3 else (k2 if m == 2 else k1))
-    _push(stack_ref, stack_count, stack_t, top + 1, node_link, ref, l2 if m == 3 else l1,
-          k2 if m == 3 else k1)
-    _push(stack_ref, stack_count, stack_t, top + 2, node_link, ref, l1, k1)
-    return (np.int64(node_link[ref, REF + l0]), np.int64(node_link[ref, COUNT_AT + l0]),
+          s3 if m == 3 else (s2 if m == 2 else s1))
+    _push(stack_ref, stack_count, stack_t, top + 1, node_link, ref, s2 if m == 3 else s1)
+    _push(stack_ref, stack_count, stack_t, top + 2, node_link, ref, s1)
+    lane = s0 & 3
+    return (np.int64(node_link[ref, REF + lane]), np.int64(node_link[ref, COUNT_AT + lane]),
             top + m, True)
 
 
@@ -365,30 +352,36 @@ def careful_packet_entries(box, w, rays, bound, out):
 
 @njit(cache=True, nogil=True)
 def walk_stack(wide_depth):
-    """(references, counts, entries) of a walk's stack: each wide node walked leaves at
+    """(references, counts, entry keys) of a walk's stack: each wide node walked leaves at
     most three siblings behind, plus the spare slots :func:`descend` writes. Sized once
     per walk: an array re-bound inside the loop (grown on demand) costs reference
     counting at every step, more than doubling the walk's time."""
     size = (LANES - 1) * wide_depth + 2 * LANES
-    return np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64), np.empty(size)
+    return (np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64),
+            np.empty(size, dtype=np.int64))
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _push(stack_ref, stack_count, stack_t, at, node_link, ref, lane, t):
-    """Stack slot ``at``: lane ``lane`` of wide node ``ref``, entered at ``t``."""
+def _push(stack_ref, stack_count, stack_t, at, node_link, ref, key):
+    """Stack slot ``at``: the lane of wide node ``ref`` and its entry, as ``key`` of
+    :func:`hsr.algorithms.simd.sorted_keys4` gives them."""
+    lane = key & 3
     stack_ref[at] = node_link[ref, REF + lane]
     stack_count[at] = node_link[ref, COUNT_AT + lane]
-    stack_t[at] = t
+    stack_t[at] = key
 
 
 @njit(cache=True, nogil=True, inline="always")
 def next_box(stack_ref, stack_count, stack_t, top, bound):
     """The next box still worth entering from the stack: ``(ref, n, top, found)``;
     boxes entered beyond ``bound`` (a hit nearer than them has been found since they
-    were pushed) are dropped."""
+    were pushed) are dropped. The stack holds entries as keys of
+    :func:`hsr.algorithms.simd.sorted_keys4`, compared with the bound's bits (bound
+    + 0.0 makes a bound of -0.0 the +0.0 whose bits are the least)."""
+    bound_key = float_bits(bound + 0.0)
     while top > 0:
         top -= 1
-        if stack_t[top] <= bound:
+        if stack_t[top] <= bound_key:
             return np.int64(stack_ref[top]), np.int64(stack_count[top]), top, True
     return np.int64(0), np.int64(0), top, False
 
@@ -417,8 +410,9 @@ def _build(tris, tri_index, workers):
     pending = pending[:n_pending]
     if n_pending == 0:
         return (*(a[:n_top].copy() for a in nodes), order)
-    # Subtree k (c faces, at most 2c - 1 nodes) numbers its nodes from base[k].
-    base = n_top + np.concatenate([[0], np.cumsum(2 * nodes[4][pending] - 1)[:-1]])
+    # Subtree k (c faces: at most 2c - 1 nodes, its root already numbered among the
+    # top's) numbers its new nodes from base[k].
+    base = n_top + np.concatenate([[0], np.cumsum(2 * nodes[4][pending] - 2)[:-1]])
     each = np.stack([pending, base], axis=1).astype(np.int64)
     ends = np.asarray(workers.run(_grow_subtree, np.arange(n_pending + 1), prim, order,
                                   *nodes, each), dtype=np.int64)

@@ -323,7 +323,8 @@ def _nearest(entries, k, rays):
 
 @njit(cache=True, nogil=True, inline="always")
 def _sorted_triple(ka, la, ma, kb, lb, mb):
-    """:func:`hsr.algorithms.bvh._sorted_pair` carrying a third value along."""
+    """One comparator of a sorting network on (key, lane, rays) triples: the two in
+    order of their keys, by selects (equal keys keep their order)."""
     swap = kb < ka
     return ((kb if swap else ka), (lb if swap else la), (mb if swap else ma),
             (ka if swap else kb), (la if swap else lb), (ma if swap else mb))

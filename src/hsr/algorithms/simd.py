@@ -17,11 +17,12 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_entries4", "packet_entries4"]
+__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits"]
 
 _I32 = ir.IntType(32)
 _F4 = ir.VectorType(ir.FloatType(), 4)
 _D4 = ir.VectorType(ir.DoubleType(), 4)
+_L4 = ir.VectorType(ir.IntType(64), 4)
 
 
 def _splat(builder, x):
@@ -148,5 +149,62 @@ def packet_entries4(typingctx, box, w, rays, bound, out):
             bits = builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64))
             mask = builder.or_(mask, builder.shl(bits, _i64(4 * k)))
         return mask
+
+    return sig, codegen
+
+
+@intrinsic
+def sorted_keys4(typingctx, e0, e1, e2, e3):
+    """The four lanes of a wide node nearest first, as int64 keys ``(s0, s1, s2, s3)``:
+    each key is the lane's entry distance (>= 0, or +inf for a missed lane) read as its
+    IEEE bits, whose integer order is the order of the values, with the two lowest
+    bits replaced by the lane (``key & 3``). So keys are distinct, entries within four
+    units in the last place of each other go in lane order (the walk's order only
+    sets how soon a hit prunes, never the answer), and ``key & ~3`` read back is the
+    entry rounded down by at most three units in the last place, never past the true
+    entry: a bound compared with it keeps every box the true entry would keep (see
+    :func:`hsr.algorithms.bvh.next_box`).
+
+    Knuth's five-comparator network for four keys, as three rounds of vector min and
+    max with shuffles: no branch. Scalar selects written in Numba were turned into
+    branches by the compiler (seen with ``inspect_asm``), and which lanes are nearest is
+    what a random ray makes unpredictable."""
+    sig = types.UniTuple(types.int64, 4)(e0, e1, e2, e3)
+
+    def codegen(context, builder, sig, args):
+        v = ir.Constant(_D4, ir.Undefined)
+        for k, x in enumerate(args):
+            v = builder.insert_element(v, x, ir.Constant(_I32, k))
+        keys = builder.or_(builder.and_(builder.bitcast(v, _L4), ir.Constant(_L4, [~3] * 4)),
+                           ir.Constant(_L4, [0, 1, 2, 3]))
+
+        def exchange(keys, partner, take):
+            """Compare each lane with lane ``partner[k]``; lane k takes the lower
+            (``take[k] < 4``) or the higher (``take[k] - 4``) of the two."""
+            other = builder.shuffle_vector(keys, ir.Constant(_L4, ir.Undefined),
+                                           ir.Constant(ir.VectorType(_I32, 4), partner))
+            below = builder.icmp_signed("<", keys, other)
+            low = builder.select(below, keys, other)
+            high = builder.select(below, other, keys)
+            return builder.shuffle_vector(low, high,
+                                          ir.Constant(ir.VectorType(_I32, 4), take))
+
+        keys = exchange(keys, [1, 0, 3, 2], [0, 5, 2, 7])  # (0, 1), (2, 3)
+        keys = exchange(keys, [2, 3, 0, 1], [0, 1, 6, 7])  # (0, 2), (1, 3)
+        keys = exchange(keys, [0, 2, 1, 3], [0, 1, 6, 3])  # (1, 2)
+        values = [builder.extract_element(keys, ir.Constant(_I32, k)) for k in range(4)]
+        return context.make_tuple(builder, sig.return_type, values)
+
+    return sig, codegen
+
+
+@intrinsic
+def float_bits(typingctx, x):
+    """The IEEE bits of a float64 as an int64 (for a value >= 0 their integer order is
+    the values' order; see :func:`sorted_keys4`)."""
+    sig = types.int64(types.float64)
+
+    def codegen(context, builder, sig, args):
+        return builder.bitcast(args[0], ir.IntType(64))
 
     return sig, codegen
