@@ -218,6 +218,22 @@ def test_results_do_not_depend_on_threads_or_chunks(bunny):
         np.testing.assert_array_equal(getattr(one, field)[:777], getattr(part, field))
 
 
+def test_a_ray_scene_keeps_only_the_walked_tree(bunny):
+    """RayScene drops the binary tree (no walk reads it): the walked arrays are those
+    of a build that keeps it, and the scene box it keeps is the mesh's own bounds."""
+    from hsr.algorithms.bvh import build
+
+    rays = hsr.RayScene(bunny)
+    full = build(bunny)
+    assert rays.bvh.n_nodes == 0 and len(rays.bvh.node_min) == 0 and full.n_nodes > 0
+    for field in ("node_box", "node_link", "corners", "leaf_face"):
+        np.testing.assert_array_equal(getattr(rays.bvh, field), getattr(full, field))
+    assert (rays.bvh.root_ref, rays.bvh.root_count, rays.bvh.wide_depth) == (
+        full.root_ref, full.root_count, full.wide_depth)
+    np.testing.assert_array_equal(rays.bvh.bounds, np.array(bunny.bounds()))
+    assert f"{rays.bvh.n_wide_nodes:,} nodes" in repr(rays)
+
+
 def test_concurrent_queries_on_one_scene(bunny):
     from concurrent.futures import ThreadPoolExecutor
 

@@ -63,7 +63,11 @@ class BVH:
     :func:`widen` in the records of :func:`pack_nodes`; the root a wide node when
     root_count is 0, else a leaf of root_count slots from root_ref; wide_depth the
     deepest wide level (it sizes the walk's stack); leaf_face, the walk's name for
-    tri_index (the same array).
+    tri_index (the same array); bounds (2, 3) float64, the scene's box (lower, upper
+    corner; +inf / -inf for no faces).
+
+    Built with ``keep_tree=False`` (as :class:`hsr.RayScene` builds it), the binary
+    arrays node_min .. node_count are empty: the walks read only the wide tree.
     """
 
     node_min: np.ndarray
@@ -80,16 +84,25 @@ class BVH:
     root_count: int
     wide_depth: int
     leaf_face: np.ndarray
+    bounds: np.ndarray
     build_ms: float = 0.0
 
     @property
     def n_nodes(self) -> int:
+        """Nodes of the binary tree (0 when it was not kept)."""
         return len(self.node_left)
 
+    @property
+    def n_wide_nodes(self) -> int:
+        """Nodes of the walked 4-wide tree."""
+        return len(self.node_box)
 
-def build(scene: SceneLike, threads: int | None = None) -> BVH:
+
+def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) -> BVH:
     """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``
     threads (default: numba's thread count; the tree does not depend on it).
+    ``keep_tree=False`` drops the binary tree once the walked 4-wide one is made (21
+    bytes a face that no walk reads).
 
     Raises :class:`~hsr.errors.MeshError` for something that is not a scene or mesh,
     or one of 2**31 faces or more.
@@ -115,14 +128,16 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
         ref, count, depth = np.zeros((1, LANES)), np.full((1, LANES), -1), 0
         root = (int(node_start[0]), int(node_count[0]))
     node_box, node_link = pack_nodes(box, ref, count)
+    bounds = np.array([node_min[0], node_max[0]])
     # The binary tree is kept for reading, in half the bytes: its boxes in float32
     # rounded outwards (still holding what they bound), its indices in int32.
     tri_index = tri_index.astype(np.int32)
-    return BVH(_outwards32(node_min, -np.inf), _outwards32(node_max, np.inf),
-               node_left.astype(np.int32), node_start.astype(np.int32),
-               node_count.astype(np.int32), tri_index, corners=corners, n_faces=len(tris),
-               node_box=node_box, node_link=node_link, root_ref=root[0],
-               root_count=root[1], wide_depth=depth, leaf_face=tri_index,
+    kept = slice(None) if keep_tree else slice(0, 0)
+    return BVH(_outwards32(node_min[kept], -np.inf), _outwards32(node_max[kept], np.inf),
+               node_left[kept].astype(np.int32), node_start[kept].astype(np.int32),
+               node_count[kept].astype(np.int32), tri_index, corners=corners,
+               n_faces=len(tris), node_box=node_box, node_link=node_link, root_ref=root[0],
+               root_count=root[1], wide_depth=depth, leaf_face=tri_index, bounds=bounds,
                build_ms=1e3 * (time.perf_counter() - t0))
 
 

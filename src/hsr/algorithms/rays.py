@@ -70,7 +70,9 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
                 or (w == 0.0 and not _edge_owned(ax, ay, bx, by, flip)))
 
 
-@njit(cache=True, nogil=True)
+# error_model "numpy": IEEE division, without the zero test Numba adds to each division
+# under Python's rules (every divisor in the walks is non-zero or checked first).
+@njit(cache=True, nogil=True, error_model="numpy")
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
                 node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
                 out_object, out_uv, out_normal, out_count):
@@ -169,7 +171,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     return tests, 0, -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
                   node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
                   out_object, out_uv, out_normal, out_count):

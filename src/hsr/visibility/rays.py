@@ -96,18 +96,19 @@ class RayScene:
             scene = load_scene(scene)
         self.scene = as_scene(scene)
         self.threads = threads
-        self.bvh = build(self.scene, threads)
+        # Only the walked tree: the binary one the build goes through is dropped.
+        self.bvh = build(self.scene, threads, keep_tree=False)
         self.face_offsets = self.scene.face_offsets()
-        lo, hi = self.bvh.node_min[0], self.bvh.node_max[0]
-        self.scene_size = float(np.linalg.norm(hi - lo)) if self.bvh.n_faces else 0.0
+        lo, hi = self.bvh.bounds
+        self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
 
     @property
     def n_faces(self) -> int:
         return self.bvh.n_faces
 
     def __repr__(self):
-        return (f"<hsr.RayScene: {self.n_faces:,} faces, {len(self.scene)} objects, BVH of "
-                f"{self.bvh.n_nodes:,} nodes built in {self.bvh.build_ms:.0f} ms>")
+        return (f"<hsr.RayScene: {self.n_faces:,} faces, {len(self.scene)} objects, 4-wide "
+                f"BVH of {self.bvh.n_wide_nodes:,} nodes built in {self.bvh.build_ms:.0f} ms>")
 
     def cast(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
              t_max: float = np.inf, progress: bool | None = None) -> RayHits:
