@@ -26,7 +26,7 @@ from numba import njit
 
 from ..parallel import Workers, split_range
 from ..scene.mesh import Scene, SceneLike, as_scene
-from .simd import box_entries4, float_bits, sorted_keys4
+from .simd import SLACK, SLACK_ABS, box_entries4, float_bits, sorted_keys4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
            "inverse_direction", "careful_entries4", "descend", "next_box",
@@ -298,7 +298,8 @@ def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     t0x, t1x, t0y, t1y, t0z, t1z = open_slabs(t0x, t1x, t0y, t1y, t0z, t1z)
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
-    return t_in if t_in <= t_out * (1.0 + 4e-16) + 1e-300 and t_in <= bound else np.inf
+    # The slack is that of hsr.algorithms.simd (see SLACK there).
+    return t_in if t_in <= t_out * SLACK + SLACK_ABS and t_in <= bound else np.inf
 
 
 @njit(cache=True, nogil=True, inline="always")

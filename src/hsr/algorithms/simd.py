@@ -55,13 +55,24 @@ def _row_pointer(context, builder, array_type, array, row):
                            ir.FloatType().as_pointer())
 
 
+# The slack that keeps the slab test conservative (never missing a box the exact ray
+# meets; Ize 2013's argument): a computed distance (p - o) * inv is three roundings
+# (u = 2**-53 each) from the exact one, so t_in may be a factor (1 + u)^3 above its
+# exact value and t_out (1 - u)^3 below; the slack's own multiply and add round twice
+# more, and (1 + u)^3 <= (1 - u)^5 SLACK needs SLACK >= 1 + 8u (1 + 10u here). SLACK_ABS
+# covers distances in the subnormal range, where rounding is absolute, and an origin on
+# a far plane (t_out = 0).
+SLACK = 1.0 + 1e-15
+SLACK_ABS = 1e-300
+
+
 def _slab_test(builder, planes, origin, inv, bound):
     """(entry, entered) per lane: the slab test on four lanes of float64 vectors,
     ``planes`` the six bounds (lo x, y, z, hi x, y, z), ``origin`` and ``inv`` the
     ray's three coordinates, ``bound`` the farthest entry kept. Every operation is the
     scalar test's (Kay and Kajiya 1986), in its order: t_in = max of the slabs' near
     distances and 0, t_out = min of their far ones, entered when
-    ``t_in <= t_out (1 + 4e-16) + 1e-300`` and ``t_in <= bound``."""
+    ``t_in <= t_out SLACK + SLACK_ABS`` and ``t_in <= bound``."""
     near, far = [], []
     for a in range(3):
         t0 = builder.fmul(builder.fsub(planes[a], origin[a]), inv[a])
@@ -71,8 +82,8 @@ def _slab_test(builder, planes, origin, inv, bound):
     zero = ir.Constant(_D4, [0.0] * 4)
     t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
     t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
-    slack = builder.fadd(builder.fmul(t_out, ir.Constant(_D4, [1.0 + 4e-16] * 4)),
-                         ir.Constant(_D4, [1e-300] * 4))
+    slack = builder.fadd(builder.fmul(t_out, ir.Constant(_D4, [SLACK] * 4)),
+                         ir.Constant(_D4, [SLACK_ABS] * 4))
     entered = builder.and_(builder.fcmp_ordered("<=", t_in, slack),
                            builder.fcmp_ordered("<=", t_in, bound))
     return builder.select(entered, t_in, ir.Constant(_D4, [float("inf")] * 4)), entered
@@ -86,9 +97,8 @@ def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     misses a box or enters it beyond ``bound``. The slab test (Kay and Kajiya 1986)
     for a ray with no zero direction component (no 0 * inf): t_in = max of the three
     slabs' near distances and 0, t_out = min of their far ones, entered when
-    ``t_in <= t_out (1 + 4e-16) + 1e-300`` (the slack of
-    the scalar test, :func:`hsr.algorithms.bvh._careful_entry`, which rounding of the
-    distances needs).
+    ``t_in <= t_out SLACK + SLACK_ABS`` (the slack of the scalar test,
+    :func:`hsr.algorithms.bvh._careful_entry`, which rounding of the distances needs).
     ``mask``: bit k set when box k is entered (an int64, 0 .. 15)."""
     sig = types.Tuple((types.float64,) * 4 + (types.int64,))(box, w, ox, oy, oz, inv_dx,
                                                              inv_dy, inv_dz, bound)
