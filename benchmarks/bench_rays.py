@@ -212,8 +212,8 @@ def main(argv=None):
         for spec in args.models:
             mine, theirs = scene_memory(spec, "hsr"), scene_memory(spec, "open3d")
             ratio = f"{mine / theirs:.2f}" if mine and theirs else "-"
-            print(f"| {os.path.basename(spec)} | {mine:.0f} | "
-                  f"{'-' if theirs is None else f'{theirs:.0f}'} | {ratio} |")
+            cells = ("-" if b is None else f"{b:.0f}" for b in (mine, theirs))
+            print(f"| {os.path.basename(spec)} | {' | '.join(cells)} | {ratio} |")
         return 0
     rng = np.random.default_rng(0)
     print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "

@@ -322,8 +322,9 @@ def descend(k0, k1, k2, k3, mask, ref, node_link, stack_ref, stack_count, stack_
     :func:`careful_entries4`): ``(ref, n, top, entered)``, the child to walk next
     (``n`` 0: a wide node, else a leaf of ``n`` slots from ``ref``) and the new stack
     top, or ``entered`` False when the ray enters none of the boxes. Entered boxes
-    other than the nearest are pushed farthest first with their entry distances
-    (:func:`next_box` drops one when a hit nearer than it has been found meanwhile).
+    other than the nearest are pushed farthest first with their entries as keys of
+    :func:`hsr.algorithms.simd.sorted_keys4` (:func:`next_box` drops one when a hit
+    nearer than it has been found meanwhile).
 
     (The box test stays in the calling kernel: inlined here, with the node array
     passed in, the walk of random rays at the bunny took 193 ms instead of 118.)"""

@@ -233,9 +233,12 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                     mask16 = careful_packet_entries(node_box, ref, rays, bound, entries)
                 else:
                     mask16 = packet_entries4(node_box, ref, rays, bound, entries)
-                # The entered boxes nearest first by the sorting network of descend on
+                # The entered boxes nearest first by Knuth's five comparators on
                 # (nearest entry of their rays, box, rays) triples; the nearest walked
-                # next by its rays, the others pushed farthest first. Written out here:
+                # next by its rays, the others pushed farthest first. (descend's vector
+                # keys, sorted_keys4, measured slower here: the bunny's primary rays
+                # 30.5 -> 32.3 ms; a packet's walks are coherent, so these branches are
+                # predicted.) Written out here:
                 # as an inlined function taking the arrays it ran 40% slower (Numba
                 # counts references to arrays handed to an inlined function).
                 mask16 &= active * 0x1111

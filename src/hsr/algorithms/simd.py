@@ -1,4 +1,4 @@
-"""The 4-wide BVH's box test as LLVM vector operations.
+"""The 4-wide BVH's box test, and the ordering of its lanes, as LLVM vector operations.
 
 Numba leaves the slab test of four boxes scalar however its loop is shaped (checked
 with ``inspect_asm``: ``vmulsd``/``vminsd`` on ``xmm``, no ``ymm``), so the walk of
@@ -8,7 +8,8 @@ Numba intrinsic: each operation of the scalar test (float32 bound widened to flo
 subtract, multiply, min, max, compare) once for four lanes, in the same order and
 without fused multiply-adds, so every lane's result is bit for bit the scalar one
 (``_careful_entry`` without its NaN care). On a CPU without 256-bit vectors LLVM
-splits the operations; the results do not change.
+splits the operations; the results do not change. :func:`sorted_keys4` orders a node's
+entered lanes without branches (:func:`hsr.algorithms.bvh.descend`).
 """
 
 from __future__ import annotations
