@@ -472,6 +472,55 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
         assert (answers[0][0 if mode == 0 else 0] != 7).all()  # every ray written
 
 
+def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
+    """trace_range walks SLOTS rays in turn, switching at leaves and at wide nodes past
+    HOT_NODES (the bunny's tree has more): every ray of a long chunk (slots refilled
+    thousands of times, a last round part-full) gets, in all three queries, exactly
+    what it gets walked alone, with random and axis-parallel rays (the careful box
+    test) mixed and per-ray intervals; a sample's any-hit answers equal brute force."""
+    from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
+
+    rays = hsr.RayScene(bunny)
+    bvh = rays.bvh
+    assert bvh.n_wide_nodes > HOT_NODES
+    rng = np.random.default_rng(12)
+    origins, directions = random_rays(bunny.bounds(), 2500, rng)
+    lo, hi = bunny.bounds()
+    grid = np.column_stack([rng.uniform(lo[0], hi[0], 300), rng.uniform(lo[1], hi[1], 300),
+                            np.full(300, hi[2] + 1.0)])
+    origins = np.concatenate([origins, grid])
+    directions = np.concatenate([directions, np.tile([0.0, 0.0, -1.0], (300, 1))])
+    order = rng.permutation(len(origins))[:-3]  # 2,797 rays: not a multiple of SLOTS
+    origins, directions = origins[order], directions[order]
+    n = len(origins)
+    assert n % SLOTS != 0
+    t_min = rng.uniform(0, 0.3, n) * (rng.random(n) < 0.5)
+    t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 2, n))
+    sample = rng.choice(n, 150, replace=False)
+
+    def walk(mode, rows):
+        out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
+               np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
+        for r_lo, r_hi in rows:
+            trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, bvh.corners,
+                        bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
+                        bvh.root_count, bvh.wide_depth, rays.face_offsets, *out)
+        return out if mode == 0 else out[5:]
+
+    for mode in (0, 1, 2):
+        together = walk(mode, [(0, n)])
+        alone = walk(mode, [(i, i + 1) for i in sample])
+        assert (together[0] != 7).all()  # every ray written
+        for a, b in zip(together, alone):
+            np.testing.assert_array_equal(a[sample], b[sample])
+        if mode == 1:
+            counts = [brute_force(bunny.positions[bunny.faces], origins[i:i + 1],
+                                  directions[i:i + 1], t_min[i], t_max[i])[3][0]
+                      for i in sample]
+            np.testing.assert_array_equal(together[0][sample], np.array(counts) > 0)
+            assert 20 < np.count_nonzero(counts) < 130  # hits and misses both tested
+
+
 @pytest.mark.parametrize("name", ["cube", "octahedron", "icosphere"])
 def test_axis_parallel_packets_count_and_hit_like_brute_force(name):
     """Rays along -z (coherent, so walked in packets, and parallel to two axes, so

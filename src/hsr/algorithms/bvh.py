@@ -30,7 +30,7 @@ from .simd import SLACK, SLACK_ABS, box_entries4, float_bits, sorted_keys4
 
 __all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
            "inverse_direction", "careful_entries4", "descend", "next_box",
-           "careful_packet_entries"]
+           "careful_packet_entries", "stack_size", "walk_stack"]
 
 LEAF_SIZE = 4
 N_BINS = 16
@@ -198,7 +198,12 @@ def widen(node_min, node_max, node_left, node_start, node_count):
     outwards (an empty lane's box lies at +inf, so every ray misses it); ref, count
     (W, LANES) int64: count > 0
     a leaf's first slot and size, 0 a wide node's index, -1 an empty lane; depth the
-    deepest wide level. The root must be an inner node."""
+    deepest wide level. The root must be an inner node.
+
+    Wide nodes are numbered in level order (the root, then its children, then theirs),
+    a node's wide children next to each other: the first few thousand are the top of
+    the tree, which every walk passes through, and :func:`hsr.algorithms.rays.trace_range`
+    counts on that (``HOT_NODES``)."""
     n = node_left.shape[0]
     box = np.full((max(n, 1), 6 * LANES), np.inf, dtype=np.float32)
     ref = np.zeros((max(n, 1), LANES), dtype=np.int64)
@@ -207,11 +212,12 @@ def widen(node_min, node_max, node_left, node_start, node_count):
     todo_wide = np.empty(n + 1, dtype=np.int64)
     todo_level = np.empty(n + 1, dtype=np.int64)
     todo_node[0], todo_wide[0], todo_level[0] = 0, 0, 0
-    top, n_wide, depth = 1, 1, 0
+    # A queue (first in, first out): level order. Each binary node enters it once.
+    head, top, n_wide, depth = 0, 1, 1, 0
     kids = np.empty(LANES, dtype=np.int64)
-    while top > 0:
-        top -= 1
-        b, w, level = todo_node[top], todo_wide[top], todo_level[top]
+    while head < top:
+        b, w, level = todo_node[head], todo_wide[head], todo_level[head]
+        head += 1
         depth = max(depth, level)
         kids[0], kids[1] = node_left[b], node_left[b] + 1
         m = 2
@@ -367,13 +373,20 @@ def careful_packet_entries(box, w, rays, bound, out):
     return mask
 
 
+@njit(cache=True, nogil=True, inline="always")
+def stack_size(wide_depth):
+    """Slots of one walk's stack: each wide node walked leaves at most three siblings
+    behind, plus the spare slots :func:`descend` writes."""
+    return (LANES - 1) * wide_depth + 2 * LANES
+
+
 @njit(cache=True, nogil=True)
-def walk_stack(wide_depth):
-    """(references, counts, entry keys) of a walk's stack: each wide node walked leaves at
-    most three siblings behind, plus the spare slots :func:`descend` writes. Sized once
-    per walk: an array re-bound inside the loop (grown on demand) costs reference
-    counting at every step, more than doubling the walk's time."""
-    size = (LANES - 1) * wide_depth + 2 * LANES
+def walk_stack(wide_depth, walks):
+    """(references, counts, entry keys) of the stacks of ``walks`` walks, each
+    :func:`stack_size` slots, one after another. Sized once per walk: an array re-bound
+    inside the loop (grown on demand) costs reference counting at every step, more than
+    doubling the walk's time."""
+    size = walks * stack_size(wide_depth)
     return (np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64),
             np.empty(size, dtype=np.int64))
 
@@ -389,14 +402,15 @@ def _push(stack_ref, stack_count, stack_t, at, node_link, ref, key):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def next_box(stack_ref, stack_count, stack_t, top, bound):
-    """The next box still worth entering from the stack: ``(ref, n, top, found)``;
+def next_box(stack_ref, stack_count, stack_t, top, bound, bottom):
+    """The next box still worth entering from the stack (slots ``bottom .. top - 1``;
+    one array can hold several rays' stacks): ``(ref, n, top, found)``;
     boxes entered beyond ``bound`` (a hit nearer than them has been found since they
     were pushed) are dropped. The stack holds entries as keys of
     :func:`hsr.algorithms.simd.sorted_keys4`, compared with the bound's bits (bound
     + 0.0 makes a bound of -0.0 the +0.0 whose bits are the least)."""
     bound_key = float_bits(bound + 0.0)
-    while top > 0:
+    while top > bottom:
         top -= 1
         if stack_t[top] <= bound_key:
             return np.int64(stack_ref[top]), np.int64(stack_count[top]), top, True
@@ -689,7 +703,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
     """Rows r_lo .. r_hi - 1. With ``use_bvh``, ``tris`` holds the BVH's corners in leaf
     order and ``leaf_face`` each slot's face id; without, the faces in order."""
     n_tris = tris.shape[0]
-    stack_ref, stack_count, stack_t = walk_stack(wide_depth)
+    stack_ref, stack_count, stack_t = walk_stack(wide_depth, 1)
     tests = 0
     for r in range(r_lo, r_hi):
         y_ndc = 1.0 - (r + 0.5) * 2.0 / height
@@ -745,7 +759,7 @@ def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_
                                     t_bound = _t_bound(z, zc0, zc1, wc0, wc1, depth_scale,
                                                        depth_offset)
                     ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top,
-                                                    t_bound)
+                                                    t_bound, 0)
             elif not use_bvh:
                 for f in range(n_tris):
                     tests += 1

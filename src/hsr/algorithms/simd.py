@@ -18,7 +18,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits"]
+__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits", "prefetch"]
 
 _I32 = ir.IntType(32)
 _F4 = ir.VectorType(ir.FloatType(), 4)
@@ -217,5 +217,31 @@ def float_bits(typingctx, x):
 
     def codegen(context, builder, sig, args):
         return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def prefetch(typingctx, array, row, offset):
+    """A hint to bring the cache line at byte ``offset`` of row ``row`` of ``array``
+    (rows as its first stride spaces them) towards the core (LLVM's ``llvm.prefetch``:
+    read, keep in all cache levels). It reads nothing into the program and cannot fault,
+    so results never depend on it; :func:`hsr.algorithms.rays.trace_range` issues it for
+    the node a ray walks next and then turns to another ray while the line comes."""
+    sig = types.void(array, row, offset)
+
+    def codegen(context, builder, sig, args):
+        data, row_v, offset_v = args
+        row_v = context.cast(builder, row_v, sig.args[1], types.intp)
+        offset_v = context.cast(builder, offset_v, sig.args[2], types.intp)
+        ary = context.make_array(sig.args[0])(context, builder, data)
+        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
+        raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+        at = builder.gep(raw, [builder.add(builder.mul(row_v, stride), offset_v)])
+        fnty = ir.FunctionType(ir.VoidType(), [ir.IntType(8).as_pointer(), _I32, _I32, _I32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        # rw 0 (read), locality 3 (keep in every level), cache type 1 (data).
+        builder.call(fn, [at, ir.Constant(_I32, 0), ir.Constant(_I32, 3), ir.Constant(_I32, 1)])
+        return context.get_dummy_value()
 
     return sig, codegen
