@@ -460,12 +460,12 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 2, n))
     for mode in (0, 1, 2):
         answers = []
-        for kernel in (trace_range, trace_packets):
+        for kernel, last in ((trace_range, (False,)), (trace_packets, ())):
             out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                    np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
             kernel(0, n, origins, directions, t_min, t_max, mode, bvh.corners,
                    bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
-                   bvh.wide_depth, rays.face_offsets, *out)
+                   bvh.wide_depth, rays.face_offsets, *out, *last)
             answers.append(out if mode == 0 else out[5:])
         for single, packet in zip(*answers):
             np.testing.assert_array_equal(single, packet)
@@ -476,8 +476,9 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     """trace_range walks SLOTS rays in turn, switching at leaves and at wide nodes past
     HOT_NODES (the bunny's tree has more): every ray of a long chunk (slots refilled
     thousands of times, a last round part-full) gets, in all three queries, exactly
-    what it gets walked alone, with random and axis-parallel rays (the careful box
-    test) mixed and per-ray intervals; a sample's any-hit answers equal brute force."""
+    what it gets walked alone and what the walk without interleaving gives, with
+    random and axis-parallel rays (the careful box test) mixed and per-ray intervals;
+    a sample's any-hit answers equal brute force."""
     from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
 
     rays = hsr.RayScene(bunny)
@@ -498,21 +499,23 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 2, n))
     sample = rng.choice(n, 150, replace=False)
 
-    def walk(mode, rows):
+    def walk(mode, rows, interleave):
         out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
         for r_lo, r_hi in rows:
             trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, bvh.corners,
                         bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
-                        bvh.root_count, bvh.wide_depth, rays.face_offsets, *out)
+                        bvh.root_count, bvh.wide_depth, rays.face_offsets, *out, interleave)
         return out if mode == 0 else out[5:]
 
     for mode in (0, 1, 2):
-        together = walk(mode, [(0, n)])
-        alone = walk(mode, [(i, i + 1) for i in sample])
+        together = walk(mode, [(0, n)], True)
+        in_turn = walk(mode, [(0, n)], False)
+        alone = walk(mode, [(i, i + 1) for i in sample], True)
         assert (together[0] != 7).all()  # every ray written
-        for a, b in zip(together, alone):
-            np.testing.assert_array_equal(a[sample], b[sample])
+        for a, b, c in zip(together, in_turn, alone):
+            np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(a[sample], c[sample])
         if mode == 1:
             counts = [brute_force(bunny.positions[bunny.faces], origins[i:i + 1],
                                   directions[i:i + 1], t_min[i], t_max[i])[3][0]
