@@ -134,9 +134,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
-    # _I_* constants): the ray (-1: none), where its walk stands,
-    # its bound, best hit and hit count, its origin and inverse direction for the box
-    # tests, and the triangle test's frame (ray_frame), made at its first leaf.
+    # _I_* constants): the ray (-1: none), where its walk stands, its bound, best hit
+    # and hit count, its origin and inverse direction for the box tests, and the
+    # triangle test's frame (ray_frame), made at its first leaf.
     slot_f = np.empty((SLOTS, _F_COLUMNS))
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
     tests = 0
@@ -339,9 +339,9 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                 # next by its rays, the others pushed farthest first. (descend's vector
                 # keys, sorted_keys4, measured slower here: the bunny's primary rays
                 # 30.5 -> 32.3 ms; a packet's walks are coherent, so these branches are
-                # predicted.) Written out here:
-                # as an inlined function taking the arrays it ran 40% slower (Numba
-                # counts references to arrays handed to an inlined function).
+                # predicted.) Written out here: as an inlined function taking the
+                # arrays it ran 40% slower (Numba counts references to arrays handed to
+                # an inlined function).
                 mask16 &= active * 0x1111
                 if mask16 != 0:
                     c0, c1 = mask16 & 15, (mask16 >> 4) & 15

@@ -158,14 +158,14 @@ class RayScene:
         if progress is None:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         # Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
-        # close) go through the walk in packets of four; the answers are the same.
-        # Not for `occluded`, whose walks stop at different depths.
-        # Other rays are walked eight at a time per thread (trace_range's interleave),
-        # which hides the cache misses of incoherent ones. Coherent rays find in cache
-        # what the ray before read, unless the triangles are about as many as the rays
-        # (each ray then meets triangles of its own): with many rays a triangle they
-        # are walked one by one (the bunny's 1M camera rays, occluded: 35 ms
-        # interleaved, 30 one by one; a 1M-face terrain's: 22 and 26).
+        # close) go through the walk in packets of four, except for `occluded`, whose
+        # walks stop at different depths. Other rays go through trace_range, eight at
+        # a time per thread (its interleave), which hides the cache misses of
+        # incoherent rays. Coherent rays find in cache what the ray before read unless
+        # the triangles are about as many as the rays (each ray then meets triangles
+        # of its own), so with many rays a triangle they are walked one by one (the
+        # bunny's 1M camera rays, occluded: 35 ms interleaved, 30 one by one; a
+        # 1M-face terrain's: 22 and 26). The answers are the same on every path.
         coherent = _coherent(origins, directions, self.scene_size)
         kernel, last = ((trace_packets, ()) if coherent and mode != 1 else (
             trace_range, (not coherent or 4 * self.bvh.n_faces > n,)))
