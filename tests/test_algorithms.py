@@ -5,6 +5,8 @@ import os
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_zbuffer_reference import small_scene
 
 import hsr
@@ -119,6 +121,76 @@ def test_naive_and_bvh_ray_casting_are_identical(models_dir):
     da, db = a.fragments.buffers["distance"], b.fragments.buffers["distance"]
     assert np.array_equal(da, db)
     assert a.stats["ray_triangle_tests"] > 20 * b.stats["ray_triangle_tests"]
+
+
+def _naive_and_bvh(scene, cam, width, height, state):
+    """The naive and the BVH ray caster's frames (with buffers) of one view."""
+    return [hsr.render(scene, cam, width, height, algorithm="raycast", state=state,
+                       options={"accel": accel, "buffers": True}) for accel in ("none", "bvh")]
+
+
+def _assert_same_hits(naive, bvh):
+    """Face ids and depths bit for bit; distances and barycentrics within rounding (the
+    walks carry two barycentrics and take the third as their complement)."""
+    np.testing.assert_array_equal(naive.face_id, bvh.face_id)
+    np.testing.assert_array_equal(naive.depth, bvh.depth)
+    a, b = naive.fragments.buffers, bvh.fragments.buffers
+    np.testing.assert_array_equal(a["distance"], b["distance"])
+    np.testing.assert_allclose(a["barycentrics"], b["barycentrics"], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("size, walk", [((100, 75), "packets"), ((60, 45), "interleaved")])
+def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, size, walk):
+    """Both walks of the BVH ray caster (packets of four pixels when the pixels outnumber
+    the faces four to one, else single rays interleaved) against the naive loop, which
+    tests every face for every pixel in submission order: the same hits under each
+    glCullFace mode, winding, depth function and a clear depth that cuts the model, on
+    a scene whose faces are partly repeated (exact depth ties, which submission order
+    decides: the later face under GL_LEQUAL, the earlier under GL_LESS) and partly
+    repeated reversed (the same place, opposite facing)."""
+    mesh = hsr.load(os.path.join(models_dir, "suzanne.obj"))
+    faces = np.concatenate([mesh.faces, mesh.faces[::3], mesh.faces[1::3, ::-1]])
+    scene = hsr.Mesh(mesh.positions, faces)
+    cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
+    width, height = size
+    assert (4 * len(faces) <= width * height) == (walk == "packets")
+    z = hsr.render(scene, cam, width, height).depth
+    cut = float(np.median(z[z < 1]))  # the clear depth that hides the far half
+    for cull in ("none", "back", "front", "front_and_back"):
+        for func in ("less", "lequal"):
+            for front in ("ccw", "cw"):
+                for clear in (1.0, cut):
+                    state = hsr.RenderState(cull=cull, depth_func=func, front_face=front,
+                                            clear_depth=clear)
+                    naive, bvh = _naive_and_bvh(scene, cam, width, height, state)
+                    assert bvh.stats["ray_walk"] == walk
+                    _assert_same_hits(naive, bvh)
+                    if cull == "none" and clear == 1.0:  # ties were there to decide
+                        tied = bvh.face_id >= len(mesh.faces)
+                        assert tied.any() == (func == "lequal")
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 60),
+       cull=st.sampled_from(["none", "back", "front", "front_and_back"]),
+       func=st.sampled_from(["less", "lequal"]), front=st.sampled_from(["ccw", "cw"]),
+       width=st.integers(1, 48), height=st.integers(1, 48))
+def test_bvh_ray_caster_equals_the_naive_loop_on_random_soups(seed, n, cull, func, front,
+                                                              width, height):
+    """Random soups (a third of the triangles repeated, some in one plane facing the
+    camera: ties), random views and states, images from 1x1 (each walk's part-full
+    packet or round) to wider than the faces (packets) and smaller (interleaved)."""
+    rng = np.random.default_rng(seed)
+    corners = rng.uniform(-1, 1, size=(n, 3, 3))
+    corners[rng.random(n) < 0.3, :, 2] = 0.25
+    corners = np.concatenate([corners, corners[rng.random(n) < 0.35]])
+    scene = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * len(corners)).reshape(-1, 3))
+    direction = rng.normal(size=3)
+    direction[2] = abs(direction[2]) + 0.3
+    cam = hsr.Camera.frame(scene.bounds(), direction=direction)
+    state = hsr.RenderState(cull=cull, depth_func=func, front_face=front)
+    naive, bvh = _naive_and_bvh(scene, cam, width, height, state)
+    _assert_same_hits(naive, bvh)
 
 
 def test_naive_ray_casting_refuses_huge_jobs():

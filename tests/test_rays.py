@@ -463,7 +463,7 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
         for kernel, last in ((trace_range, (False,)), (trace_packets, ())):
             out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                    np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
-            kernel(0, n, origins, directions, t_min, t_max, mode, bvh.corners,
+            kernel(0, n, origins, directions, t_min, t_max, mode, None, bvh.corners,
                    bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
                    bvh.wide_depth, rays.face_offsets, *out, *last)
             answers.append(out if mode == 0 else out[5:])
@@ -503,9 +503,10 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
         out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
         for r_lo, r_hi in rows:
-            trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, bvh.corners,
-                        bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
-                        bvh.root_count, bvh.wide_depth, rays.face_offsets, *out, interleave)
+            trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, None,
+                        bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
+                        bvh.root_ref, bvh.root_count, bvh.wide_depth, rays.face_offsets,
+                        *out, interleave)
         return out if mode == 0 else out[5:]
 
     for mode in (0, 1, 2):

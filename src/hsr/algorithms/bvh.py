@@ -1,20 +1,20 @@
-"""Ray casting (seed 004): one primary ray per pixel centre, nearest hit wins.
+"""The bounding volume hierarchy the ray caster (:mod:`hsr.algorithms.raycast`, seed 004)
+and the ray queries (:mod:`hsr.algorithms.rays`) walk, and the ray/triangle test.
 
-- ``cast(..., bvh=None)``: the literal O(pixels x triangles) method.
 - :func:`build` makes a bounding volume hierarchy (binned surface-area heuristic, flat
   arrays, built once per scene and reused across views), collapsed into a 4-wide tree
   for the walk (:func:`widen`, :func:`pack_nodes`: a node's four child boxes in one
   128-byte record, tested at once by :func:`hsr.algorithms.simd.box_entries4`);
   traversal is a stack walk, nearest entered box first, pruned by the best hit so far
-  (:func:`descend`, :func:`next_box`, shared with the arbitrary rays of
+  (:func:`descend`, :func:`next_box`; the walks themselves are in
   :mod:`hsr.algorithms.rays`). The triangles are stored in leaf order (a leaf's corners
   are one run of memory).
 
 Intersection is the watertight test of Woop, Benthin & Wald (2013): the ray is made the
 +z axis by a permutation and a shear, and the three 2-D edge functions are evaluated so
 that an edge shared by two triangles gives exactly opposite values in both, so no ray
-slips between them. Rays run from the near plane to the far plane (the parameter t in
-[0, 1]), which is exactly the depth range the rasterizer's clipping keeps.
+slips between them. The ray caster's rays run from the near plane to the far plane (the
+parameter t in [0, 1]), which is exactly the depth range the rasterizer's clipping keeps.
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..parallel import Workers, split_range
+from ..parallel import Workers
 from ..scene.mesh import Scene, SceneLike, as_scene
-from .simd import SLACK, SLACK_ABS, box_entries4, float_bits, sorted_keys4
+from .simd import SLACK, SLACK_ABS, float_bits, sorted_keys4
 
-__all__ = ["BVH", "build", "world_triangles", "cast", "widen", "pack_nodes",
+__all__ = ["BVH", "build", "world_triangles", "widen", "pack_nodes",
            "inverse_direction", "careful_entries4", "descend", "next_box",
            "careful_packet_entries", "stack_size", "walk_stack"]
 
@@ -695,106 +695,6 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
     return t, u / det, v / det, w / det
 
 
-@njit(cache=True, nogil=True)
-def _cast_rows(r_lo, r_hi, tris, inv_view_proj, view_proj, width, height, depth_scale,
-               depth_offset, cull_code, front_ccw, lequal, eye, ortho, forward, use_bvh,
-               node_box, node_link, root_ref, root_count, leaf_face, wide_depth, face_buf,
-               depth_buf, dist_buf, bary_buf, clear_depth, extras):
-    """Rows r_lo .. r_hi - 1. With ``use_bvh``, ``tris`` holds the BVH's corners in leaf
-    order and ``leaf_face`` each slot's face id; without, the faces in order."""
-    n_tris = tris.shape[0]
-    stack_ref, stack_count, stack_t = walk_stack(wide_depth, 1)
-    tests = 0
-    for r in range(r_lo, r_hi):
-        y_ndc = 1.0 - (r + 0.5) * 2.0 / height
-        for c in range(width):
-            x_ndc = (c + 0.5) * 2.0 / width - 1.0
-            # Un-project the pixel centre at the near (z = -1) and far (z = 1) planes.
-            ox, oy, oz = _unproject(inv_view_proj, x_ndc, y_ndc, -1.0)
-            fx, fy, fz = _unproject(inv_view_proj, x_ndc, y_ndc, 1.0)
-            dx, dy, dz = fx - ox, fy - oy, fz - oz
-            kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
-            # Clip z and w are linear along the ray: z_clip(t) = zc0 + t zc1, same for w.
-            zc0 = (view_proj[2, 0] * ox + view_proj[2, 1] * oy + view_proj[2, 2] * oz
-                   + view_proj[2, 3])
-            zc1 = view_proj[2, 0] * dx + view_proj[2, 1] * dy + view_proj[2, 2] * dz
-            wc0 = (view_proj[3, 0] * ox + view_proj[3, 1] * oy + view_proj[3, 2] * oz
-                   + view_proj[3, 3])
-            wc1 = view_proj[3, 0] * dx + view_proj[3, 1] * dy + view_proj[3, 2] * dz
-            # Hits are ranked as the z-buffer ranks fragments: by float32 window depth,
-            # equal depths by submission order (coplanar faces resolve alike).
-            best_t = np.inf
-            best_z = np.float32(np.inf)
-            best_f = -1
-            t_bound = 1.0  # no box entered beyond this can hold a hit at least as good
-            bu = bv = bw = 0.0
-            if use_bvh and leaf_face.shape[0] > 0:
-                inv_dx, inv_dy, inv_dz, careful = inverse_direction(dx, dy, dz)
-                top = 0
-                ref, n = np.int64(root_ref), np.int64(root_count)
-                walking = True
-                while walking:
-                    if n == 0:  # a wide node: walk on into its nearest entered box
-                        if careful:
-                            k0, k1, k2, k3, mask = careful_entries4(
-                                node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, t_bound)
-                        else:
-                            k0, k1, k2, k3, mask = box_entries4(
-                                node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, t_bound)
-                        ref, n, top, entered = descend(k0, k1, k2, k3, mask, ref, node_link,
-                                                       stack_ref, stack_count, stack_t, top)
-                        if entered:
-                            continue
-                    else:  # a leaf: its slots ref .. ref + n - 1
-                        for k in range(ref, ref + n):
-                            tests += 1
-                            t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx,
-                                                    sy, sz, cull_code, front_ccw, dx, dy, dz)
-                            if (0.0 <= t) & (t <= 1.0):
-                                f = leaf_face[k]
-                                z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
-                                if best_f < 0 or z < best_z or (z == best_z and (
-                                        f > best_f if lequal else f < best_f)):
-                                    best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
-                                    t_bound = _t_bound(z, zc0, zc1, wc0, wc1, depth_scale,
-                                                       depth_offset)
-                    ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top,
-                                                    t_bound, 0)
-            elif not use_bvh:
-                for f in range(n_tris):
-                    tests += 1
-                    t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
-                                            cull_code, front_ccw, dx, dy, dz)
-                    if 0.0 <= t <= 1.0:
-                        z = _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset)
-                        if best_f < 0 or z < best_z or (z == best_z and (
-                                f > best_f if lequal else f < best_f)):
-                            best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
-            face_buf[r, c] = -1
-            depth_buf[r, c] = clear_depth
-            if extras:
-                dist_buf[r, c] = np.inf
-                bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
-            if best_f < 0:
-                continue
-            px, py, pz = ox + best_t * dx, oy + best_t * dy, oz + best_t * dz
-            z = best_z
-            if not (z < clear_depth or (lequal and z == clear_depth)):
-                continue
-            face_buf[r, c] = best_f
-            depth_buf[r, c] = z
-            if not extras:
-                continue
-            if ortho:
-                dist_buf[r, c] = ((px - eye[0]) * forward[0] + (py - eye[1]) * forward[1]
-                                  + (pz - eye[2]) * forward[2])
-            else:
-                dist_buf[r, c] = np.sqrt((px - eye[0]) ** 2 + (py - eye[1]) ** 2
-                                         + (pz - eye[2]) ** 2)
-            bary_buf[r, c, 0], bary_buf[r, c, 1], bary_buf[r, c, 2] = bu, bv, bw
-    return tests
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
     """float32 window depth of the point at parameter t of the ray."""
@@ -814,47 +714,3 @@ def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
         return 1.0
     t = (zc0 - zn * wc0) / denom
     return min(1.0, t * (1.0 + 1e-9) + 1e-12) if t == t else 1.0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _unproject(m, x, y, z):
-    hx = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z + m[0, 3]
-    hy = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z + m[1, 3]
-    hz = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z + m[2, 3]
-    hw = m[3, 0] * x + m[3, 1] * y + m[3, 2] * z + m[3, 3]
-    return hx / hw, hy / hw, hz / hw
-
-
-def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None,
-         extras: bool = True):
-    """Cast one ray per pixel. Returns (face_id, depth, distance, barycentrics, tests);
-    without ``extras`` distance and barycentrics are None (less memory traffic).
-    ``triangles``: (F, 3, 3) world-space corners in face order, tested one by one when
-    there is no ``bvh`` (with one, the BVH's own copy in leaf order is used)."""
-    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
-    inv = np.linalg.inv(view_proj)
-    near, far = state.depth_range
-    cull_code = ["none", "back", "front", "front_and_back"].index(state.cull.value)
-    face = np.empty((height, width), dtype=np.int32)
-    depth = np.empty((height, width), dtype=np.float32)
-    shape = (height, width) if extras else (1, 1)
-    distance = np.empty(shape, dtype=np.float64)
-    bary = np.empty(shape + (3,), dtype=np.float64)
-    if bvh is None:
-        nodes = (np.zeros((1, NODE_WORDS), np.float32), np.zeros((1, NODE_WORDS), np.int32),
-                 0, 0, np.zeros(0, np.int32), 0)
-    else:
-        triangles = bvh.corners
-        nodes = (bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count, bvh.leaf_face,
-                 bvh.wide_depth)
-    # Many row chunks, handed out as threads free up: rays cost unevenly across the image.
-    tests = workers.run(
-        _cast_rows, split_range(height, 8 * workers.threads), triangles, inv, view_proj,
-        width, height, 0.5 * (far - near),
-        0.5 * (far + near), cull_code, state.front_face.value == "ccw",
-        state.depth_func.value == "lequal", np.asarray(camera.eye, dtype=np.float64),
-        camera.is_orthographic, camera.forward, bvh is not None, *nodes, face, depth,
-        distance, bary, np.float32(state.clear_depth), extras)
-    if not extras:
-        return face, depth, None, None, int(sum(tests))
-    return face, depth, distance, bary, int(sum(tests))

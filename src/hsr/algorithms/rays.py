@@ -23,7 +23,9 @@ from numba import njit
 from .bvh import (
     COUNT_AT,
     REF,
+    _depth32,
     _intersect,
+    _t_bound,
     careful_entries4,
     careful_packet_entries,
     descend,
@@ -36,7 +38,8 @@ from .bvh import (
 )
 from .simd import box_entries4, packet_entries4, prefetch
 
-__all__ = ["trace_range", "trace_packets", "check_rays", "NEAREST", "ANY", "COUNT"]
+__all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "NEAREST", "ANY",
+           "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
 # A walk's bound starts at t_max made finite, so that a missed box (entered at +inf)
@@ -86,7 +89,7 @@ SLOTS = 8
 HOT_NODES = 4096
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
- _F_BOUND, _F_T, _F_U, _F_V, _F_COLUMNS) = range(17)
+ _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
 # ... and int64 (_I_SLOT: the BVH slot of the best hit, _I_FACE its face).
 (_I_RAY, _I_REF, _I_N, _I_TOP, _I_FACE, _I_SLOT, _I_COUNT, _I_FRAMED, _I_CAREFUL, _I_KX,
  _I_KY, _I_KZ, _I_COLUMNS) = range(13)
@@ -95,9 +98,9 @@ HOT_NODES = 4096
 # error_model "numpy": IEEE division, without the zero test Numba adds to each division
 # under Python's rules (every divisor in the walks is non-zero or checked first).
 @njit(cache=True, nogil=True, error_model="numpy")
-def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
-                node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
-                out_object, out_uv, out_normal, out_count, interleave):
+def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
+                node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
+                out_face, out_object, out_uv, out_normal, out_count, interleave):
     """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`hsr.algorithms.bvh.widen`
     in the layout of :func:`hsr.algorithms.bvh.pack_nodes` (the root a wide node when
     ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
@@ -109,6 +112,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or one
     for all (length 1). Equal nearest distances go to the lower face id, so the answer
     does not depend on the walk (nor on how rays are split between threads).
+    ``raster`` is None for these queries. The ray caster's walks pass
+    ``(cull_code, front_ccw, lequal, rank)`` with mode NEAREST (``out_t``, ``out_face``
+    and ``out_uv`` written): hits are culled by facing as glCullFace does (cull code 0
+    none, 1 back, 2 front, 3 both) and ranked as the z-buffer ranks fragments, by float32
+    window depth (``rank``: :func:`window_ranking`), equal depths by submission order
+    (the later face under GL_LEQUAL, else the earlier). Numba compiles the two kinds
+    apart (``raster is None`` is decided when compiling), so the queries' walks carry
+    none of the ray caster's code.
 
     The chunk's rays are checked first (:func:`check_rays`; their data is then in
     cache for the walk); returns ``(tests, problem, ray)``: the triangle tests made, or
@@ -130,6 +141,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
     if problem:
         return 0, problem, bad
+    cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
@@ -143,7 +155,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
     next_ray, busy = lo, 0
     if leaf_face.shape[0] == 0:  # no faces: every ray misses
         for i in range(lo, hi):
-            if mode == 0:
+            if mode == NEAREST:
                 out_t[i], out_face[i], out_object[i] = np.inf, -1, -1
                 out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
             else:
@@ -174,6 +186,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                 # No box entered beyond the bound can hold a hit that matters.
                 slot_f[s, _F_BOUND] = min(t_max[i if per_ray[1] else 0], LARGEST)
                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
+                slot_f[s, _F_Z] = np.inf
             ref, n, top = slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP]
             b = slot_f[s, _F_BOUND]
             ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
@@ -212,19 +225,30 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
                     for k in range(ref, ref + n):
                         tests += 1
                         t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                sz, 0, True, dx, dy, dz)
+                                                sz, cull_code, front_ccw, dx, dy, dz)
                         if not ((t0 <= t) & (t <= t1)):
                             continue
-                        if mode == 1:
+                        if mode == ANY:
                             slot_i[s, _I_COUNT] = 1
                             done = True
                             break
-                        if mode == 2:
+                        if mode == COUNT:
                             if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
                                     tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
                                 slot_i[s, _I_COUNT] += 1
                             continue
                         f = leaf_face[k]
+                        if raster is not None:
+                            rank = raster[3]
+                            zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
+                            z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                            if _ranks_before(z, f, slot_f[s, _F_Z], slot_i[s, _I_FACE],
+                                             raster[2]):
+                                slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
+                                slot_f[s, _F_Z] = z
+                                slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
+                                b = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                            continue
                         if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
                                                    and f < slot_i[s, _I_FACE]):
                             slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
@@ -252,7 +276,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
             # 70 ns a ray.)
-            if mode == 0:
+            if mode == NEAREST:
                 out_t[i] = slot_f[s, _F_T]
                 out_face[i] = slot_i[s, _I_FACE]
                 out_object[i] = slot_i[s, _I_SLOT]
@@ -265,7 +289,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
             break
     # Each hit's object and normal, in a pass of its own: inside the walk's loop this
     # code made the walk of random rays at the bunny 15% slower.
-    if mode == 0:
+    if mode == NEAREST and raster is None:
         for i in range(lo, hi):
             _hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
                         i)
@@ -273,9 +297,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_face, node_box,
-                  node_link, root_ref, root_count, wide_depth, face_offsets, out_t, out_face,
-                  out_object, out_uv, out_normal, out_count):
+def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
+                  node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
+                  out_face, out_object, out_uv, out_normal, out_count):
     """:func:`trace_range` four rays at a time: a packet (Wald, Slusallek, Benthin and
     Wagner 2001) walks the boxes that any of its rays enters, each box tested for the
     four rays at once (:func:`hsr.algorithms.simd.packet_entries4`) and each ray
@@ -290,6 +314,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
     problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
     if problem:
         return 0, problem, bad
+    cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     stack_ref, stack_count, _ = walk_stack(wide_depth, 1)
     stack_rays = np.empty(len(stack_ref), dtype=np.int64)
     stack_t = np.empty((len(stack_ref), 4))  # each ray's entry
@@ -298,7 +323,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
     axes = np.empty((3, 4), dtype=np.int64)
     bound = np.empty(4)
     entries = np.empty((4, 4))
-    best_t, best_uv = np.empty(4), np.empty((4, 2))
+    best_t, best_z, best_uv = np.empty(4), np.empty(4), np.empty((4, 2))
     best_f, best_k = np.empty(4, dtype=np.int64), np.empty(4, dtype=np.int64)
     count = np.empty(4, dtype=np.int64)
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
@@ -321,7 +346,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
             careful |= parallel
             # A ray past the end enters nothing (every entry is >= 0).
             bound[r] = min(frame[10, r], LARGEST) if first + r < hi else -1.0
-            best_t[r], best_f[r], best_k[r] = np.inf, -1, -1
+            best_t[r], best_z[r], best_f[r], best_k[r] = np.inf, np.inf, -1, -1
             best_uv[r, 0] = best_uv[r, 1] = 0.0
             count[r] = 0
         top = 0
@@ -376,20 +401,31 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                     for k in range(ref, ref + n):
                         tests += 1
                         t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                sz, 0, True, frame[6, r], frame[7, r],
-                                                frame[8, r])
+                                                sz, cull_code, front_ccw, frame[6, r],
+                                                frame[7, r], frame[8, r])
                         if not ((t0 <= t) & (t <= t1)):
                             continue
-                        if mode == 1:  # done: this ray enters no box any more
+                        if mode == ANY:  # done: this ray enters no box any more
                             count[r] = 1
                             bound[r] = -1.0
                             break
-                        if mode == 2:
+                        if mode == COUNT:
                             if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
                                     tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
                                 count[r] += 1
                             continue
                         f = leaf_face[k]
+                        if raster is not None:
+                            rank = raster[3]
+                            zc0, zc1, wc0, wc1 = _clip_zw(rank, rays[0, r], rays[1, r],
+                                                          rays[2, r], frame[6, r], frame[7, r],
+                                                          frame[8, r])
+                            z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                            if _ranks_before(z, f, best_z[r], best_f[r], raster[2]):
+                                best_t[r], best_z[r], best_f[r], best_k[r] = t, z, f, k
+                                best_uv[r, 0], best_uv[r, 1] = v, w
+                                bound[r] = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                            continue
                         if t < best_t[r] or (t == best_t[r] and f < best_f[r]):
                             best_t[r], best_f[r], best_k[r] = t, f, k
                             best_uv[r, 0], best_uv[r, 1] = v, w
@@ -409,15 +445,44 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, tris, leaf_fa
                     break
         for r in range(min(4, hi - first)):
             i = first + r
-            if mode == 0:
-                out_t[i] = best_t[r]
-                out_face[i] = best_f[r]
-                out_uv[i, 0], out_uv[i, 1] = best_uv[r, 0], best_uv[r, 1]
+            if mode != NEAREST:
+                out_count[i] = count[r]
+                continue
+            out_t[i] = best_t[r]
+            out_face[i] = best_f[r]
+            out_uv[i, 0], out_uv[i, 1] = best_uv[r, 0], best_uv[r, 1]
+            if raster is None:
                 _hit_record(tris, best_k[r], best_f[r], face_offsets, out_object, out_normal,
                             i)
-            else:
-                out_count[i] = count[r]
     return tests, 0, -1
+
+
+def window_ranking(view_proj, depth_range) -> np.ndarray:
+    """The ray caster's ranking (``raster[3]`` of :func:`trace_range`): rows 2 and 3 of
+    ``view_proj`` (the ray's clip z and w) and the scale and offset that take NDC depth
+    to window depth for glDepthRange ``depth_range`` (near, far)."""
+    near, far = depth_range
+    return np.concatenate([np.asarray(view_proj, dtype=np.float64)[2:4].ravel(),
+                           [0.5 * (far - near), 0.5 * (far + near)]])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clip_zw(rank, ox, oy, oz, dx, dy, dz):
+    """(zc0, zc1, wc0, wc1): clip z and w along the ray are zc0 + t zc1 and wc0 + t wc1
+    (both linear in t)."""
+    zc0 = rank[0] * ox + rank[1] * oy + rank[2] * oz + rank[3]
+    zc1 = rank[0] * dx + rank[1] * dy + rank[2] * dz
+    wc0 = rank[4] * ox + rank[5] * oy + rank[6] * oz + rank[7]
+    wc1 = rank[4] * dx + rank[5] * dy + rank[6] * dz
+    return zc0, zc1, wc0, wc1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _ranks_before(z, f, best_z, best_f, lequal):
+    """Whether a hit of window depth ``z`` on face ``f`` beats the best so far as the
+    z-buffer decides (no best yet: ``best_f`` < 0): nearer, or as near and drawn later
+    under GL_LEQUAL (earlier under GL_LESS, where the first drawn stays)."""
+    return best_f < 0 or z < best_z or (z == best_z and (f > best_f if lequal else f < best_f))
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -108,9 +108,11 @@ def run(args) -> int:
         save_image(difference_map(frame, truth), args.error_map)
     if not args.quiet:
         s = frame.stats
+        # The raster geometry stage's counts (the ray caster runs none).
+        counts = "".join(f", {s[key]} {key}" for key in ("degenerate", "culled", "clipped")
+                         if key in s)
         print(f"wrote {args.output or args.svg} ({width}x{height}, {args.algorithm}): "
-              f"{s['triangles_in']} triangles, {s['degenerate']} degenerate, "
-              f"{s['culled']} culled, {s['clipped']} clipped, "
+              f"{s['triangles_in']} triangles{counts}, "
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
               + _algorithm_summary(s))
     return 0

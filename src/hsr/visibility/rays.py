@@ -177,8 +177,9 @@ class RayScene:
             chunk = max(CHUNK, n // (16 * workers.threads))
             results = workers.run(
                 kernel, split_range(n, max(1, -(-n // chunk))), origins, directions,
-                t0, t1, mode, bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
-                bvh.root_ref, bvh.root_count, bvh.wide_depth, self.face_offsets, *outputs,
+                t0, t1, mode, None, bvh.corners, bvh.leaf_face, bvh.node_box,
+                bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth,
+                self.face_offsets, *outputs,
                 *last, on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
         # The rays are checked chunk by chunk as they are traced (their data is in cache
         # then); the first bad ray of all is reported, whatever was traced.
