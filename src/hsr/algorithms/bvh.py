@@ -693,24 +693,3 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
             return -1.0, 0.0, 0.0, 0.0
     t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det
     return t, u / det, v / det, w / det
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
-    """float32 window depth of the point at parameter t of the ray."""
-    return np.float32((zc0 + t * zc1) / (wc0 + t * wc1) * depth_scale + depth_offset)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
-    """The ray parameter past which window depth exceeds the next float32 above ``z``
-    (window depth grows monotonically along the ray): a hit beyond it cannot tie."""
-    if depth_scale == 0.0:
-        return 1.0
-    z_next = np.nextafter(z, np.float32(np.inf))
-    zn = (np.float64(z_next) - depth_offset) / depth_scale
-    denom = zn * wc1 - zc1
-    if denom == 0.0:
-        return 1.0
-    t = (zc0 - zn * wc0) / denom
-    return min(1.0, t * (1.0 + 1e-9) + 1e-12) if t == t else 1.0

@@ -11,9 +11,17 @@ from ..errors import RenderError
 from ..geometry.stage import ScreenTriangles
 from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
-from .bvh import BVH, _depth32, _intersect, build, ray_frame
+from .bvh import BVH, NODE_WORDS, _intersect, build, ray_frame
 from .fragments import Fragments
-from .rays import NEAREST, _clip_zw, _ranks_before, trace_packets, trace_range, window_ranking
+from .rays import (
+    NEAREST,
+    _clip_zw,
+    _depth32,
+    _ranks_before,
+    trace_packets,
+    trace_range,
+    window_ranking,
+)
 from .support import Needs, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "raycast"
@@ -70,6 +78,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     return fragments
 
 
+# The walks of the pixels' rays (stats["ray_walk"] names them).
+NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
+WALKS = ("naive", "packets", "interleaved")
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
@@ -108,22 +119,21 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     clear = np.float32(state.clear_depth)
     raster = (cull_code, front_ccw, lequal, window_ranking(view_proj, state.depth_range))
     if bvh is None:
-        tests = workers.run(_cast_rows, rows, triangles, inv, width, height, raster, eye,
-                            camera.is_orthographic, forward, face, depth, distance, bary,
-                            clear, extras)
+        walk = NAIVE
+        nodes = (triangles, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
+                 np.zeros((1, NODE_WORDS), np.int32), 0, 0, 0)
     else:
-        packets = 4 * bvh.n_faces <= width * height
-        tests = workers.run(
-            _cast_bvh_rows, rows, inv, width, height, raster, packets, bvh.corners,
-            bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
-            bvh.wide_depth, eye, camera.is_orthographic, forward, face, depth, distance,
-            bary, clear, extras)
-        if min(tests) < 0:
-            raise RenderError("the camera's pixel rays are not finite; check its matrices")
-    walk = "naive" if bvh is None else "packets" if packets else "interleaved"
+        walk = PACKETS if 4 * bvh.n_faces <= width * height else INTERLEAVED
+        nodes = (bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
+                 bvh.root_count, bvh.wide_depth)
+    tests = workers.run(_cast_rows, rows, inv, width, height, raster, walk, *nodes, eye,
+                        camera.is_orthographic, forward, face, depth, distance, bary, clear,
+                        extras)
+    if min(tests) < 0:
+        raise RenderError("the camera's pixel rays are not finite; check its matrices")
     if not extras:
-        return face, depth, None, None, int(sum(tests)), walk
-    return face, depth, distance, bary, int(sum(tests)), walk
+        return face, depth, None, None, int(sum(tests)), WALKS[walk]
+    return face, depth, distance, bary, int(sum(tests)), WALKS[walk]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -158,14 +168,15 @@ def _eye_distance(px, py, pz, eye, ortho, forward):
 
 
 @njit(cache=True, nogil=True)
-def _cast_bvh_rows(r_lo, r_hi, inv_view_proj, width, height, raster, packets, tris,
-                   leaf_face, node_box, node_link, root_ref, root_count, wide_depth, eye,
-                   ortho, forward, face_buf, depth_buf, dist_buf, bary_buf, clear_depth,
-                   extras):
-    """Rows r_lo .. r_hi - 1 through the BVH, a block of rows at a time: the block's
-    rays made, walked (:func:`hsr.algorithms.rays.trace_packets` or ``trace_range``
-    with ``raster``) and their answers written to the buffers. Returns the triangle
-    tests made, or -1 for rays the walk refused (not finite)."""
+def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, leaf_face,
+               node_box, node_link, root_ref, root_count, wide_depth, eye, ortho, forward,
+               face_buf, depth_buf, dist_buf, bary_buf, clear_depth, extras):
+    """Rows r_lo .. r_hi - 1, a block of rows at a time: the block's rays made, walked
+    (``walk``: :data:`PACKETS` and :data:`INTERLEAVED` through the BVH with
+    :func:`hsr.algorithms.rays.trace_packets` / ``trace_range`` and ``raster``;
+    :data:`NAIVE` by :func:`_naive_walk`, ``tris`` then the faces in order) and their
+    answers written to the buffers. Returns the triangle tests made, or -1 for rays
+    the walk refused (not finite)."""
     lequal, rank = raster[2], raster[3]
     block_rows = max(1, BLOCK_PIXELS // width)
     n_max = block_rows * width
@@ -188,7 +199,10 @@ def _cast_bvh_rows(r_lo, r_hi, inv_view_proj, width, height, raster, packets, tr
                  directions[i, 1], directions[i, 2]) = _pixel_ray(inv_view_proj, width,
                                                                   height, r, c)
                 i += 1
-        if packets:
+        problem = 0
+        if walk == NAIVE:
+            made = _naive_walk(n, origins, directions, raster, tris, out_t, out_face, out_uv)
+        elif walk == PACKETS:
             made, problem, _ = trace_packets(
                 0, n, origins, directions, t_min, t_max, NEAREST, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, no_offsets, out_t,
@@ -232,38 +246,25 @@ def _cast_bvh_rows(r_lo, r_hi, inv_view_proj, width, height, raster, packets, tr
 
 
 @njit(cache=True, nogil=True)
-def _cast_rows(r_lo, r_hi, tris, inv_view_proj, width, height, raster, eye, ortho, forward,
-               face_buf, depth_buf, dist_buf, bary_buf, clear_depth, extras):
-    """Rows r_lo .. r_hi - 1, every ray against every face in order (``tris``: the
-    faces' world corners): the literal method, ranked as :func:`cast` says."""
+def _naive_walk(n, origins, directions, raster, tris, out_t, out_face, out_uv):
+    """Rays 0 .. n - 1, each against every face in order (``tris``: the faces' world
+    corners): the literal method, with the walks' answers (``out_t``, ``out_face``, the
+    weights of corners 1 and 2 in ``out_uv``) and ranking. Returns the tests made."""
     cull_code, front_ccw, lequal, rank = raster
-    tests = 0
-    for r in range(r_lo, r_hi):
-        for c in range(width):
-            ox, oy, oz, dx, dy, dz = _pixel_ray(inv_view_proj, width, height, r, c)
-            kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
-            zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
-            best_t, best_z, best_f = np.inf, np.float32(np.inf), -1
-            bu = bv = bw = 0.0
-            for f in range(tris.shape[0]):
-                tests += 1
-                t, u, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
-                                        cull_code, front_ccw, dx, dy, dz)
-                if 0.0 <= t <= 1.0:
-                    z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                    if _ranks_before(z, f, best_z, best_f, lequal):
-                        best_t, best_z, best_f, bu, bv, bw = t, z, f, u, v, w
-            face_buf[r, c] = -1
-            depth_buf[r, c] = clear_depth
-            if extras:
-                dist_buf[r, c] = np.inf
-                bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
-            if best_f < 0 or not (best_z < clear_depth or (lequal and best_z == clear_depth)):
-                continue
-            face_buf[r, c] = best_f
-            depth_buf[r, c] = best_z
-            if extras:
-                dist_buf[r, c] = _eye_distance(ox + best_t * dx, oy + best_t * dy,
-                                               oz + best_t * dz, eye, ortho, forward)
-                bary_buf[r, c, 0], bary_buf[r, c, 1], bary_buf[r, c, 2] = bu, bv, bw
-    return tests
+    for i in range(n):
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
+        zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
+        best_t, best_z, best_f = np.inf, np.float32(np.inf), -1
+        bv = bw = 0.0
+        for f in range(tris.shape[0]):
+            t, _, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
+                                    cull_code, front_ccw, dx, dy, dz)
+            if 0.0 <= t <= 1.0:
+                z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                if _ranks_before(z, f, best_z, best_f, lequal):
+                    best_t, best_z, best_f, bv, bw = t, z, f, v, w
+        out_t[i], out_face[i] = best_t, best_f
+        out_uv[i, 0], out_uv[i, 1] = bv, bw
+    return n * tris.shape[0]

@@ -23,9 +23,7 @@ from numba import njit
 from .bvh import (
     COUNT_AT,
     REF,
-    _depth32,
     _intersect,
-    _t_bound,
     careful_entries4,
     careful_packet_entries,
     descend,
@@ -475,6 +473,27 @@ def _clip_zw(rank, ox, oy, oz, dx, dy, dz):
     wc0 = rank[4] * ox + rank[5] * oy + rank[6] * oz + rank[7]
     wc1 = rank[4] * dx + rank[5] * dy + rank[6] * dz
     return zc0, zc1, wc0, wc1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
+    """float32 window depth of the point at parameter t of the ray."""
+    return np.float32((zc0 + t * zc1) / (wc0 + t * wc1) * depth_scale + depth_offset)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
+    """The ray parameter past which window depth exceeds the next float32 above ``z``
+    (window depth grows monotonically along the ray): a hit beyond it cannot tie."""
+    if depth_scale == 0.0:
+        return 1.0
+    z_next = np.nextafter(z, np.float32(np.inf))
+    zn = (np.float64(z_next) - depth_offset) / depth_scale
+    denom = zn * wc1 - zc1
+    if denom == 0.0:
+        return 1.0
+    t = (zc0 - zn * wc0) / denom
+    return min(1.0, t * (1.0 + 1e-9) + 1e-12) if t == t else 1.0
 
 
 @njit(cache=True, nogil=True, inline="always")
