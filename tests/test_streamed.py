@@ -282,6 +282,29 @@ def test_window_coordinates_read_after_the_z_buffer():
     assert np.array_equal(xy, eager.xy_window) and np.array_equal(depth, eager.depth_window)
 
 
+def test_ray_caster_transforms_vertices_only_when_read():
+    """The ray caster walks world space: its frame's screen triangles are not made, nor
+    even its vertices transformed, until something reads them; then they are those of
+    the eager geometry stage, and a per-pixel look (Gouraud, fog) that reads the
+    clip-space corners colours the ray caster's pixels as it colours the z-buffer's."""
+    mesh, cam = soup()
+    frame = hsr.render(mesh, cam, W, H, algorithm="raycast")
+    screen = frame.fragments.screen
+    assert screen._geometry is None and screen.pending
+    view_proj = cam.projection_matrix(W / H) @ cam.view_matrix
+    eager = prepare(as_scene(mesh), view_proj, W, H, RenderState(), {})
+    assert np.array_equal(screen.pos_clip, eager.pos_clip)
+    assert np.array_equal(screen.faces, eager.faces)
+    assert np.array_equal(screen.xy_window, eager.xy_window)
+    assert np.array_equal(screen.face_id, eager.face_id)
+    look = dict(shading="gouraud", fog=hsr.Fog("linear", 1.0, 9.0))
+    ray = hsr.render(mesh, cam, W, H, algorithm="raycast", **look)
+    ref = hsr.render(mesh, cam, W, H, **look)
+    same = ray.face_id == ref.face_id
+    assert same.mean() > 0.99 and (ray.face_id >= 0).sum() > 100
+    assert (ray.color[same] == ref.color[same]).all()
+
+
 @pytest.mark.parametrize("threads", [1, 2])
 def test_band_counts(threads):
     """Each triangle that covers a pixel centre is filled in every band it overlaps: once

@@ -116,15 +116,31 @@ class ScreenTriangles:
     arrays on first use; until then ``pending`` is true and ``geometry`` holds the clip-space
     scene, which lets the z-buffer stream faces straight into its set-up without storing
     window coordinates per triangle (only per vertex, and only until the set-up is done).
+    A *lazy* set (``prepare(..., lazy=True)``) does not even transform the vertices until
+    ``geometry``, ``pos_clip`` or ``faces`` is first read (``make_geometry`` makes them).
     """
 
     def __init__(self, xy_window, depth_window, face_id, front, width, height, pos_clip,
-                 faces, geometry: Geometry | None = None):
+                 faces, geometry: Geometry | None = None, make_geometry=None):
         self._arrays = None if xy_window is None else (xy_window, depth_window, face_id,
                                                        front)
         self.width, self.height = width, height
-        self.pos_clip, self.faces = pos_clip, faces
-        self.geometry = geometry
+        self._pos_clip, self._faces = pos_clip, faces
+        self._geometry, self._make_geometry = geometry, make_geometry
+
+    @property
+    def geometry(self) -> Geometry | None:
+        if self._geometry is None and self._make_geometry is not None:
+            self._geometry, self._make_geometry = self._make_geometry(), None
+        return self._geometry
+
+    @property
+    def pos_clip(self) -> np.ndarray:
+        return self.geometry.pos_clip if self._pos_clip is None else self._pos_clip
+
+    @property
+    def faces(self) -> np.ndarray:
+        return self.geometry.faces if self._faces is None else self._faces
 
     @property
     def pending(self) -> bool:
@@ -383,25 +399,44 @@ def _keep_mask(ccw: np.ndarray, state: RenderState) -> tuple[np.ndarray, np.ndar
 
 
 def prepare(scene: Scene, view_proj: np.ndarray, width: int, height: int,
-            state: RenderState, stats: dict, workers=None, deferred: bool = False
-            ) -> ScreenTriangles:
+            state: RenderState, stats: dict, workers=None, deferred: bool = False,
+            lazy: bool = False) -> ScreenTriangles:
     """Run the geometry stage; fills ``stats`` with triangle counts. With ``deferred`` only
     the vertices are transformed now; faces are classified, clipped and projected when the
-    screen triangles are first read (or streamed by the z-buffer, which fills ``stats``)."""
+    screen triangles are first read (or streamed by the z-buffer, which fills ``stats``).
+    With ``lazy`` (implies deferred) nothing is done until the clip-space vertices or the
+    screen triangles are first read: the ray caster walks world space and reads neither
+    unless a later pass (per-pixel shading, hidden lines, ...) does (a 1M-face terrain:
+    its 500k vertices' transform, ~4 ms of a 1024x1024 frame, saved)."""
     workers = workers or Workers()
+    if lazy:
+        threads = workers.threads
+
+        def make_geometry():
+            with Workers(threads) as lazy_workers:
+                return _geometry(scene, view_proj, width, height, state, stats, lazy_workers)
+
+        return ScreenTriangles(None, None, None, None, width, height, None, None,
+                               make_geometry=make_geometry)
+    geometry = _geometry(scene, view_proj, width, height, state, stats, workers)
+    if deferred:
+        return ScreenTriangles(None, None, None, None, width, height, geometry.pos_clip,
+                               geometry.faces, geometry)
+    xy_window, depth_window, face_id, front = screen_arrays(geometry, workers)
+    return ScreenTriangles(xy_window, depth_window, face_id, front, width, height,
+                           geometry.pos_clip, geometry.faces)
+
+
+def _geometry(scene, view_proj, width, height, state, stats, workers) -> Geometry:
+    """The scene's vertices through ``view_proj``: :class:`Geometry` for ``state``."""
     near, far = state.depth_range
     planes = clip_planes(width, height, GUARD_BAND_PIXELS)
     depth_scale, depth_offset = 0.5 * (far - near), 0.5 * (far + near)
     pos_clip, codes, pos_window, faces, degenerate = scene_clip_vertices(
         scene, view_proj, (planes[2, 3], planes[4, 3]),
         (width, height, depth_scale, depth_offset), workers)
-    geometry = Geometry(degenerate, pos_clip, codes, pos_window, faces, width, height, state,
-                        planes, depth_scale, depth_offset, stats, workers.threads)
-    if deferred:
-        return ScreenTriangles(None, None, None, None, width, height, pos_clip, faces,
-                               geometry)
-    xy_window, depth_window, face_id, front = screen_arrays(geometry, workers)
-    return ScreenTriangles(xy_window, depth_window, face_id, front, width, height, pos_clip, faces)
+    return Geometry(degenerate, pos_clip, codes, pos_window, faces, width, height, state,
+                    planes, depth_scale, depth_offset, stats, workers.threads)
 
 
 def clip_and_project(geometry: Geometry, clip_faces: np.ndarray):
