@@ -139,21 +139,21 @@ def _assert_same_hits(naive, bvh):
     np.testing.assert_allclose(a["barycentrics"], b["barycentrics"], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("size, walk", [((100, 75), "packets"), ((60, 45), "interleaved")])
+@pytest.mark.parametrize("size, walk", [((100, 75), "packets"), ((24, 18), "interleaved")])
 def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, size, walk):
-    """Both walks of the BVH ray caster (packets of four pixels when the pixels outnumber
-    the faces four to one, else single rays interleaved) against the naive loop, which
-    tests every face for every pixel in submission order: the same hits under each
-    glCullFace mode, winding, depth function and a clear depth that cuts the model, on
-    a scene whose faces are partly repeated (exact depth ties, which submission order
-    decides: the later face under GL_LEQUAL, the earlier under GL_LESS) and partly
-    repeated reversed (the same place, opposite facing)."""
+    """Both walks of the BVH ray caster (packets of four pixels unless the faces
+    outnumber the pixels twice over, then single rays interleaved) against the naive
+    loop, which tests every face for every pixel in submission order: the same hits
+    under each glCullFace mode, winding, depth function and a clear depth that cuts the
+    model, on a scene whose faces are partly repeated (exact depth ties, which
+    submission order decides: the later face under GL_LEQUAL, the earlier under
+    GL_LESS) and partly repeated reversed (the same place, opposite facing)."""
     mesh = hsr.load(os.path.join(models_dir, "suzanne.obj"))
     faces = np.concatenate([mesh.faces, mesh.faces[::3], mesh.faces[1::3, ::-1]])
     scene = hsr.Mesh(mesh.positions, faces)
     cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
     width, height = size
-    assert (4 * len(faces) <= width * height) == (walk == "packets")
+    assert (len(faces) <= 2 * width * height) == (walk == "packets")
     z = hsr.render(scene, cam, width, height).depth
     cut = float(np.median(z[z < 1]))  # the clear depth that hides the far half
     for cull in ("none", "back", "front", "front_and_back"):
@@ -191,6 +191,65 @@ def test_bvh_ray_caster_equals_the_naive_loop_on_random_soups(seed, n, cull, fun
     state = hsr.RenderState(cull=cull, depth_func=func, front_face=front)
     naive, bvh = _naive_and_bvh(scene, cam, width, height, state)
     _assert_same_hits(naive, bvh)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 80),
+       inside=st.booleans(), ortho=st.booleans(), shift=st.floats(-1.5, 1.5),
+       width=st.integers(1, 40), height=st.integers(1, 40))
+def test_ray_caster_skips_only_pixels_no_face_projects_to(seed, n, inside, ortho, shift,
+                                                          width, height):
+    """The BVH ray caster casts rays only where the screen rectangles of its top boxes
+    reach (``stats["rays_cast"]``); the naive loop casts every pixel's. Views that test
+    the rectangles: the eye among the triangles (boxes across the eye plane, or behind
+    it), the soup shifted part way out of the image, orthographic cameras, far and
+    near planes that cut the soup. Same hits everywhere."""
+    rng = np.random.default_rng(seed)
+    corners = rng.uniform(-1, 1, size=(n, 3, 3)) * rng.uniform(0.05, 1.0, size=(n, 1, 1))
+    corners += rng.uniform(-1, 1, size=(n, 1, 3))
+    scene = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    direction = rng.normal(size=3) + (0, 0, 1e-3)
+    up = (0, 1, 0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (1, 0, 0)
+    right = np.cross(direction, up)
+    target = rng.uniform(-0.5, 0.5, size=3) + shift * right / np.linalg.norm(right)
+    distance = rng.uniform(0.05, 0.8) if inside else rng.uniform(2.5, 5.0)
+    eye = target + distance * direction / np.linalg.norm(direction)
+    cam = hsr.Camera(eye=tuple(eye), target=tuple(target), up=up,
+                     fov_y=float(rng.uniform(20, 120)), near=float(rng.uniform(0.01, 1.0)),
+                     far=float(rng.uniform(2.0, 8.0)),
+                     ortho_height=float(rng.uniform(0.5, 3.0)) if ortho else None)
+    naive, bvh = _naive_and_bvh(scene, cam, width, height, hsr.RenderState())
+    _assert_same_hits(naive, bvh)
+    assert naive.stats["rays_cast"] == width * height
+    assert bvh.stats["rays_cast"] >= np.count_nonzero(bvh.face_id >= 0)
+
+
+def test_ray_caster_casts_no_ray_where_the_model_cannot_be(models_dir):
+    """A model seen edge-on covers a strip of the image, and a camera turned away sees
+    nothing: the ray caster casts rays for a strip a little wider than the model's
+    (the BVH's top boxes), none for the turned camera, and gets the naive loop's hits."""
+    scene, _ = scenes.terrain(20_000)
+    mesh = scene.instances[0].mesh
+    cam = hsr.Camera.frame(mesh.bounds())  # edge-on: the terrain is a thin slab
+    naive, bvh = _naive_and_bvh(mesh, cam, 96, 96, hsr.RenderState())
+    _assert_same_hits(naive, bvh)
+    covered = np.count_nonzero(bvh.face_id >= 0)
+    assert covered > 200 and bvh.stats["rays_cast"] < 0.4 * 96 * 96
+    away = hsr.Camera(eye=cam.eye, target=tuple(2 * np.asarray(cam.eye) - np.asarray(
+        cam.target)), up=cam.up, fov_y=45)
+    frame = hsr.render(mesh, away, 96, 96, algorithm="raycast")
+    assert frame.stats["rays_cast"] == 0 and (frame.face_id == -1).all()
+    assert (frame.depth == 1.0).all()
+    # A floor running from behind the eye to the horizon: its box lies across the eye
+    # plane, and the floor fills the bottom rows, which the box's corners in front of
+    # the eye project nowhere near.
+    floor = hsr.Mesh([[-50, 0, 50], [50, 0, 50], [50, 0, -50], [-50, 0, -50]],
+                     [[0, 1, 2], [0, 2, 3]])
+    low = hsr.Camera(eye=(0, 1, 0), target=(0, 0.8, -1), up=(0, 1, 0), fov_y=60, near=0.1,
+                     far=200)
+    naive, bvh = _naive_and_bvh(floor, low, 40, 30, hsr.RenderState())
+    _assert_same_hits(naive, bvh)
+    assert (bvh.face_id[-1] >= 0).all()
 
 
 def test_naive_ray_casting_refuses_huge_jobs():

@@ -11,7 +11,7 @@ from ..errors import RenderError
 from ..geometry.stage import ScreenTriangles
 from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
-from .bvh import BVH, NODE_WORDS, _intersect, build, ray_frame
+from .bvh import BVH, COUNT_AT, LANES, NODE_WORDS, REF, _intersect, build, ray_frame
 from .fragments import Fragments
 from .rays import (
     NEAREST,
@@ -69,9 +69,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         triangles = None
         used = bvh
         stats.update(bvh_nodes=bvh.n_nodes, bvh_build_ms=bvh.build_ms)
-    face, depth, distance, bary, tests, walk = cast(triangles, view.camera, width, height,
-                                                    state, workers, used, extras=buffers)
-    stats.update(ray_triangle_tests=tests, ray_walk=walk)
+    face, depth, distance, bary, counts = cast(triangles, view.camera, width, height, state,
+                                               workers, used, extras=buffers)
+    stats.update(counts)
     fragments = Fragments(face, depth, screen, stats)
     if buffers:
         fragments.buffers = {"distance": distance, "barycentrics": bary}
@@ -81,6 +81,14 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 # The walks of the pixels' rays (stats["ray_walk"] names them).
 NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
+# Packets unless the faces outnumber the pixels this many times over. Measured (2 threads,
+# min ms packets / interleaved): a 1M-face terrain at 1920x1080 seen from above 184 / 201,
+# obliquely 147 / 175, edge-on 40 / 42; at 1024x1024 151 / 153, 115 / 131, 26 / 26; the
+# bunny at 256x256 7 / 9; but the terrain at 512x512 (four faces a pixel) 62 / 43 and
+# 44 / 37, and a 250k-face terrain at 256x256 from above 11.2 / 10.0: neighbouring
+# pixels meet neighbouring triangles (a packet's node reads serve four rays) until the
+# triangles get smaller than a pixel, when each ray meets triangles of its own.
+PACKET_FACES_PER_PIXEL = 2
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
@@ -89,19 +97,23 @@ BLOCK_PIXELS = 4096
 def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = None,
          extras: bool = True):
     """Cast one ray per pixel centre, from the near plane (t = 0) to the far plane
-    (t = 1). Returns (face_id, depth, distance, barycentrics, tests, walk), ``walk``
-    one of "naive", "packets", "interleaved" (below); without ``extras``
-    distance and barycentrics are None (less memory traffic). ``triangles``: (F, 3, 3)
-    world-space corners in face order, tested one by one when there is no ``bvh``.
+    (t = 1). Returns (face_id, depth, distance, barycentrics, counts); without
+    ``extras`` distance and barycentrics are None (less memory traffic); ``counts``:
+    ``ray_triangle_tests``, ``ray_walk`` (one of "naive", "packets", "interleaved",
+    below) and ``rays_cast`` (the pixels whose ray was walked: with a ``bvh``, only
+    those where the BVH's top boxes project, :func:`_pixel_spans`; the others show
+    the background). ``triangles``: (F, 3, 3) world-space corners in face order,
+    tested one by one when there is no ``bvh``.
 
     Hits are ranked as the z-buffer ranks fragments: by float32 window depth, equal
     depths by submission order (GL_LEQUAL: the later face; GL_LESS: the earlier), so
     coplanar faces resolve alike. With a ``bvh`` the rays go through the walks of
     :mod:`hsr.algorithms.rays` with the render state as their ``raster``: in packets
-    of four neighbouring pixels (:func:`hsr.algorithms.rays.trace_packets`) when the
-    pixels outnumber the faces four to one, so that a packet's rays meet the same
-    triangles; else interleaved one by one (:func:`hsr.algorithms.rays.trace_range`),
-    which overlaps the cache misses of rays that each meet triangles of their own."""
+    of four neighbouring pixels (:func:`hsr.algorithms.rays.trace_packets`), whose rays
+    meet the same boxes, unless the faces outnumber the pixels
+    :data:`PACKET_FACES_PER_PIXEL` times over; then interleaved one by one
+    (:func:`hsr.algorithms.rays.trace_range`), which overlaps the cache misses of rays
+    that each meet triangles of their own."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     inv = np.linalg.inv(view_proj)
     cull_code = ["none", "back", "front", "front_and_back"].index(state.cull.value)
@@ -123,24 +135,132 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
         nodes = (triangles, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
                  np.zeros((1, NODE_WORDS), np.int32), 0, 0, 0)
     else:
-        walk = PACKETS if 4 * bvh.n_faces <= width * height else INTERLEAVED
+        walk = (PACKETS if bvh.n_faces <= PACKET_FACES_PER_PIXEL * width * height
+                else INTERLEAVED)
         nodes = (bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
                  bvh.root_count, bvh.wide_depth)
+    spans = np.empty((height, 2), dtype=np.int64)
+    if bvh is None:
+        spans[:, 0], spans[:, 1] = 0, width
+    else:
+        _pixel_spans(bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
+                     len(bvh.leaf_face), bvh.bounds, view_proj, width, height, SPAN_LEVELS,
+                     spans)
     tests = workers.run(_cast_rows, rows, inv, width, height, raster, walk, *nodes, eye,
                         camera.is_orthographic, forward, face, depth, distance, bary, clear,
-                        extras)
+                        extras, spans)
     if min(tests) < 0:
         raise RenderError("the camera's pixel rays are not finite; check its matrices")
+    counts = {"ray_triangle_tests": int(sum(tests)), "ray_walk": WALKS[walk],
+              "rays_cast": int(np.maximum(spans[:, 1] - spans[:, 0], 0).sum())}
     if not extras:
-        return face, depth, None, None, int(sum(tests)), WALKS[walk]
-    return face, depth, distance, bary, int(sum(tests)), WALKS[walk]
+        return face, depth, None, None, counts
+    return face, depth, distance, bary, counts
+
+
+# Wide levels of the BVH whose boxes bound the pixels a ray can hit (4**3 boxes at most).
+SPAN_LEVELS = 3
+
+
+@njit(cache=True, nogil=True)
+def _pixel_spans(node_box, node_link, root_ref, root_count, n_slots, bounds, view_proj,
+                 width, height, levels, spans):
+    """Per row, the columns ``spans[r, 0] .. spans[r, 1] - 1`` outside which no pixel's
+    ray can hit a face: the pixels covered by the screen rectangles of the BVH's boxes
+    ``levels`` wide levels down (boxes that hold every face), so the ray caster makes
+    and walks no ray elsewhere. A camera sees only what projects inside its image, and
+    a model seldom fills it: the 1M-face terrain seen edge-on (the benchmark's view)
+    covers 5% of a 1024x1024 image, yet its other rays were a third of the cast, each
+    walked until it missed the top boxes.
+
+    Exact by construction: the box's eight corners are projected; if all lie in front of
+    the eye (clip w > 0), so does all of the box (w is affine), and the projection of
+    the box is the convex hull of the corners' projections, inside their bounding
+    rectangle. A ray runs from the near to the far plane, every point of it projecting
+    to its pixel's centre, so a ray that hits a face in the box has its pixel centre in
+    the rectangle. One pixel of margin covers rounding. Every point of a ray lies in
+    front of the eye plane (clip w >= the near distance; 1 for an orthographic camera),
+    so a box wholly at or behind it covers nothing, and one across it the whole image."""
+    spans[:, 0], spans[:, 1] = width, 0
+    if n_slots == 0:
+        return
+    if root_count != 0:  # the root is a leaf: the scene's box
+        _cover_box(bounds[0, 0], bounds[0, 1], bounds[0, 2], bounds[1, 0], bounds[1, 1],
+                   bounds[1, 2], view_proj, width, height, spans)
+        return
+    level = np.empty(LANES ** levels, dtype=np.int64)
+    below = np.empty(LANES ** levels, dtype=np.int64)
+    level[0], n_level = root_ref, 1
+    for depth in range(levels):
+        n_below = 0
+        for j in range(n_level):
+            w = level[j]
+            for lane in range(LANES):
+                count = node_link[w, COUNT_AT + lane]
+                if count < 0:  # an empty lane
+                    continue
+                if count == 0 and depth + 1 < levels:  # a wide node: its boxes, lower
+                    below[n_below] = node_link[w, REF + lane]
+                    n_below += 1
+                    continue
+                _cover_box(node_box[w, lane], node_box[w, LANES + lane],
+                           node_box[w, 2 * LANES + lane], node_box[w, 3 * LANES + lane],
+                           node_box[w, 4 * LANES + lane], node_box[w, 5 * LANES + lane],
+                           view_proj, width, height, spans)
+        if n_below == 0:
+            break
+        level[:n_below] = below[:n_below]
+        n_level = n_below
+
+
+@njit(cache=True, nogil=True)
+def _cover_box(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, view_proj, width, height, spans):
+    """Widen ``spans`` to the pixels whose centres lie within a pixel of the screen
+    rectangle of the box (see :func:`_pixel_spans`)."""
+    x0 = y0 = np.inf
+    x1 = y1 = -np.inf
+    behind, whole = 0, False
+    for corner in range(8):
+        x = hi_x if corner & 1 else lo_x
+        y = hi_y if corner & 2 else lo_y
+        z = hi_z if corner & 4 else lo_z
+        cx = view_proj[0, 0] * x + view_proj[0, 1] * y + view_proj[0, 2] * z + view_proj[0, 3]
+        cy = view_proj[1, 0] * x + view_proj[1, 1] * y + view_proj[1, 2] * z + view_proj[1, 3]
+        cw = view_proj[3, 0] * x + view_proj[3, 1] * y + view_proj[3, 2] * z + view_proj[3, 3]
+        if not cw > 0.0:
+            behind += cw <= 0.0
+            whole |= cw != cw
+            continue
+        # Window coordinates (x right, y up), pixel (c, r) centred at (c + 0.5,
+        # height - r - 0.5).
+        xw = (cx / cw + 1.0) * (0.5 * width)
+        yw = (cy / cw + 1.0) * (0.5 * height)
+        whole |= xw != xw or yw != yw
+        x0, x1, y0, y1 = min(x0, xw), max(x1, xw), min(y0, yw), max(y1, yw)
+    if behind == 8:  # all of the box behind the eye plane, where no ray reaches
+        return
+    if whole or behind > 0:  # across the eye plane, or NaN (not expected): all pixels
+        x0, y0, x1, y1 = -np.inf, -np.inf, np.inf, np.inf
+    x0, x1, y0, y1 = x0 - 1.0, x1 + 1.0, y0 - 1.0, y1 + 1.0
+    # Clamped to the image before becoming integers (a float beyond the int64 range
+    # does not convert).
+    c_lo = int(np.ceil(min(max(x0 - 0.5, 0.0), width)))
+    c_hi = int(np.floor(min(max(x1 - 0.5, -1.0), width - 1.0))) + 1
+    r_lo = int(np.ceil(min(max(height - 0.5 - y1, 0.0), height)))
+    r_hi = int(np.floor(min(max(height - 0.5 - y0, -1.0), height - 1.0))) + 1
+    if c_lo >= c_hi:
+        return
+    for r in range(r_lo, r_hi):
+        spans[r, 0] = min(spans[r, 0], c_lo)
+        spans[r, 1] = max(spans[r, 1], c_hi)
 
 
 # error_model "numpy": IEEE division without Numba's zero test, which kept the loop
 # from being vectorized.
 @njit(cache=True, nogil=True, error_model="numpy")
-def _row_rays(inv_view_proj, width, height, r, rays):
-    """The rays of row ``r``'s pixel centres (row 0 is the top) into ``rays`` (6, width):
+def _row_rays(inv_view_proj, width, height, r, c_lo, c_hi, rays):
+    """The rays of row ``r``'s pixel centres (row 0 is the top), columns ``c_lo`` ..
+    ``c_hi - 1``, into ``rays[:, :c_hi - c_lo]`` (``rays`` (6, width)):
     origins x, y, z and directions x, y, z, a row of each. Origin: the centre un-projected
     at the near plane (NDC z = -1, t = 0); direction: to its un-projection at the far plane
     (z = 1, t = 1). The two homogeneous points share all but their z term, and each is
@@ -149,8 +269,8 @@ def _row_rays(inv_view_proj, width, height, r, rays):
     straight into (n, 3) rays 5.2 ms (the same numbers bit for bit)."""
     m = inv_view_proj
     y = 1.0 - (r + 0.5) * (2.0 / height)  # (the divisions by the size are hoisted)
-    for c in range(width):
-        x = (c + 0.5) * (2.0 / width) - 1.0
+    for j in range(c_hi - c_lo):
+        x = (c_lo + j + 0.5) * (2.0 / width) - 1.0
         bx = m[0, 0] * x + m[0, 1] * y + m[0, 3]
         by = m[1, 0] * x + m[1, 1] * y + m[1, 3]
         bz = m[2, 0] * x + m[2, 1] * y + m[2, 3]
@@ -158,10 +278,10 @@ def _row_rays(inv_view_proj, width, height, r, rays):
         near = 1.0 / (bw - m[3, 2])
         far = 1.0 / (bw + m[3, 2])
         ox, oy, oz = (bx - m[0, 2]) * near, (by - m[1, 2]) * near, (bz - m[2, 2]) * near
-        rays[0, c], rays[1, c], rays[2, c] = ox, oy, oz
-        rays[3, c] = (bx + m[0, 2]) * far - ox
-        rays[4, c] = (by + m[1, 2]) * far - oy
-        rays[5, c] = (bz + m[2, 2]) * far - oz
+        rays[0, j], rays[1, j], rays[2, j] = ox, oy, oz
+        rays[3, j] = (bx + m[0, 2]) * far - ox
+        rays[4, j] = (by + m[1, 2]) * far - oy
+        rays[5, j] = (bz + m[2, 2]) * far - oz
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -177,7 +297,7 @@ def _eye_distance(px, py, pz, eye, ortho, forward):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, leaf_face,
                node_box, node_link, root_ref, root_count, wide_depth, eye, ortho, forward,
-               face_buf, depth_buf, dist_buf, bary_buf, clear_depth, extras):
+               face_buf, depth_buf, dist_buf, bary_buf, clear_depth, extras, spans):
     """Rows r_lo .. r_hi - 1, a block of rows at a time: the block's rays made, walked
     (``walk``: :data:`PACKETS` and :data:`INTERLEAVED` through the BVH with
     :func:`hsr.algorithms.rays.trace_packets` / ``trace_range`` and ``raster``;
@@ -196,17 +316,19 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
     tests = 0
     for b_lo in range(r_lo, r_hi, block_rows):
         b_hi = min(r_hi, b_lo + block_rows)
-        n = (b_hi - b_lo) * width
-        # The block's rays in row order: a packet is a run of four pixels of a row (2x2
-        # quads measured the same at the bunny).
+        # The block's rays in row order (a packet is a run of four pixels of a row; 2x2
+        # quads measured the same at the bunny), only for pixels within the rows' spans
+        # (see _pixel_spans).
         i = 0
         for r in range(b_lo, b_hi):
-            _row_rays(inv_view_proj, width, height, r, row)
-            for c in range(width):
-                origins[i, 0], origins[i, 1], origins[i, 2] = row[0, c], row[1, c], row[2, c]
-                directions[i, 0], directions[i, 1] = row[3, c], row[4, c]
-                directions[i, 2] = row[5, c]
+            c_lo, c_hi = spans[r, 0], spans[r, 1]
+            _row_rays(inv_view_proj, width, height, r, c_lo, c_hi, row)
+            for j in range(c_hi - c_lo):
+                origins[i, 0], origins[i, 1], origins[i, 2] = row[0, j], row[1, j], row[2, j]
+                directions[i, 0], directions[i, 1] = row[3, j], row[4, j]
+                directions[i, 2] = row[5, j]
                 i += 1
+        n = i
         problem = 0
         if walk == NAIVE:
             made = _naive_walk(n, origins, directions, raster, tris, out_t, out_face, out_uv)
@@ -223,21 +345,26 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
         if problem:
             return -1
         tests += made
+        i = 0
         for r in range(b_lo, b_hi):
+            c_lo, c_hi = spans[r, 0], spans[r, 1]
             for c in range(width):
-                i = (r - b_lo) * width + c
                 face_buf[r, c] = -1
                 depth_buf[r, c] = clear_depth
                 if extras:
                     dist_buf[r, c] = np.inf
                     bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
-                f = out_face[i]
+                if c < c_lo or c >= c_hi:
+                    continue
+                k = i  # pixel (r, c)'s ray
+                i += 1
+                f = out_face[k]
                 if f < 0:
                     continue
-                t = out_t[i]
+                t = out_t[k]
                 # The walk's window depth of the hit, recomputed from the same numbers.
-                ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
-                dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+                ox, oy, oz = origins[k, 0], origins[k, 1], origins[k, 2]
+                dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
                 zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
                 z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
                 if not (z < clear_depth or (lequal and z == clear_depth)):
@@ -247,7 +374,7 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
                 if extras:
                     dist_buf[r, c] = _eye_distance(ox + t * dx, oy + t * dy, oz + t * dz,
                                                    eye, ortho, forward)
-                    v, w = out_uv[i, 0], out_uv[i, 1]
+                    v, w = out_uv[k, 0], out_uv[k, 1]
                     bary_buf[r, c, 0], bary_buf[r, c, 1] = 1.0 - v - w, v
                     bary_buf[r, c, 2] = w
     return tests

@@ -327,15 +327,11 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     tests = 0
     for first in range(lo, hi, 4):
-        careful = False
+        careful = framed = False
         for r in range(4):
             i = min(first + r, hi - 1)  # past the end: the last ray again, not walking
             ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
             dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-            kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
-            axes[0, r], axes[1, r], axes[2, r] = kx, ky, kz
-            frame[0, r], frame[1, r], frame[2, r] = sx, sy, sz
-            frame[3, r], frame[4, r], frame[5, r] = okx, oky, okz
             frame[6, r], frame[7, r], frame[8, r] = dx, dy, dz
             frame[9, r] = t_min[i if per_ray[0] else 0]
             frame[10, r] = t_max[i if per_ray[1] else 0]
@@ -389,6 +385,16 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     active = c0
                     continue
             else:  # a leaf: each walking ray tests its triangles
+                if not framed:
+                    # The rays' frames for the triangle test, made at the packet's first
+                    # leaf: most of a camera's rays past a model's outline reach none
+                    # (a 1M-face terrain seen edge-on, 1024x1024: XX).
+                    for r in range(4):
+                        (axes[0, r], axes[1, r], axes[2, r], frame[0, r], frame[1, r],
+                         frame[2, r], frame[3, r], frame[4, r], frame[5, r]) = ray_frame(
+                            rays[0, r], rays[1, r], rays[2, r], frame[6, r], frame[7, r],
+                            frame[8, r])
+                    framed = True
                 for r in range(4):
                     if not (active >> r) & 1:
                         continue
