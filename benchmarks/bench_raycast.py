@@ -3,10 +3,15 @@ primary visibility, measured in the same run.
 
     pip install embreex open3d-cpu
     python benchmarks/bench_raycast.py [MODEL ...] [--sizes 1024x1024,1920x1080]
-                                       [--repeat 5] [--rounds 3]
+                                       [--views frame,fill] [--repeat 5] [--rounds 3]
 
-MODEL is a mesh file or ``terrain:N`` (the generated grid of N triangles, framed by
-``Camera.frame``). hsr: ``hsr.render(..., algorithm="raycast", options={"bvh": tree})``
+MODEL is a mesh file or ``terrain:N`` (the generated grid of N triangles). Views:
+``frame``, the model framed by ``Camera.frame`` (the terrain is then seen edge-on, a
+strip across the image); ``fill``, looking along the axis of the model's box that is
+shortest, close enough that the box fills the image (the terrain from above, a triangle
+or so a pixel): hsr's ray caster casts no ray where the BVH's top boxes do not project,
+which the peers, given a list of rays, cannot know, so ``frame`` measures that too and
+``fill`` the walk alone. hsr: ``hsr.render(..., algorithm="raycast", options={"bvh": tree})``
 with the BVH built beforehand (ray generation, traversal, depth/face/distance buffers).
 Embree and Open3D: one call on the same rays (origins and directions prepared outside
 the timer); their acceleration structures are built on first use, which is timed as
@@ -47,6 +52,22 @@ def rays(camera, width, height):
     far = np.c_[ndc, ones, ones] @ inv.T
     origin = near[:, :3] / near[:, 3:]
     return origin, far[:, :3] / far[:, 3:] - origin
+
+
+def view_camera(mesh, view):
+    """The camera of ``view`` (see the module's docstring)."""
+    if view == "frame":
+        return hsr.Camera.frame(mesh.bounds())
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in mesh.bounds())
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    axis = int(np.argmin(half))
+    up = np.eye(3)[(axis + 1) % 3]
+    # The box's cross-section fills a 45-degree view (tan 22.5 = 0.414) from just
+    # outside the box.
+    reach = min(half[(axis + 1) % 3], half[(axis + 2) % 3]) / np.tan(np.radians(22.5))
+    eye = centre + np.eye(3)[axis] * (half[axis] + reach)
+    return hsr.Camera(eye=tuple(eye), target=tuple(centre), up=tuple(up), fov_y=45.0,
+                      near=0.5 * reach, far=reach + 3 * half[axis])
 
 
 def embree_peer(tris, origin, direction):
@@ -93,21 +114,25 @@ def main(argv=None):
     parser.add_argument("models", nargs="*",
                         default=[os.path.join(MODELS, "stanford-bunny.obj")])
     parser.add_argument("--sizes", default="1024x1024")
+    parser.add_argument("--views", default="frame,fill")
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args(argv)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
-    print("| model | triangles | size | hsr ms (min / median) | Embree ms | hsr / Embree | "
-          "Open3D ms | hsr / Open3D | builds ms: hsr / Embree / Open3D | agree % "
-          "Embree / Open3D |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    views = args.views.split(",")
+    if not set(views) <= {"frame", "fill"}:
+        parser.error("--views takes frame and/or fill")
+    print("| model | triangles | view | size | rays cast | hsr ms (min / median) | Embree ms | "
+          "hsr / Embree | Open3D ms | hsr / Open3D | builds ms: hsr / Embree / Open3D | "
+          "agree % Embree / Open3D |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for spec in args.models:
         mesh, label = load_model(spec)
-        cam = hsr.Camera.frame(mesh.bounds())
         rc.build(mesh)  # compiles
         tree = rc.build(mesh)
         tris = hsr.Scene([mesh]).world_triangles().astype(np.float32)
-        for width, height in sizes:
+        for view, (width, height) in ((v, s) for v in views for s in sizes):
+            cam = view_camera(mesh, view)
             origin, direction = (a.astype(np.float32) for a in rays(cam, width, height))
             peers = [embree_peer(tris, origin, direction),
                      open3d_peer(tris, origin, direction)]
@@ -116,8 +141,10 @@ def main(argv=None):
             fns += [p[1] for p in peers if p is not None]
             measured = iter(timings(fns, args.repeat, args.rounds))
             mine_ms = next(measured)
-            mine = hsr.render(mesh, cam, width, height, algorithm="raycast",
-                              options={"bvh": tree}).face_id.ravel()
+            frame = hsr.render(mesh, cam, width, height, algorithm="raycast",
+                               options={"bvh": tree})
+            mine = frame.face_id.ravel()
+            cast_share = f"{100 * frame.stats['rays_cast'] / (width * height):.0f}%"
             cells, builds, agree = [], [f"{tree.build_ms:.0f}"], []
             for peer in peers:
                 if peer is None:
@@ -130,7 +157,7 @@ def main(argv=None):
                           f"{mine_ms[0] / lo:.2f} / {mine_ms[1] / med:.2f}"]
                 builds.append(f"{peer[0]:.0f}")
                 agree.append(f"{agreement_percent(peer[2], mine):.3f}")
-            print(f"| {label} | {mesh.n_faces:,} | {width}x{height} | "
+            print(f"| {label} | {mesh.n_faces:,} | {view} | {width}x{height} | {cast_share} | "
                   f"{mine_ms[0]:.1f} / {mine_ms[1]:.1f} | {' | '.join(cells)} | "
                   f"{' / '.join(builds)} | {' / '.join(agree)} |", flush=True)
     return 0

