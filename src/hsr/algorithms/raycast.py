@@ -69,9 +69,9 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         triangles = None
         used = bvh
         stats.update(bvh_nodes=bvh.n_nodes, bvh_build_ms=bvh.build_ms)
-    face, depth, distance, bary, counts = cast(triangles, view.camera, width, height, state,
-                                               workers, used, extras=buffers)
-    stats.update(counts)
+    face, depth, distance, bary, ray_counts = cast(triangles, view.camera, width, height,
+                                                   state, workers, used, extras=buffers)
+    stats.update(ray_counts)
     fragments = Fragments(face, depth, screen, stats)
     if buffers:
         fragments.buffers = {"distance": distance, "barycentrics": bary}

@@ -134,13 +134,19 @@ class ScreenTriangles:
             self._geometry, self._make_geometry = self._make_geometry(), None
         return self._geometry
 
+    def _source(self) -> Geometry:
+        geometry = self.geometry
+        if geometry is None:  # a set has its clip-space vertices, or what makes them
+            raise ValueError("screen triangles made without their clip-space vertices")
+        return geometry
+
     @property
     def pos_clip(self) -> np.ndarray:
-        return self.geometry.pos_clip if self._pos_clip is None else self._pos_clip
+        return self._source().pos_clip if self._pos_clip is None else self._pos_clip
 
     @property
     def faces(self) -> np.ndarray:
-        return self.geometry.faces if self._faces is None else self._faces
+        return self._source().faces if self._faces is None else self._faces
 
     @property
     def pending(self) -> bool:
