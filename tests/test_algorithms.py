@@ -224,7 +224,7 @@ def test_ray_caster_skips_only_pixels_no_face_projects_to(seed, n, inside, ortho
     assert bvh.stats["rays_cast"] >= np.count_nonzero(bvh.face_id >= 0)
 
 
-def test_ray_caster_casts_no_ray_where_the_model_cannot_be(models_dir):
+def test_ray_caster_casts_no_ray_where_the_model_cannot_be():
     """A model seen edge-on covers a strip of the image, and a camera turned away sees
     nothing: the ray caster casts rays for a strip a little wider than the model's
     (the BVH's top boxes), none for the turned camera, and gets the naive loop's hits."""

@@ -5,6 +5,7 @@ import pytest
 
 import hsr
 from hsr import scenes
+from hsr.algorithms.hiz import screen_box
 
 
 @pytest.mark.parametrize("func", ["less", "lequal"])
@@ -58,3 +59,18 @@ def test_occlusion_cull_refuses_states_it_cannot_keep_exact():
         hsr.render(scene, cam, 64, 48, occlusion_cull=True, depth_func="greater")
     with pytest.raises(hsr.RenderError):
         hsr.render(scene, cam, 64, 48, occlusion_cull=True, depth_mask=False)
+
+
+def test_screen_box_of_a_corner_projected_past_the_integers():
+    """A box whose corner projects 1e30 pixels to the right reaches the image's right
+    edge: its rectangle runs from its left side (window x 32, so column 31 with the
+    pixel of margin) to the last column, rows 19-27 (window y 21.6-26.4, y up, with the
+    margin). Converting the far bound to an integer before clamping it gave the most
+    negative integer, and the box counted as off the image (culled, or pruned)."""
+    corners = np.array([[x, y, -0.5, 1.0] for x in (0.0, 1e30) for y in (-0.1, 0.1)
+                        for _ in range(2)])
+    x0, x1, r0, r1, z_min, ok = screen_box(corners, 64, 48, 0.5, 0.5)
+    assert ok and (x0, x1, r0, r1) == (31, 63, 19, 27) and z_min == 0.25
+    far_left = corners.copy()
+    far_left[:, 0] = np.where(far_left[:, 0] > 0, 0.0, -1e30)
+    assert screen_box(far_left, 64, 48, 0.5, 0.5)[:4] == (0, 33, 19, 27)

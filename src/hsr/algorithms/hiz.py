@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["ObjectBounds", "object_bounds", "box_corners", "BLOCK"]
+__all__ = ["ObjectBounds", "object_bounds", "box_corners", "pixel_rect", "BLOCK"]
 
 BLOCK = 16  # pixels per hierarchical-z block side
 
@@ -68,12 +68,26 @@ def screen_box(corners_clip, width, height, depth_scale, depth_offset):
         x_lo, x_hi = min(x_lo, xw), max(x_hi, xw)
         y_lo, y_hi = min(y_lo, yw), max(y_hi, yw)
         z_min = min(z_min, zw)
-    # Every pixel whose centre may lie inside, with a pixel of margin for snapping.
+    x0, x1, r0, r1 = pixel_rect(x_lo, x_hi, y_lo, y_hi, width, height)
+    return x0, x1, r0, r1, z_min, True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def pixel_rect(x_lo, x_hi, y_lo, y_hi, width, height):
+    """(x0, x1, r0, r1): inclusive pixel columns and image rows (row 0 the top) whose
+    centres may lie in the window-space rectangle x_lo .. x_hi, y_lo .. y_hi (y up), with
+    a pixel of margin for snapping; x0 > x1 or r0 > r1 when it is off the image.
+
+    The bounds are clamped to a little beyond the image before they become integers: a
+    float beyond the int64 range does not convert (a box corner projected to 1e30 pixels
+    came out as the most negative integer, and the box as off the image)."""
+    x_lo, x_hi = min(max(x_lo, -2.0), width + 2.0), min(max(x_hi, -2.0), width + 2.0)
+    y_lo, y_hi = min(max(y_lo, -2.0), height + 2.0), min(max(y_hi, -2.0), height + 2.0)
     x0 = max(int(np.floor(x_lo)) - 1, 0)
     x1 = min(int(np.ceil(x_hi)) + 1, width - 1)
     j0 = max(int(np.floor(y_lo)) - 1, 0)
     j1 = min(int(np.ceil(y_hi)) + 1, height - 1)
-    return x0, x1, height - 1 - j1, height - 1 - j0, z_min, True
+    return x0, x1, height - 1 - j1, height - 1 - j0
 
 
 @njit(cache=True, nogil=True)

@@ -13,6 +13,7 @@ from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
 from .bvh import BVH, COUNT_AT, LANES, NODE_WORDS, REF, _intersect, build, ray_frame
 from .fragments import Fragments
+from .hiz import pixel_rect
 from .rays import (
     NEAREST,
     _clip_zw,
@@ -215,8 +216,9 @@ def _pixel_spans(node_box, node_link, root_ref, root_count, n_slots, bounds, vie
 
 @njit(cache=True, nogil=True)
 def _cover_box(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, view_proj, width, height, spans):
-    """Widen ``spans`` to the pixels whose centres lie within a pixel of the screen
-    rectangle of the box (see :func:`_pixel_spans`)."""
+    """Widen ``spans`` to the pixels whose centres may lie in the screen rectangle of the
+    box, with a pixel of margin (:func:`hsr.algorithms.hiz.pixel_rect`, as the z-buffer's
+    occlusion culling takes it; see :func:`_pixel_spans`)."""
     x0 = y0 = np.inf
     x1 = y1 = -np.inf
     behind, whole = 0, False
@@ -241,18 +243,12 @@ def _cover_box(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, view_proj, width, height, spa
         return
     if whole or behind > 0:  # across the eye plane, or NaN (not expected): all pixels
         x0, y0, x1, y1 = -np.inf, -np.inf, np.inf, np.inf
-    x0, x1, y0, y1 = x0 - 1.0, x1 + 1.0, y0 - 1.0, y1 + 1.0
-    # Clamped to the image before becoming integers (a float beyond the int64 range
-    # does not convert).
-    c_lo = int(np.ceil(min(max(x0 - 0.5, 0.0), width)))
-    c_hi = int(np.floor(min(max(x1 - 0.5, -1.0), width - 1.0))) + 1
-    r_lo = int(np.ceil(min(max(height - 0.5 - y1, 0.0), height)))
-    r_hi = int(np.floor(min(max(height - 0.5 - y0, -1.0), height - 1.0))) + 1
-    if c_lo >= c_hi:
+    c_lo, c_hi, r_lo, r_hi = pixel_rect(x0, x1, y0, y1, width, height)
+    if c_lo > c_hi:
         return
-    for r in range(r_lo, r_hi):
+    for r in range(r_lo, r_hi + 1):
         spans[r, 0] = min(spans[r, 0], c_lo)
-        spans[r, 1] = max(spans[r, 1], c_hi)
+        spans[r, 1] = max(spans[r, 1], c_hi + 1)
 
 
 # error_model "numpy": IEEE division without Numba's zero test, which kept the loop
@@ -345,19 +341,17 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
         if problem:
             return -1
         tests += made
-        i = 0
+        first = 0  # the ray of row r's first pixel in its span
         for r in range(b_lo, b_hi):
-            c_lo, c_hi = spans[r, 0], spans[r, 1]
             for c in range(width):
                 face_buf[r, c] = -1
                 depth_buf[r, c] = clear_depth
                 if extras:
                     dist_buf[r, c] = np.inf
                     bary_buf[r, c, 0] = bary_buf[r, c, 1] = bary_buf[r, c, 2] = 0.0
-                if c < c_lo or c >= c_hi:
-                    continue
-                k = i  # pixel (r, c)'s ray
-                i += 1
+            c_lo, c_hi = spans[r, 0], spans[r, 1]
+            for c in range(c_lo, c_hi):
+                k = first + c - c_lo  # pixel (r, c)'s ray
                 f = out_face[k]
                 if f < 0:
                     continue
@@ -377,6 +371,7 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
                     v, w = out_uv[k, 0], out_uv[k, 1]
                     bary_buf[r, c, 0], bary_buf[r, c, 1] = 1.0 - v - w, v
                     bary_buf[r, c, 2] = w
+            first += max(0, c_hi - c_lo)
     return tests
 
 
