@@ -390,6 +390,44 @@ def test_deep_unbalanced_bvh_built_in_parallel_is_the_same_tree():
     assert (a.face_id >= 0).mean() > 0.2
 
 
+def test_wide_boxes_round_outwards_as_numpy_does():
+    """The wide tree's float32 bounds step to the next float32 by the bits
+    (hsr.algorithms.simd.next_float32, not libm's nextafter): the same steps as NumPy's
+    nextafter from zero, subnormals, the largest float32 and the infinities, both ways;
+    and the rounding of float64 bounds it serves is _outwards32's."""
+    from numba import njit
+
+    from hsr.algorithms.bvh import _down32, _up32
+    from hsr.algorithms.simd import next_float32
+
+    @njit
+    def steps(xs, up):
+        return np.array([next_float32(x, up) for x in xs], dtype=np.float32)
+
+    @njit
+    def rounded(values):
+        return (np.array([_down32(v) for v in values], dtype=np.float32),
+                np.array([_up32(v) for v in values], dtype=np.float32))
+
+    rng = np.random.default_rng(9)
+    tiny = np.float32(1e-45)
+    xs = np.concatenate([
+        np.array([0.0, -0.0, tiny, -tiny, 1e-40, -1e-40, 1.0, -1.0, 2.0, -2.0,
+                  np.finfo(np.float32).max, -np.finfo(np.float32).max, np.inf, -np.inf],
+                 dtype=np.float32),
+        (rng.normal(size=5000) * 10.0 ** rng.integers(-45, 38, 5000)).astype(np.float32)])
+    for up in (True, False):
+        with np.errstate(over="ignore"):
+            want = np.nextafter(xs, np.full_like(xs, np.inf if up else -np.inf))
+        got = steps(xs, up)
+        assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+    values = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-50, 50, 5000),
+                             [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
+    down, up = rounded(values)
+    assert np.array_equal(down, rc._outwards32(values, -np.inf))
+    assert np.array_equal(up, rc._outwards32(values, np.inf))
+
+
 def test_binary_boxes_kept_in_float32_hold_what_they_bound():
     """The BVH keeps its binary boxes in float32 rounded outwards: every value, from
     tiny to beyond float32's range, lies inside its rounding, which is the nearest

@@ -100,7 +100,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
                 out_face, out_object, out_uv, out_normal, out_count, interleave):
     """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`hsr.algorithms.bvh.widen`
-    in the layout of :func:`hsr.algorithms.bvh.pack_nodes` (the root a wide node when
+    in the layout of :func:`hsr.algorithms.bvh.node_records` (the root a wide node when
     ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
     ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss), ``out_face`` (-1),
     ``out_object`` (the instance whose faces start at or before the face in

@@ -18,7 +18,8 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits", "prefetch"]
+__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits", "next_float32",
+           "prefetch"]
 
 _I32 = ir.IntType(32)
 _F4 = ir.VectorType(ir.FloatType(), 4)
@@ -217,6 +218,37 @@ def float_bits(typingctx, x):
 
     def codegen(context, builder, sig, args):
         return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def next_float32(typingctx, x, up):
+    """The float32 next to ``x`` (not NaN) towards +inf when ``up``, else towards -inf:
+    ``np.nextafter`` by the bits, as the IEEE layout orders them (a
+    step of one in the magnitude's bits; from zero, the smallest subnormal of the
+    step's sign). Numba's ``np.nextafter`` calls libm: the wide tree's outward rounding
+    of 3.4M bounds (the 1M-face terrain) spent 20 ms in it."""
+    sig = types.float32(types.float32, types.boolean)
+
+    def codegen(context, builder, sig, args):
+        value, towards_up = args
+        i32 = ir.IntType(32)
+        bits = builder.bitcast(value, i32)
+        # Away from zero when the step goes the way of the sign, else towards it.
+        negative = builder.icmp_signed("<", bits, ir.Constant(i32, 0))
+        away = builder.xor(negative, builder.trunc(towards_up, ir.IntType(1)))
+        stepped = builder.select(away, builder.add(bits, ir.Constant(i32, 1)),
+                                 builder.sub(bits, ir.Constant(i32, 1)))
+        is_zero = builder.fcmp_ordered("==", value, ir.Constant(ir.FloatType(), 0.0))
+        tiny = builder.select(builder.trunc(towards_up, ir.IntType(1)),
+                              ir.Constant(i32, 1), ir.Constant(i32, -2**31 + 1))
+        out = builder.bitcast(builder.select(is_zero, tiny, stepped), ir.FloatType())
+        # An infinity stepped outwards stays where it is.
+        end = builder.select(builder.trunc(towards_up, ir.IntType(1)),
+                             ir.Constant(ir.FloatType(), float("inf")),
+                             ir.Constant(ir.FloatType(), float("-inf")))
+        return builder.select(builder.fcmp_ordered("==", value, end), value, out)
 
     return sig, codegen
 
