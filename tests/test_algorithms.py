@@ -312,6 +312,23 @@ def test_bvh_invariants(models_dir, threads):
         tris = bvh.corners[slots]
         assert np.array_equal(tris, mesh.positions[mesh.faces[bvh.tri_index[slots]]])
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
+        # Tight: the float32 box of the triangles, rounded outwards (the build's boxes
+        # come from its bins, not from a pass over the triangles).
+        assert np.array_equal(bvh.node_min[node], rc._outwards32(tris.reshape(-1, 3).min(0),
+                                                                 -np.inf))
+        assert np.array_equal(bvh.node_max[node], rc._outwards32(tris.reshape(-1, 3).max(0),
+                                                                 np.inf))
+    for node in np.flatnonzero(~leaves):
+        kids = [bvh.node_left[node], bvh.node_left[node] + 1]
+        assert np.array_equal(bvh.node_min[node], bvh.node_min[kids].min(0))
+        assert np.array_equal(bvh.node_max[node], bvh.node_max[kids].max(0))
+    # Built without the binary tree (RayScene), whose node numbers are then not closed
+    # up, the walked tree is the same.
+    walked = rc.build(mesh, threads=threads, keep_tree=False)
+    assert walked.n_nodes == 0 and walked.root_ref == bvh.root_ref
+    assert np.array_equal(walked.node_box[:, :rc.REF], bvh.node_box[:, :rc.REF])
+    assert np.array_equal(walked.node_link, bvh.node_link)
+    assert np.array_equal(walked.corners, bvh.corners)
     # The walked 4-wide tree's leaves hold every slot once.
     link = bvh.node_link[:, rc.REF:]
     refs, counts = link[:, :rc.LANES], link[:, rc.LANES:]

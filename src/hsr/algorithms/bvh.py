@@ -26,7 +26,7 @@ from numba import njit
 
 from ..parallel import Workers
 from ..scene.mesh import Scene, SceneLike, as_scene
-from .simd import SLACK, SLACK_ABS, float_bits, next_float32, prefetch, sorted_keys4
+from .simd import SLACK, SLACK_ABS, float_bits, grow_box, next_float32, prefetch, sorted_keys4
 
 __all__ = ["BVH", "build", "world_triangles", "widen", "node_records",
            "inverse_direction", "careful_entries4", "descend", "next_box",
@@ -542,17 +542,6 @@ def _bounds(prim, s, c):
     return l0, l1, l2, h0, h1, h2, m0, m1, m2, n0, n1, n2
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _widen_bin(bins, i, l0, l1, l2, h0, h1, h2):
-    """Grow the box of the bin at ``bins[i:i + 6]`` by a face's."""
-    bins[i] = min(bins[i], l0)
-    bins[i + 1] = min(bins[i + 1], l1)
-    bins[i + 2] = min(bins[i + 2], l2)
-    bins[i + 3] = max(bins[i + 3], h0)
-    bins[i + 4] = max(bins[i + 4], h1)
-    bins[i + 5] = max(bins[i + 5], h2)
-
-
 # Faces ahead of the one being binned or partitioned whose record is prefetched: a
 # node's slots are read in order, but a build's passes over the 1M-face terrain's
 # 72 MB of records waited on memory (binning it: 22-25 ns a face without, 8-9 with
@@ -563,19 +552,18 @@ AHEAD = 32
 @njit(cache=True, nogil=True, error_model="numpy")
 def _bin_faces(prim, s, c, c_lo, scale, nb, bins, bin_n):
     """Slots ``s .. s + c - 1`` counted into ``bin_n`` and their boxes into ``bins``
-    (flat: axis, bin, 8 words), on all three axes in one pass. (Flat, with unsigned
-    indices: Numba's three-index form with its negative-index checks took 30 ns a face
-    where this takes 17, before prefetching.)"""
+    (flat: axis, bin, the 8 words of :func:`hsr.algorithms.simd.grow_box`), on all three
+    axes in one pass. (Flat, with unsigned indices: Numba's three-index form with its
+    negative-index checks took 30 ns a face where this takes 17, before prefetching and
+    grow_box.)"""
     for k in range(s, s + c):
         prefetch(prim, k + AHEAD, 0)
         prefetch(prim, k + AHEAD, 64)
-        l0, l1, l2, h0, h1, h2 = (prim[k, 0], prim[k, 1], prim[k, 2], prim[k, 3],
-                                  prim[k, 4], prim[k, 5])
         for a in range(3):
             b = np.uint64(a * N_BINS) + np.uint64(_bin_of(prim[k, 6 + a], c_lo[a], scale[a],
                                                           nb))
             bin_n[b] += 1
-            _widen_bin(bins, b * np.uint64(8), l0, l1, l2, h0, h1, h2)
+            grow_box(bins, b * np.uint64(8), prim, k)
 
 
 @njit(cache=True, nogil=True)
@@ -592,10 +580,10 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
     handed down with it (a third pass per node, for the boxes, and a pass per axis to
     bin made the terrain's 1M-face build 1.6x slower)."""
     n_pending = 0
-    # Per axis and bin: its faces' box (lo x3, hi x3; a record of 8, 64 bytes).
+    # Per axis and bin: its faces' box (lo x3, a spare word, hi x3, a spare word: 64
+    # bytes, two vectors of four for simd.grow_box).
     bins = np.empty((3, N_BINS, 8))
     bin_n = np.empty((3, N_BINS), dtype=np.int64)
-    left_cost = np.empty(N_BINS)
     right_cost = np.empty(N_BINS)
     c_lo = np.empty(3)
     scale = np.empty(3)
@@ -615,13 +603,12 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
             pending[n_pending] = node
             n_pending += 1
             continue
-        # Binned SAH over all three axes (Wald 2007): cost = area(L) n(L) + area(R) n(R),
-        # the right sides' areas summed in one sweep from the right, the left in one
-        # from the left. An axis along which the centroids do not spread (or spread by
-        # so little that N_BINS / extent overflows) puts every face in bin 0 and is not
-        # swept.
-        # A node of fewer faces than N_BINS gets as many bins as faces: clearing and
-        # sweeping 16 bins on three axes was most of the work at the bottom of the tree.
+        # Binned SAH over all three axes (_best_split). An axis along which the
+        # centroids do not spread (or spread by so little that N_BINS / extent
+        # overflows) puts every face in bin 0 and is not swept.
+        # A node of fewer faces than N_BINS gets as many bins as faces, fewer to clear
+        # and sweep (the bunny's build on two threads: 14 -> 12-13 ms; trees as good:
+        # the wide boxes' areas and the casts through them unchanged).
         nb = min(N_BINS, c)
         for a in range(3):
             extent = cb[3 + a] - cb[a]
@@ -629,20 +616,11 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
             scale[a] = nb / extent if extent > 0.0 else 0.0
             if not scale[a] < np.inf:
                 scale[a] = 0.0
-        bins[:, :nb, :3] = np.inf
-        bins[:, :nb, 3:] = -np.inf
+        bins[:, :nb, :4] = np.inf
+        bins[:, :nb, 4:] = -np.inf
         bin_n[:, :nb] = 0
         _bin_faces(prim, s, c, c_lo, scale, nb, bins.reshape(-1), bin_n.reshape(-1))
-        best_axis, best_split, best_cost = -1, -1, np.inf
-        for a in range(3):
-            if scale[a] == 0.0:
-                continue
-            _sweep(bins[a], bin_n[a], nb, 0, 1, left_cost, 1)  # bins 0 .. split - 1
-            _sweep(bins[a], bin_n[a], nb, nb - 1, -1, right_cost, 0)  # split .. last
-            for split in range(1, nb):
-                cost = left_cost[split] + right_cost[split]
-                if cost < best_cost:
-                    best_axis, best_split, best_cost = a, split, cost
+        best_axis, best_split = _best_split(bins, bin_n, nb, scale, right_cost)
         mid = s
         if best_axis >= 0:
             a = best_axis
@@ -684,7 +662,7 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
                 child = left if b < best_split else left + 1
                 for a in range(3):
                     node_min[child, a] = min(node_min[child, a], bins[best_axis, b, a])
-                    node_max[child, a] = max(node_max[child, a], bins[best_axis, b, 3 + a])
+                    node_max[child, a] = max(node_max[child, a], bins[best_axis, b, 4 + a])
             l_centroids = (lm0, lm1, lm2, ln0, ln1, ln2)
             r_centroids = (rm0, rm1, rm2, rn0, rn1, rn2)
         node_start[left], node_count[left] = s, mid - s
@@ -722,27 +700,44 @@ def _bin_of(centroid, c_lo, scale, nb):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _sweep(bins, bin_n, nb, first, step, cost, shift):
-    """One sweep of the SAH over an axis's ``nb`` bins (each its box, lo x3 and hi x3,
-    and count) from ``first`` by ``step`` (nb - 1 of them): after bin b,
-    ``cost[b + shift]`` = area x count of the union so far. From the left (0, 1,
-    shift 1) that is each split's left side, from the right (nb - 1, -1, shift 0) its
-    right side: O(bins) per axis, not O(bins^2)."""
-    count = 0
-    lx = ly = lz = np.inf
-    hx = hy = hz = -np.inf
-    b = first
-    for _ in range(nb - 1):
-        if bin_n[b] > 0:
-            count += bin_n[b]
-            lx, ly, lz = min(lx, bins[b, 0]), min(ly, bins[b, 1]), min(lz, bins[b, 2])
-            hx, hy, hz = max(hx, bins[b, 3]), max(hy, bins[b, 4]), max(hz, bins[b, 5])
-        area = 0.0
-        if count > 0:
-            dx, dy, dz = hx - lx, hy - ly, hz - lz
-            area = (dx * dy + dy * dz + dz * dx) * count
-        cost[b + shift] = area
-        b += step
+def _area_times(lx, ly, lz, hx, hy, hz, count):
+    """Surface area (half of it) of a box times a face count; 0 for no faces."""
+    dx, dy, dz = hx - lx, hy - ly, hz - lz
+    return (dx * dy + dy * dz + dz * dx) * count if count > 0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _best_split(bins, bin_n, nb, scale, right_cost):
+    """The cheapest split of the binned SAH (Wald 2007: cost = area(L) n(L) +
+    area(R) n(R)) over the axes with a non-zero ``scale``: (axis, first bin of the
+    right side), (-1, -1) with none. Per axis the right sides' costs are summed in one
+    sweep from the right into ``right_cost``, then the left sides' in one from the left,
+    each split priced as the left sweep reaches it: O(bins) per axis. Empty bins hold
+    the empty box (+inf lows, -inf highs), which leaves a union as it is."""
+    best_axis, best_split, best_cost = -1, -1, np.inf
+    for a in range(3):
+        if scale[a] == 0.0:
+            continue
+        count = 0
+        lx = ly = lz = np.inf
+        hx = hy = hz = -np.inf
+        for b in range(nb - 1, 0, -1):  # right side of split b: bins b .. nb - 1
+            count += bin_n[a, b]
+            lx, ly, lz = min(lx, bins[a, b, 0]), min(ly, bins[a, b, 1]), min(lz, bins[a, b, 2])
+            hx, hy, hz = max(hx, bins[a, b, 4]), max(hy, bins[a, b, 5]), max(hz, bins[a, b, 6])
+            right_cost[b] = _area_times(lx, ly, lz, hx, hy, hz, count)
+        count = 0
+        lx = ly = lz = np.inf
+        hx = hy = hz = -np.inf
+        for split in range(1, nb):  # left side: bins 0 .. split - 1
+            b = split - 1
+            count += bin_n[a, b]
+            lx, ly, lz = min(lx, bins[a, b, 0]), min(ly, bins[a, b, 1]), min(lz, bins[a, b, 2])
+            hx, hy, hz = max(hx, bins[a, b, 4]), max(hy, bins[a, b, 5]), max(hz, bins[a, b, 6])
+            cost = _area_times(lx, ly, lz, hx, hy, hz, count) + right_cost[split]
+            if cost < best_cost:
+                best_axis, best_split, best_cost = a, split, cost
+    return best_axis, best_split
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -19,7 +19,7 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 __all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits", "next_float32",
-           "prefetch"]
+           "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
 _F4 = ir.VectorType(ir.FloatType(), 4)
@@ -218,6 +218,38 @@ def float_bits(typingctx, x):
 
     def codegen(context, builder, sig, args):
         return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def grow_box(typingctx, bins, i, prim, k):
+    """Grow the box at ``bins[i:i + 8]`` (float64, 1-D: lo x, y, z, a spare word, hi x,
+    y, z, a spare word) by the box of row ``k`` of ``prim`` (float64, 2-D, rows of at
+    least 7 words starting lo x, y, z, hi x, y, z): two ``<4 x double>`` min / max
+    where the scalar code made six, each a load and a store of the bin (the BVH build's
+    binning, :func:`hsr.algorithms.bvh._bin_faces`: the bunny's 8 ns a face -> 5). The
+    spare words take the row's words 3 and 6, and are never read."""
+    sig = types.void(bins, i, prim, k)
+
+    def codegen(context, builder, sig, args):
+        bins_v, i_v, prim_v, k_v = args
+        i_v = context.cast(builder, i_v, sig.args[1], types.intp)
+        k_v = context.cast(builder, k_v, sig.args[3], types.intp)
+        prim_a = context.make_array(sig.args[2])(context, builder, prim_v)
+        stride = cgutils.unpack_tuple(builder, prim_a.strides, 2)[0]
+        row = builder.gep(builder.bitcast(prim_a.data, ir.IntType(8).as_pointer()),
+                          [builder.mul(k_v, stride)])
+        bin_at = builder.gep(context.make_array(sig.args[0])(context, builder, bins_v).data,
+                             [i_v])
+        pointers = [builder.bitcast(row, _D4.as_pointer()),
+                    builder.bitcast(builder.gep(row, [_i64(24)]), _D4.as_pointer()),
+                    builder.bitcast(bin_at, _D4.as_pointer()),
+                    builder.bitcast(builder.gep(bin_at, [_i64(4)]), _D4.as_pointer())]
+        lo, hi, bin_lo, bin_hi = (builder.load(q, align=8) for q in pointers)
+        builder.store(_min(builder, lo, bin_lo), pointers[2], align=8)
+        builder.store(_max(builder, hi, bin_hi), pointers[3], align=8)
+        return context.get_dummy_value()
 
     return sig, codegen
 
