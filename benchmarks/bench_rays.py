@@ -13,7 +13,8 @@ public calls with their defaults, the inputs prepared outside the timer: hsr
 ``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
 (INTERSECT with output, OCCLUDED) on float32. Builds: hsr's ``RayScene(mesh)`` (after a
 first one that compiles), Open3D's ``add_triangles`` plus the first query (it commits
-its scene lazily), Embree's likewise. Each query runs in blocks of ``--repeat`` that
+its scene lazily), Embree's likewise, alternating, ``--rounds`` x ``--repeat`` each
+(min / median). Each query runs in blocks of ``--repeat`` that
 alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
 (below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
 (``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``
@@ -223,12 +224,24 @@ def main(argv=None):
     for spec in args.models:
         mesh, label = load_model(spec)
         hsr.RayScene(mesh)  # compiles
-        t0 = time.perf_counter()
-        rays = hsr.RayScene(mesh)
-        hsr_build = 1e3 * (time.perf_counter() - t0)
-        peers = {"Open3D": open3d_peer(mesh), "Embree": embree_peer(mesh)}
-        builds.append((label, mesh.n_faces, hsr_build,
-                       *(f"{p[0]:.0f}" if p else "-" for p in peers.values())))
+        # Builds alternate, hsr then each peer, `rounds x repeat` times (a build pays
+        # for fresh memory's page faults, which vary from one to the next).
+        build_ms: dict[str, list] = {"hsr": [], "Open3D": [], "Embree": []}
+        for _ in range(args.rounds * args.repeat):
+            rays = peers = None  # the last round's are kept, for the queries
+            t0 = time.perf_counter()
+            rays = hsr.RayScene(mesh)
+            build_ms["hsr"].append(1e3 * (time.perf_counter() - t0))
+            peers = {"Open3D": open3d_peer(mesh), "Embree": embree_peer(mesh)}
+            for name, peer in peers.items():
+                if peer:
+                    build_ms[name].append(peer[0])
+        cells = [f"{min(ms):.0f} / {np.median(ms):.0f}" if ms else "-"
+                 for ms in build_ms.values()]
+        mine_ms, o3d_ms = build_ms["hsr"], build_ms["Open3D"]
+        cells.append(f"{min(mine_ms) / min(o3d_ms):.2f} / "
+                     f"{np.median(mine_ms) / np.median(o3d_ms):.2f}" if o3d_ms else "-")
+        builds.append((label, mesh.n_faces, *cells))
         for kind, (o, d) in ray_sets(mesh, args.rays, rng).items():
             mine = {"cast": lambda: rays.cast(o, d), "occluded": lambda: rays.occluded(o, d),
                     "count": lambda: rays.count(o, d)}
@@ -247,10 +260,10 @@ def main(argv=None):
                 print(f"| {label} | {mesh.n_faces:,} | {len(o):,} {kind} | {query} | "
                       f"{lo:.1f} / {med:.1f} | {' | '.join(cells)} |", flush=True)
     print()
-    print("| model | faces | build ms: hsr | Open3D | Embree |")
-    print("|---|---|---|---|---|")
-    for label, faces, mine, o3d_ms, embree_ms in builds:
-        print(f"| {label} | {faces:,} | {mine:.0f} | {o3d_ms} | {embree_ms} |")
+    print("| model | faces | build ms (min / median): hsr | Open3D | Embree | hsr / Open3D |")
+    print("|---|---|---|---|---|---|")
+    for label, faces, *cells in builds:
+        print(f"| {label} | {faces:,} | {' | '.join(cells)} |")
     # visible_vertices of the bunny: 35k vertices, warm, the RayScene built beforehand.
     bunny = hsr.load(os.path.join(MODELS, "stanford-bunny.obj"))
     rays = hsr.RayScene(bunny)
