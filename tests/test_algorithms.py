@@ -460,3 +460,16 @@ def test_binary_boxes_kept_in_float32_hold_what_they_bound():
     # Otherwise one float32 step apart: nothing float32 lies between.
     with np.errstate(over="ignore"):  # the step above the largest float32 is inf
         assert (np.nextafter(down[~exact], np.float32(np.inf)) == up[~exact]).all()
+
+
+def test_bvh_refuses_faces_changed_to_index_past_the_vertices():
+    """The build's passes gather corners without bounds checks: a mesh whose faces were
+    changed after it was made (to a vertex that is not there, or a negative one) is
+    refused with a MeshError, not read out of bounds."""
+    for bad in (3, -1):
+        mesh = hsr.Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+        mesh.faces[0, 2] = bad
+        with pytest.raises(hsr.MeshError, match="indexes a vertex"):
+            rc.build(mesh)
+        with pytest.raises(hsr.MeshError, match="indexes a vertex"):
+            hsr.RayScene(mesh)

@@ -172,9 +172,16 @@ def _world_mesh(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     them, (F, 3) in submission order: :meth:`Scene.world_triangles` before its gather
     (the same arithmetic, so the same coordinates), which the build's passes make
     corner by corner instead of holding the (F, 3, 3) corners twice."""
+    from ..errors import MeshError
+
     positions, faces, offset = [], [], 0
     for inst in scene.instances:
         placed = inst.mesh.positions
+        # A Mesh checks its faces when made; checked again here, since the build's
+        # passes index without bounds checks and a mesh's arrays can be changed after.
+        if len(inst.mesh.faces) and not (0 <= inst.mesh.faces.min()
+                                         and inst.mesh.faces.max() < len(placed)):
+            raise MeshError(f"{inst.mesh.name}: a face indexes a vertex that is not there")
         if not np.array_equal(inst.model, np.eye(4)):
             placed = placed @ inst.model[:3, :3].T + inst.model[:3, 3]
         positions.append(placed)
