@@ -168,31 +168,18 @@ def _outwards32(values: np.ndarray, towards: float) -> np.ndarray:
 
 
 def _world_mesh(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """The scene's vertices in world space, (V, 3) float64, and its faces indexing
-    them, (F, 3) in submission order: :meth:`Scene.world_triangles` before its gather
-    (the same arithmetic, so the same coordinates), which the build's passes make
-    corner by corner instead of holding the (F, 3, 3) corners twice."""
+    """:meth:`Scene.world_mesh` as the build's passes read it: contiguous, float64, and
+    its faces checked again. A Mesh checks its faces when made, but the passes index
+    without bounds checks and a mesh's arrays can be changed after."""
     from ..errors import MeshError
 
-    positions, faces, offset = [], [], 0
     for inst in scene.instances:
-        placed = inst.mesh.positions
-        # A Mesh checks its faces when made; checked again here, since the build's
-        # passes index without bounds checks and a mesh's arrays can be changed after.
-        if len(inst.mesh.faces) and not (0 <= inst.mesh.faces.min()
-                                         and inst.mesh.faces.max() < len(placed)):
+        faces = inst.mesh.faces
+        if len(faces) and not (0 <= faces.min() and faces.max() < len(inst.mesh.positions)):
             raise MeshError(f"{inst.mesh.name}: a face indexes a vertex that is not there")
-        if not np.array_equal(inst.model, np.eye(4)):
-            placed = placed @ inst.model[:3, :3].T + inst.model[:3, 3]
-        positions.append(placed)
-        faces.append(inst.mesh.faces + offset if offset else inst.mesh.faces)
-        offset += len(placed)
-    if len(positions) == 1:
-        return (np.ascontiguousarray(positions[0], dtype=np.float64),
-                np.ascontiguousarray(faces[0]))
-    if not positions:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    return np.concatenate(positions).astype(np.float64), np.concatenate(faces)
+    positions, faces = scene.world_mesh()
+    return (np.ascontiguousarray(positions, dtype=np.float64),
+            np.ascontiguousarray(faces))
 
 
 @njit(cache=True, nogil=True)
@@ -584,8 +571,11 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
     Each split reads its node's slots twice: once to bin them on all three axes, once
     to partition them. A child's box is the union of its side's bins, the box of its
     centroids (which places its bins) is gathered while partitioning, and both are
-    handed down with it (a third pass per node, for the boxes, and a pass per axis to
-    bin made the terrain's 1M-face build 1.6x slower)."""
+    handed down with it. (A pass per axis to bin, with a division per face, through
+    Numba's three-index arrays and without prefetching, and a third pass per node for
+    the boxes, made the split 30 ns a face per level where it is now about 20 at the
+    terrain; most of that came from prefetching and the flat bins, see
+    :func:`_bin_faces`.)"""
     n_pending = 0
     # Per axis and bin: its faces' box (lo x3, a spare word, hi x3, a spare word: 64
     # bytes, two vectors of four for simd.grow_box).
@@ -699,8 +689,8 @@ def _close_up(node_left, n_top, pending, base, ends):
 
 @njit(cache=True, nogil=True, inline="always")
 def _bin_of(centroid, c_lo, scale, nb):
-    """The SAH bin of a centroid, ``scale`` being N_BINS / the centroids' extent (the
-    same expression wherever a bin is assigned, so the partition puts each triangle on
+    """The SAH bin of a centroid among ``nb``, ``scale`` being nb / the centroids' extent
+    (the same expression wherever a bin is assigned, so the partition puts each triangle on
     the side its bin was counted on). A multiplication, not a division: the binning
     loop is most of a build."""
     return min(int((centroid - c_lo) * scale), nb - 1)

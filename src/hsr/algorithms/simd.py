@@ -48,13 +48,14 @@ def _i64(value):
     return ir.Constant(ir.IntType(64), value)
 
 
-def _row_pointer(context, builder, array_type, array, row):
-    """A float* to the start of row ``row`` of a 2-D float32 array."""
+def _row_pointer(context, builder, array_type, array, row, element=None):
+    """A pointer to the start of row ``row`` of a 2-D array, to ``element`` (default
+    float, for float32 arrays)."""
     ary = context.make_array(array_type)(context, builder, array)
     stride = cgutils.unpack_tuple(builder, ary.strides, 2)[0]
     raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
     return builder.bitcast(builder.gep(raw, [builder.mul(row, stride)]),
-                           ir.FloatType().as_pointer())
+                           (element or ir.FloatType()).as_pointer())
 
 
 # The slack that keeps the slab test conservative (never missing a box the exact ray
@@ -236,14 +237,11 @@ def grow_box(typingctx, bins, i, prim, k):
         bins_v, i_v, prim_v, k_v = args
         i_v = context.cast(builder, i_v, sig.args[1], types.intp)
         k_v = context.cast(builder, k_v, sig.args[3], types.intp)
-        prim_a = context.make_array(sig.args[2])(context, builder, prim_v)
-        stride = cgutils.unpack_tuple(builder, prim_a.strides, 2)[0]
-        row = builder.gep(builder.bitcast(prim_a.data, ir.IntType(8).as_pointer()),
-                          [builder.mul(k_v, stride)])
+        row = _row_pointer(context, builder, sig.args[2], prim_v, k_v, ir.DoubleType())
         bin_at = builder.gep(context.make_array(sig.args[0])(context, builder, bins_v).data,
                              [i_v])
         pointers = [builder.bitcast(row, _D4.as_pointer()),
-                    builder.bitcast(builder.gep(row, [_i64(24)]), _D4.as_pointer()),
+                    builder.bitcast(builder.gep(row, [_i64(3)]), _D4.as_pointer()),
                     builder.bitcast(bin_at, _D4.as_pointer()),
                     builder.bitcast(builder.gep(bin_at, [_i64(4)]), _D4.as_pointer())]
         lo, hi, bin_lo, bin_hi = (builder.load(q, align=8) for q in pointers)
@@ -257,28 +255,26 @@ def grow_box(typingctx, bins, i, prim, k):
 @intrinsic
 def next_float32(typingctx, x, up):
     """The float32 next to ``x`` (not NaN) towards +inf when ``up``, else towards -inf:
-    ``np.nextafter`` by the bits, as the IEEE layout orders them (a
-    step of one in the magnitude's bits; from zero, the smallest subnormal of the
-    step's sign). Numba's ``np.nextafter`` calls libm: the wide tree's outward rounding
-    of 3.4M bounds (the 1M-face terrain) spent 20 ms in it."""
+    ``np.nextafter`` by the bits, as the IEEE layout orders them (a step of one in the
+    magnitude's bits; from zero, the smallest subnormal of the step's sign). Numba's
+    ``np.nextafter`` calls libm: the wide tree's outward rounding of 3.4M bounds (the
+    1M-face terrain) spent 20 ms in it."""
     sig = types.float32(types.float32, types.boolean)
 
     def codegen(context, builder, sig, args):
         value, towards_up = args
         i32 = ir.IntType(32)
+        up = builder.trunc(towards_up, ir.IntType(1))
         bits = builder.bitcast(value, i32)
         # Away from zero when the step goes the way of the sign, else towards it.
-        negative = builder.icmp_signed("<", bits, ir.Constant(i32, 0))
-        away = builder.xor(negative, builder.trunc(towards_up, ir.IntType(1)))
+        away = builder.xor(builder.icmp_signed("<", bits, ir.Constant(i32, 0)), up)
         stepped = builder.select(away, builder.add(bits, ir.Constant(i32, 1)),
                                  builder.sub(bits, ir.Constant(i32, 1)))
         is_zero = builder.fcmp_ordered("==", value, ir.Constant(ir.FloatType(), 0.0))
-        tiny = builder.select(builder.trunc(towards_up, ir.IntType(1)),
-                              ir.Constant(i32, 1), ir.Constant(i32, -2**31 + 1))
+        tiny = builder.select(up, ir.Constant(i32, 1), ir.Constant(i32, -2**31 + 1))
         out = builder.bitcast(builder.select(is_zero, tiny, stepped), ir.FloatType())
         # An infinity stepped outwards stays where it is.
-        end = builder.select(builder.trunc(towards_up, ir.IntType(1)),
-                             ir.Constant(ir.FloatType(), float("inf")),
+        end = builder.select(up, ir.Constant(ir.FloatType(), float("inf")),
                              ir.Constant(ir.FloatType(), float("-inf")))
         return builder.select(builder.fcmp_ordered("==", value, end), value, out)
 

@@ -279,6 +279,16 @@ def normal_matrix(model: np.ndarray) -> np.ndarray:
                      np.cross(c[:, 0], c[:, 1])], axis=1)
 
 
+
+def place_vertices(positions: np.ndarray, model: np.ndarray) -> np.ndarray:
+    """``positions`` (V, 3) moved to world space by the instance matrix ``model`` (the
+    arrays as they are for the identity). One expression wherever vertices are placed,
+    so every path gives the same coordinates to the bit."""
+    if np.array_equal(model, np.eye(4)):
+        return positions
+    return positions @ model[:3, :3].T + model[:3, 3]
+
+
 class Scene:
     """Mesh instances drawn in order. ``face_id`` is global: the faces of the first
     instance come first, then the second's, and so on (submission order)."""
@@ -357,19 +367,28 @@ class Scene:
         key = tuple(array for m in meshes for array in (m.positions, m.faces))
         return _kept(self, "_assembled", key, join)
 
+    def world_mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """The vertices of every instance placed in world space, (V, 3) float64, and the
+        faces indexing them, (F, 3) in submission order: :meth:`world_triangles` before
+        its gather (the BVH build gathers corner by corner from these instead of holding
+        the (F, 3, 3) corners)."""
+        positions, faces, offset = [], [], 0
+        for inst in self.instances:
+            positions.append(place_vertices(inst.mesh.positions, inst.model))
+            faces.append(inst.mesh.faces + offset if offset else inst.mesh.faces)
+            offset += len(inst.mesh.positions)
+        if len(positions) == 1:
+            return positions[0], faces[0]
+        if not positions:
+            return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+        return np.concatenate(positions), np.concatenate(faces)
+
     def world_triangles(self) -> np.ndarray:
         """(F, 3, 3) world-space corners of every face, in submission order. Vertices
         are moved to world space once and then gathered, so the faces sharing a vertex
         get exactly the same coordinates for it (six times less arithmetic, too)."""
-        parts = []
-        for inst in self.instances:
-            positions = inst.mesh.positions
-            if not np.array_equal(inst.model, np.eye(4)):
-                positions = positions @ inst.model[:3, :3].T + inst.model[:3, 3]
-            parts.append(positions[inst.mesh.faces])
-        if len(parts) == 1:
-            return parts[0]
-        return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+        positions, faces = self.world_mesh()
+        return positions[faces]
 
     def world_points(self) -> np.ndarray:
         """(N, 3) world-space positions of the vertices that faces use, instance by

@@ -24,7 +24,7 @@ from ..errors import MeshError, require_extra
 from ..parallel import progress_bar
 from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
-from .mesh import Scene, SceneLike, as_scene, check_used_positions, instance_of
+from .mesh import Scene, SceneLike, as_scene, check_used_positions, instance_of, place_vertices
 from .obj_stream import ObjStream
 from .partitioned import (
     FACE_ATTRIBUTES,
@@ -246,14 +246,6 @@ class _Single:
         return self.reader.face_chunks(chunk)
 
 
-def _world(positions: np.ndarray, model: np.ndarray) -> np.ndarray:
-    """Vertices placed by ``model`` with Scene.world_triangles' arithmetic (none for the
-    identity), so the streamed centroids are the in-memory path's to the bit."""
-    if np.array_equal(model, np.eye(4)):
-        return positions
-    return positions @ model[:3, :3].T + model[:3, 3]
-
-
 def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> dict:
     instances = source.instances
     offsets = np.concatenate([[0], np.cumsum([source.counts[key]
@@ -274,7 +266,7 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
     # Pass 2: a Morton code per face, from its world centroid (morton_order's formula).
     codes = np.empty(source.n_faces, dtype=np.uint64)
     for k, (_, _, model, key) in enumerate(instances):
-        world = _world(source.positions[key], model)
+        world = place_vertices(source.positions[key], model)
         for start, corners in source.face_chunks(key, chunk):
             at = offsets[k] + start
             codes[at:at + len(corners)] = morton_codes(world[corners].mean(axis=1), lo, hi)
@@ -291,7 +283,7 @@ def _write_streamed(source, parts: int, root, scratch: str, chunk: int, bar) -> 
     box_lo = np.full((parts, 3), np.inf)
     box_hi = np.full((parts, 3), -np.inf)
     for k, (_, _, model, key) in enumerate(instances):
-        world = _world(source.positions[key], model)
+        world = place_vertices(source.positions[key], model)
         for start, corners in source.face_chunks(key, chunk):
             at = offsets[k] + start
             mine = part_of[at:at + len(corners)]
