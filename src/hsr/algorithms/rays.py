@@ -78,13 +78,18 @@ def _owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
 # waiting on the one before, and past the cache each costs a trip to the last-level
 # cache or memory; with eight walks in turn, eight such trips overlap.
 SLOTS = 8
-# Wide nodes numbered below HOT_NODES (the top of the tree in level order, 512 KB of
+# Wide nodes numbered below HOT_NODES (the top of the tree in level order, 128 KB of
 # records; see hsr.algorithms.bvh.widen) are taken to be in a core's cache: walking into
 # one goes on with the same ray. Measured with a first version of this walk at one
-# thread, 1M random rays, against the one-ray walk: switching rays at leaves only, 0.82x
-# at the bunny but 0.80x at a 1M-face terrain; at every node, 1.0x and 0.64x; at leaves
-# and at nodes past the first 512 to 8192, 0.82-0.90x and 0.56-0.58x (4096 taken).
-HOT_NODES = 4096
+# thread, 1M random rays, against the one-ray walk (an Intel Xeon, 2 MB of L2 a core):
+# switching rays at leaves only, 0.82x at the bunny but 0.80x at a 1M-face terrain; at
+# every node, 1.0x and 0.64x; at leaves and at nodes past the first 512 to 8192,
+# 0.82-0.90x and 0.56-0.58x (4096 taken then). On an AMD EPYC (1 MB of L2 a core) with
+# the walk as it is now, random rays, one thread, cast / occluded ms: the bunny 105 / 80
+# at 4096, 95 / 74 at 1024, 89-92 / 73 at 256 and 0; the terrain 144 / 108 at 4096,
+# 133 / 99 at 1024 and 256, whose two threads were slower at 256 (82 / 58 against
+# 73 / 54). 1024 is in the range good on both.
+HOT_NODES = 1024
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
  _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
@@ -119,9 +124,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     apart (``raster is None`` is decided when compiling), so the queries' walks carry
     none of the ray caster's code.
 
-    The chunk's rays are checked first (:func:`check_rays`; their data is then in
-    cache for the walk); returns ``(tests, problem, ray)``: the triangle tests made, or
-    the first bad ray's problem and index with nothing traced.
+    Each ray is checked as its walk starts (:func:`check_rays`, in ray order);
+    returns ``(tests, problem, ray)``: the triangle tests made, or the first bad ray's
+    problem and index, the rays before it traced and none after.
 
     Each ray's walk is the ordered one of :func:`hsr.algorithms.bvh.descend` and
     :func:`hsr.algorithms.bvh.next_box`, pruned by the nearest hit so far (``mode``
@@ -136,9 +141,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     where the ray before left it, switching only costs (the bunny's 1M camera rays,
     ``occluded``: 35 ms interleaved, 29 ms not). Each ray's steps are the one-ray
     walk's either way, so are its answers."""
-    problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
-    if problem:
-        return 0, problem, bad
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
@@ -166,6 +168,13 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 if next_ray == hi:
                     continue
                 i = next_ray
+                # Each ray is checked as its slot takes it: its data is read here anyway,
+                # where a pass of its own over the chunk first cost 10 ns a ray (the
+                # bunny's 1M random rays, occluded, one thread: 82 -> 77 ms).
+                if not _plausible(origins, directions, t_min, t_max, i, per_ray):
+                    problem, bad = check_rays(i, i + 1, origins, directions, t_min, t_max)
+                    if problem:
+                        return 0, problem, bad
                 next_ray += 1
                 busy += 1
                 slot_i[s, _I_RAY] = i
@@ -309,9 +318,6 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     it enters before its bound (the union walk only adds boxes, whose triangles it
     tests to no effect on a result that depends on the set of hits, not their order),
     its entries are the one-ray test's numbers, and ties go to the lower face id."""
-    problem, bad = check_rays(lo, hi, origins, directions, t_min, t_max)
-    if problem:
-        return 0, problem, bad
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     stack_ref, stack_count, _ = walk_stack(wide_depth, 1)
     stack_rays = np.empty(len(stack_ref), dtype=np.int64)
@@ -328,6 +334,15 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     tests = 0
     for first in range(lo, hi, 4):
         careful = framed = False
+        # The packet's rays are checked as they are read (see trace_range).
+        plausible = True
+        for i in range(first, min(first + 4, hi)):
+            plausible &= _plausible(origins, directions, t_min, t_max, i, per_ray)
+        if not plausible:
+            problem, bad = check_rays(first, min(first + 4, hi), origins, directions, t_min,
+                                      t_max)
+            if problem:
+                return 0, problem, bad
         for r in range(4):
             i = min(first + r, hi - 1)  # past the end: the last ray again, not walking
             ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
@@ -582,6 +597,19 @@ def check_rays(lo, hi, origins, directions, t_min, t_max):
         if t0 > t1:
             return 7, i
     return 0, -1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plausible(origins, directions, t_min, t_max, i, per_ray):
+    """Whether ray ``i`` cannot be bad, as :func:`_all_good` judges a chunk (without
+    branches; a false alarm is cleared by :func:`check_rays`' exact tests)."""
+    s = (origins[i, 0] + origins[i, 1] + origins[i, 2] + directions[i, 0]
+         + directions[i, 1] + directions[i, 2])
+    zero = (directions[i, 0] == 0.0) & (directions[i, 1] == 0.0) & (directions[i, 2] == 0.0)
+    t0 = t_min[i if per_ray[0] else 0]
+    t1 = t_max[i if per_ray[1] else 0]
+    return not (((s - s) != 0.0) | zero | ((t0 - t0) != 0.0) | (t0 < 0.0) | (t1 != t1)
+                | (t0 > t1))
 
 
 @njit(cache=True, nogil=True)
