@@ -158,21 +158,22 @@ class RayScene:
         if progress is None:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         # Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
-        # close) go through the walk in packets of four, except for `occluded`, whose
-        # walks stop at different depths. Other rays go through trace_range, eight at
-        # a time per thread (its interleave), which hides the cache misses of
-        # incoherent rays. Coherent rays find in cache what the ray before read unless
-        # the triangles are about as many as the rays (each ray then meets triangles
-        # of its own), so with many rays a triangle they are walked one by one (the
-        # bunny's 1M camera rays, occluded: 35 ms interleaved, 30 one by one; a
-        # 1M-face terrain's: 22 and 26). The answers are the same on every path.
+        # close) find in cache what the ray before read, unless the triangles are about
+        # as many as the rays (each ray then meets triangles of its own). With many
+        # rays a triangle, they go through the walk in packets of four, except for
+        # `occluded`, whose walks stop at different depths: those are walked one by
+        # one, the last occluder tested first (trace_range's last_occluder). Other
+        # rays go through trace_range eight at a time per thread (its interleave),
+        # which hides cache misses. Measured, 1M camera rays, one thread, ms for
+        # packets / interleaved / one by one: the bunny's cast 52 / 81 / 73, count
+        # 80 / 127 / 109, occluded (two threads) - / 35 / 30; a 1M-face terrain's
+        # cast 55 / 48 / 53, count 131 / 95 / 136, occluded - / 22 / 26 (the last
+        # occluder, interleaved, is eight rays back and seldom met: 21 -> 25 ms with
+        # it). The answers are the same on every path.
         coherent = _coherent(origins, directions, self.scene_size)
-        # Coherent rays walked one by one test the last occluder first (trace_range's
-        # last_occluder; interleaved, it is eight rays back and seldom met: the
-        # terrain's camera rays, occluded, 21 -> 25 ms with it).
-        interleave = not coherent or 4 * self.bvh.n_faces > n
-        kernel, last = ((trace_packets, ()) if coherent and mode != 1 else (
-            trace_range, (interleave, coherent and not interleave)))
+        dense = 4 * self.bvh.n_faces <= n
+        kernel, last = ((trace_packets, ()) if coherent and dense and mode != 1 else (
+            trace_range, (not (coherent and dense), coherent and dense)))
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             bvh = self.bvh
