@@ -57,14 +57,21 @@ def progress(items, desc):
 
 
 def load_model(spec):
-    """(mesh, label) of a mesh file or ``terrain:N`` (the generated grid of N
-    triangles)."""
+    """(mesh, label) of a mesh file, ``terrain:N`` (the generated grid of N triangles)
+    or ``terrain32:N`` (the same with its vertices rounded to float32, as a binary PLY,
+    STL or glTF file stores them)."""
     import os
+
+    import numpy as np
 
     import hsr
 
     kind, _, count = spec.partition(":")
-    if kind == "terrain" and count:
+    if kind in ("terrain", "terrain32") and count:
         scene, _ = hsr.scenes.terrain(int(float(count)))
-        return scene.instances[0].mesh, f"terrain {int(float(count)):,}"
+        mesh = scene.instances[0].mesh
+        if kind == "terrain32":
+            return (hsr.Mesh(mesh.positions.astype(np.float32).astype(np.float64), mesh.faces),
+                    f"terrain {int(float(count)):,} (float32 vertices)")
+        return mesh, f"terrain {int(float(count)):,}"
     return hsr.load(spec), os.path.basename(spec)

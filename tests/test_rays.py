@@ -637,3 +637,79 @@ def test_bad_rays_in_a_coherent_query_raise_only_the_error():
         warnings.simplefilter("error")
         with pytest.raises(RayError, match="ray 8 is \\(0, 0, 0\\)"):
             rays.cast(origins, directions)
+
+
+def test_float32_vertices_keep_float32_corners_and_every_answer(bunny):
+    """A scene whose vertices are all float32 values (as binary PLY, STL and glTF give
+    them) keeps its BVH corners in float32; every query and the ray caster (with back
+    faces culled, whose facing test reads the corners) answer bit for bit as with the
+    same corners in float64, on random rays, camera rays and rays through vertices."""
+    from hsr.algorithms.bvh import build
+
+    mesh32 = hsr.Mesh(bunny.positions.astype(np.float32).astype(np.float64), bunny.faces)
+    rays32 = hsr.RayScene(mesh32)
+    assert rays32.bvh.corners.dtype == np.float32
+    assert hsr.RayScene(bunny).bvh.corners.dtype == np.float64  # OBJ text: not float32
+    rays64 = hsr.RayScene(mesh32)
+    rays64.bvh.corners = rays64.bvh.corners.astype(np.float64)
+    rng = np.random.default_rng(21)
+    o_rand, d_rand = random_rays(mesh32.bounds(), 20_000, rng)
+    o_cam, d_cam = pixel_rays(hsr.Camera.frame(mesh32.bounds()), 120, 90)
+    corner = mesh32.positions[rng.choice(len(mesh32.positions), 500)]
+    o_vtx = corner + rng.normal(size=(500, 3))
+    for o, d in ((o_rand, d_rand), (o_cam, d_cam), (o_vtx, corner - o_vtx)):
+        a, b = rays32.cast(o, d), rays64.cast(o, d)
+        for field in ("t", "face_id", "object_id", "barycentric", "normal"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        np.testing.assert_array_equal(rays32.count(o, d), rays64.count(o, d))
+        np.testing.assert_array_equal(rays32.occluded(o, d), rays64.occluded(o, d))
+        assert a.hit.any()
+    cam = hsr.Camera.frame(mesh32.bounds())
+    tree32, tree64 = build(mesh32), build(mesh32)
+    tree64.corners = tree64.corners.astype(np.float64)
+    state = hsr.RenderState(cull="back")
+    f32 = hsr.render(mesh32, cam, 160, 120, algorithm="raycast", state=state,
+                     options={"bvh": tree32})
+    f64 = hsr.render(mesh32, cam, 160, 120, algorithm="raycast", state=state,
+                     options={"bvh": tree64})
+    np.testing.assert_array_equal(f32.face_id, f64.face_id)
+    np.testing.assert_array_equal(f32.depth, f64.depth)
+    assert (f32.face_id >= 0).any()
+
+
+def test_the_facing_test_reads_float32_corners_in_float64():
+    """The triangle test's facing (culling) on rays grazing their triangles, where the
+    sign of n . d rests on the last bits of the cross product: float32 corners give
+    exactly the float64 corners' answers, so the arithmetic is float64 in both."""
+    from numba import njit
+
+    from hsr.algorithms.bvh import _intersect, ray_frame
+
+    @njit
+    def test_all(tris, origins, directions, cull_code):
+        out = np.empty((len(origins), 4))
+        for i in range(len(origins)):
+            ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+            dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+            kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
+            out[i, 0], out[i, 1], out[i, 2], out[i, 3] = _intersect(
+                tris, i, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, True, dx, dy, dz)
+        return out
+
+    rng = np.random.default_rng(8)
+    n = 4000
+    tris = rng.normal(size=(n, 3, 3)).astype(np.float32)
+    a, b, c = (tris[:, k].astype(np.float64) for k in range(3))
+    normal = np.cross(b - a, c - a)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    tangent = np.cross(normal, rng.normal(size=(n, 3)))
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    tilt = 10.0 ** rng.uniform(-10, -5, n) * rng.choice([-1.0, 1.0], n)
+    directions = tangent + tilt[:, None] * normal
+    origins = (a + b + c) / 3 - directions
+    for cull_code in (1, 2):
+        got32 = test_all(tris, origins, directions, cull_code)
+        got64 = test_all(tris.astype(np.float64), origins, directions, cull_code)
+        np.testing.assert_array_equal(got32, got64)
+        hit = got64[:, 0] >= 0
+        assert 0.2 < hit.mean() < 0.8  # both facings met, culled and kept

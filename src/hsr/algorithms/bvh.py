@@ -55,9 +55,10 @@ class BVH:
     outwards from the float64 ones the build used); node_left : (N,) int32 first child
     (the second is ``node_left + 1``) or -1 for a leaf; node_start, node_count : (N,)
     int32 a leaf's range of slots; tri_index : (T,) int32 the face id in each slot
-    (degenerate faces are left out); corners : (T, 3, 3) float64 world-space corners of
-    each slot's face (stored in leaf order, so a leaf's triangles are read in one run of
-    memory); n_faces : the scene's face count.
+    (degenerate faces are left out); corners : (T, 3, 3) world-space corners of each
+    slot's face (stored in leaf order, so a leaf's triangles are read in one run of
+    memory), float32 when every vertex is exactly a float32 value, else float64 (the
+    tests compute in float64 either way); n_faces : the scene's face count.
 
     As walked: node_box (W, 32) float32 and node_link (W, 32) int32, the 4-wide tree of
     :func:`widen` in the records of :func:`node_records`; the root a wide node when
@@ -125,7 +126,11 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
         workers.run_range(_fill_prims, len(slots), positions, faces, slots, prim)
         arrays = _build(prim, slots, workers, keep_tree)
         node_min, node_max, node_left, node_start, node_count, tri_index, n_nodes = arrays
-        corners = np.empty((len(tri_index), 3, 3))
+        # A scene whose vertices are all float32 values (as binary PLY, STL and glTF
+        # files give them) keeps its corners in float32: half the bytes, and every
+        # test reads them back as the same float64 values, so no answer changes.
+        corners = np.empty((len(tri_index), 3, 3),
+                           dtype=np.float32 if _float32_exact(positions) else np.float64)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
     if node_left[0] >= 0:
@@ -208,6 +213,16 @@ def _fill_prims(lo, hi, positions, faces, slots, prim):
             x, y, z = positions[p, a], positions[q, a], positions[r, a]
             low, high = min(x, y, z), max(x, y, z)
             prim[k, a], prim[k, 3 + a], prim[k, 6 + a] = low, high, 0.5 * (low + high)
+
+
+@njit(cache=True, nogil=True)
+def _float32_exact(positions):
+    """Whether every coordinate is a float32 value (NaN never is)."""
+    flat = positions.reshape(-1)
+    exact = True
+    for k in range(flat.shape[0]):
+        exact &= np.float64(np.float32(flat[k])) == flat[k]
+    return exact
 
 
 @njit(cache=True, nogil=True)
@@ -812,10 +827,11 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
     if cull_code != 0:
         # Facing: the ray meets the counter-clockwise (front) side when the normal
         # opposes it.
-        e1x, e1y, e1z = (tris[f, 1, 0] - tris[f, 0, 0], tris[f, 1, 1] - tris[f, 0, 1],
-                         tris[f, 1, 2] - tris[f, 0, 2])
-        e2x, e2y, e2z = (tris[f, 2, 0] - tris[f, 0, 0], tris[f, 2, 1] - tris[f, 0, 1],
-                         tris[f, 2, 2] - tris[f, 0, 2])
+        # (In float64: the corners may be stored in float32.)
+        ax, ay, az = (np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]),
+                      np.float64(tris[f, 0, 2]))
+        e1x, e1y, e1z = tris[f, 1, 0] - ax, tris[f, 1, 1] - ay, tris[f, 1, 2] - az
+        e2x, e2y, e2z = tris[f, 2, 0] - ax, tris[f, 2, 1] - ay, tris[f, 2, 2] - az
         facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
             e1x * e2y - e1y * e2x) * dz
         front = (facing < 0.0) == front_ccw

@@ -43,8 +43,6 @@ NEAREST, ANY, COUNT = 0, 1, 2
 # A walk's bound starts at t_max made finite, so that a missed box (entered at +inf)
 # always fails the test against it.
 LARGEST = 1.7976931348623157e308
-# A slot's three corners, float64 (prefetched a cache line at a time).
-CORNER_BYTES = 72
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -307,7 +305,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     prefetch(node_box, ref, 0)
                     prefetch(node_box, ref, 64)
                 else:
-                    for offset in range(0, n * CORNER_BYTES, 64):
+                    for offset in range(0, n * 9 * tris.itemsize, 64):
                         prefetch(tris, ref, offset)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
@@ -588,12 +586,10 @@ def _hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
         else:
             b = m
     out_object[i] = a
-    e1x = tris[k, 1, 0] - tris[k, 0, 0]
-    e1y = tris[k, 1, 1] - tris[k, 0, 1]
-    e1z = tris[k, 1, 2] - tris[k, 0, 2]
-    e2x = tris[k, 2, 0] - tris[k, 0, 0]
-    e2y = tris[k, 2, 1] - tris[k, 0, 1]
-    e2z = tris[k, 2, 2] - tris[k, 0, 2]
+    # In float64 (the corners may be stored in float32).
+    ax, ay, az = np.float64(tris[k, 0, 0]), np.float64(tris[k, 0, 1]), np.float64(tris[k, 0, 2])
+    e1x, e1y, e1z = tris[k, 1, 0] - ax, tris[k, 1, 1] - ay, tris[k, 1, 2] - az
+    e2x, e2y, e2z = tris[k, 2, 0] - ax, tris[k, 2, 1] - ay, tris[k, 2, 2] - az
     nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     norm = np.sqrt(nx * nx + ny * ny + nz * nz)
     out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm
