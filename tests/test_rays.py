@@ -707,9 +707,20 @@ def test_the_facing_test_reads_float32_corners_in_float64():
     tilt = 10.0 ** rng.uniform(-10, -5, n) * rng.choice([-1.0, 1.0], n)
     directions = tangent + tilt[:, None] * normal
     origins = (a + b + c) / 3 - directions
+    # Independently: a culled test answers as the unculled one (every ray meets its
+    # triangle, at t = 1) where numpy's float64 facing keeps the face, and misses
+    # where it culls it (rays whose facing is too close to 0 to call are left out).
+    unculled = test_all(tris.astype(np.float64), origins, directions, 0)
+    assert (unculled[:, 0] >= 0).all()
+    facing = np.einsum("ij,ij->i", np.cross(b - a, c - a), directions)
+    clear = np.abs(facing) > 1e-9 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
     for cull_code in (1, 2):
         got32 = test_all(tris, origins, directions, cull_code)
         got64 = test_all(tris.astype(np.float64), origins, directions, cull_code)
         np.testing.assert_array_equal(got32, got64)
+        # Front (the normal opposing the ray) is kept when back faces are culled (1).
+        kept = (facing < 0) == (cull_code == 1)
+        np.testing.assert_array_equal(got64[clear & kept], unculled[clear & kept])
+        assert (got64[clear & ~kept, 0] == -1.0).all()
         hit = got64[:, 0] >= 0
         assert 0.2 < hit.mean() < 0.8  # both facings met, culled and kept

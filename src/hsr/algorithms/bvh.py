@@ -828,10 +828,10 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
         # Facing: the ray meets the counter-clockwise (front) side when the normal
         # opposes it.
         # (In float64: the corners may be stored in float32.)
-        ax, ay, az = (np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]),
-                      np.float64(tris[f, 0, 2]))
-        e1x, e1y, e1z = tris[f, 1, 0] - ax, tris[f, 1, 1] - ay, tris[f, 1, 2] - az
-        e2x, e2y, e2z = tris[f, 2, 0] - ax, tris[f, 2, 1] - ay, tris[f, 2, 2] - az
+        p0x, p0y, p0z = (np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]),
+                         np.float64(tris[f, 0, 2]))
+        e1x, e1y, e1z = tris[f, 1, 0] - p0x, tris[f, 1, 1] - p0y, tris[f, 1, 2] - p0z
+        e2x, e2y, e2z = tris[f, 2, 0] - p0x, tris[f, 2, 1] - p0y, tris[f, 2, 2] - p0z
         facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
             e1x * e2y - e1y * e2x) * dz
         front = (facing < 0.0) == front_ccw
