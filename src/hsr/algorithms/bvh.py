@@ -30,7 +30,7 @@ from .simd import SLACK, SLACK_ABS, float_bits, grow_box, next_float32, prefetch
 
 __all__ = ["BVH", "build", "world_triangles", "widen", "node_records",
            "inverse_direction", "careful_entries4", "descend", "next_box",
-           "careful_packet_entries", "stack_size", "walk_stack"]
+           "careful_packet_entries", "stack_size", "walk_stack", "face_normal"]
 
 LEAF_SIZE = 4
 N_BINS = 16
@@ -788,6 +788,17 @@ def open_slabs(t0x, t1x, t0y, t1y, t0z, t1z):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def face_normal(tris, f):
+    """Slot ``f``'s normal as wound, (B - A) x (C - A), not normalised; in float64
+    whether the corners are stored in float32 or float64 (float32 arithmetic would
+    round it differently)."""
+    p0x, p0y, p0z = np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]), np.float64(tris[f, 0, 2])
+    e1x, e1y, e1z = tris[f, 1, 0] - p0x, tris[f, 1, 1] - p0y, tris[f, 1, 2] - p0z
+    e2x, e2y, e2z = tris[f, 2, 0] - p0x, tris[f, 2, 1] - p0y, tris[f, 2, 2] - p0z
+    return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+
+
+@njit(cache=True, nogil=True, inline="always")
 def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
     """Triangle ``f``'s corners relative to the ray's origin on the permuted axes, sheared
     so the ray is the +z axis (Woop et al.): (ax, ay, az, bx, by, bz, cx, cy, cz). One
@@ -827,13 +838,8 @@ def _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_
     if cull_code != 0:
         # Facing: the ray meets the counter-clockwise (front) side when the normal
         # opposes it.
-        # (In float64: the corners may be stored in float32.)
-        p0x, p0y, p0z = (np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]),
-                         np.float64(tris[f, 0, 2]))
-        e1x, e1y, e1z = tris[f, 1, 0] - p0x, tris[f, 1, 1] - p0y, tris[f, 1, 2] - p0z
-        e2x, e2y, e2z = tris[f, 2, 0] - p0x, tris[f, 2, 1] - p0y, tris[f, 2, 2] - p0z
-        facing = (e1y * e2z - e1z * e2y) * dx + (e1z * e2x - e1x * e2z) * dy + (
-            e1x * e2y - e1y * e2x) * dz
+        nx, ny, nz = face_normal(tris, f)
+        facing = nx * dx + ny * dy + nz * dz
         front = (facing < 0.0) == front_ccw
         if (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3:
             return -1.0, 0.0, 0.0, 0.0

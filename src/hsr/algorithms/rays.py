@@ -27,6 +27,7 @@ from .bvh import (
     careful_entries4,
     careful_packet_entries,
     descend,
+    face_normal,
     inverse_direction,
     next_box,
     ray_frame,
@@ -586,11 +587,7 @@ def _hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
         else:
             b = m
     out_object[i] = a
-    # In float64 (the corners may be stored in float32).
-    ax, ay, az = np.float64(tris[k, 0, 0]), np.float64(tris[k, 0, 1]), np.float64(tris[k, 0, 2])
-    e1x, e1y, e1z = tris[k, 1, 0] - ax, tris[k, 1, 1] - ay, tris[k, 1, 2] - az
-    e2x, e2y, e2z = tris[k, 2, 0] - ax, tris[k, 2, 1] - ay, tris[k, 2, 2] - az
-    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    nx, ny, nz = face_normal(tris, k)
     norm = np.sqrt(nx * nx + ny * ny + nz * nz)
     out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm
 
