@@ -68,10 +68,11 @@ def load_model(spec):
 
     kind, _, count = spec.partition(":")
     if kind in ("terrain", "terrain32") and count:
-        scene, _ = hsr.scenes.terrain(int(float(count)))
+        n = int(float(count))
+        scene, _ = hsr.scenes.terrain(n)
         mesh = scene.instances[0].mesh
         if kind == "terrain32":
             return (hsr.Mesh(mesh.positions.astype(np.float32).astype(np.float64), mesh.faces),
-                    f"terrain {int(float(count)):,} (float32 vertices)")
-        return mesh, f"terrain {int(float(count)):,}"
+                    f"terrain {n:,} (float32 vertices)")
+        return mesh, f"terrain {n:,}"
     return hsr.load(spec), os.path.basename(spec)
