@@ -313,26 +313,30 @@ def test_a_bad_ray_deep_in_a_large_query_is_the_one_named():
 
 
 def test_the_vector_box_test_equals_a_numpy_slab_test():
-    """hsr.algorithms.simd.box_entries4 (LLVM vector code) against the slab test written
+    """hsr.algorithms.simd.box_keys8 (LLVM vector code) against the slab test written
     here in NumPy on float64, lane by lane: boxes around, beside and behind the origin,
-    empty lanes (at +inf), thin boxes, and a bound cutting some boxes off."""
+    empty lanes (at +inf), thin boxes, and a bound cutting some boxes off. Each key is
+    the entry's bits with the lane in the lowest three."""
     from numba import njit
 
-    from hsr.algorithms.simd import box_entries4
+    from hsr.algorithms.simd import box_keys8
 
     @njit
     def entries(box, w, o, inv, bound):
-        return box_entries4(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound)
+        keys = np.empty(8, dtype=np.int64)
+        mask = box_keys8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
+        return keys, mask
 
     rng = np.random.default_rng(3)
     n_boxes = 400
-    lo = rng.uniform(-2, 2, (n_boxes, 4, 3))
-    hi = lo + rng.exponential(0.5, (n_boxes, 4, 3)) * (rng.random((n_boxes, 4, 3)) > 0.1)
+    lo = rng.uniform(-2, 2, (n_boxes, 8, 3))
+    hi = lo + rng.exponential(0.5, (n_boxes, 8, 3)) * (rng.random((n_boxes, 8, 3)) > 0.1)
     lo[::7, 3], hi[::7, 3] = np.inf, np.inf  # empty lanes
-    box = np.concatenate([lo.transpose(0, 2, 1).reshape(n_boxes, 12),
-                          hi.transpose(0, 2, 1).reshape(n_boxes, 12),
-                          np.zeros((n_boxes, 8))], axis=1).astype(np.float32)
-    lo32, hi32 = box[:, :12].reshape(n_boxes, 3, 4), box[:, 12:24].reshape(n_boxes, 3, 4)
+    lo[::5, 7], hi[::5, 7] = np.inf, np.inf
+    box = np.concatenate([lo.transpose(0, 2, 1).reshape(n_boxes, 24),
+                          hi.transpose(0, 2, 1).reshape(n_boxes, 24),
+                          np.zeros((n_boxes, 16))], axis=1).astype(np.float32)
+    lo32, hi32 = box[:, :24].reshape(n_boxes, 3, 8), box[:, 24:48].reshape(n_boxes, 3, 8)
     checked = entered = 0
     for w in range(n_boxes):
         o = rng.uniform(-3, 3, 3)
@@ -347,10 +351,11 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
         t_out = np.maximum(t0, t1).min(axis=0)
         want = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= bound), t_in,
                         np.inf)
-        *got, mask = entries(box, w, o, inv, bound)
-        np.testing.assert_array_equal(got, want)
-        assert mask == sum(1 << k for k in range(4) if want[k] < np.inf)
-        checked += 4
+        keys, mask = entries(box, w, o, inv, bound)
+        np.testing.assert_array_equal(keys & 7, np.arange(8))
+        np.testing.assert_array_equal(keys >> 3, want.view(np.int64) >> 3)
+        assert mask == sum(1 << k for k in range(8) if want[k] < np.inf)
+        checked += 8
         entered += np.isfinite(want).sum()
     assert 50 < entered < checked - 50  # both outcomes were exercised
 
@@ -358,20 +363,21 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
 def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
     """Rays aimed at corners of boxes whose bounds are exact in float32 (so the boxes
     are tight: no outward rounding to hide behind): whenever exact rational arithmetic
-    says the ray meets the box, box_entries4 and the careful scalar test enter it.
+    says the ray meets the box, box_keys8 and the careful scalar test enter it.
     Without the slack on the exit distance about 3% of these rays miss their box."""
     from fractions import Fraction
 
     from numba import njit
 
-    from hsr.algorithms.bvh import careful_entries4
-    from hsr.algorithms.simd import box_entries4
+    from hsr.algorithms.bvh import careful_keys8
+    from hsr.algorithms.simd import box_keys8
 
     @njit
     def entered(box, o, inv):
-        fast = box_entries4(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], np.inf)[4]
-        careful = careful_entries4(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2],
-                                   np.inf)[4]
+        keys = np.empty(8, dtype=np.int64)
+        fast = box_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], np.inf, keys)
+        careful = careful_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], np.inf,
+                                keys)
         return fast & 1, careful & 1
 
     def meets(lo, hi, o, d):
@@ -395,26 +401,31 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
         if not meets(lo.astype(np.float64), hi.astype(np.float64), o, d):
             continue
         met += 1
-        box = np.full((1, 32), np.inf, dtype=np.float32)
-        box[0, 0:12:4], box[0, 12:24:4] = lo, hi  # lane 0; lanes 1-3 empty
+        box = np.full((1, 64), np.inf, dtype=np.float32)
+        box[0, 0:24:8], box[0, 24:48:8] = lo, hi  # lane 0; lanes 1-7 empty
         assert entered(box, o, 1.0 / d) == (1, 1), (lo, hi, o, d)
     assert met > 1000
 
 
 def test_the_lane_keys_sort_like_python_and_round_entries_down():
-    """hsr.algorithms.simd.sorted_keys4 (a vector sorting network on the entries' bits)
-    against Python's sort of (entry rounded down to four units in the last place, lane)
-    pairs, the rounding done here on NumPy's view of the bits: equal entries, zeros,
-    +inf (missed lanes), tiny and huge values; each key's lane is in its two low bits and
-    its entry, read back, lies at most three units in the last place below the true one
-    (never above it: the walk's pruning compares it with the bound)."""
+    """hsr.algorithms.simd.box_keys8's keys sorted by sort_keys8 (a vector sorting
+    network on the entries' bits) against Python's sort of (entry rounded down to eight
+    units in the last place, lane) pairs, the rounding done here on NumPy's view of the
+    bits: equal entries, zeros, +inf (missed lanes), tiny and huge values; each key's
+    lane is in its three low bits and its entry, read back, lies at most seven units in
+    the last place below the true one (never above it: the walk's pruning compares it
+    with the bound)."""
     from numba import njit
 
-    from hsr.algorithms.simd import float_bits, sorted_keys4
+    from hsr.algorithms.simd import float_bits, sort_keys8
 
     @njit
     def keys(e):
-        return sorted_keys4(e[0], e[1], e[2], e[3])
+        out = np.empty(8, dtype=np.int64)
+        for lane in range(8):
+            out[lane] = float_bits(e[lane]) & ~7 | lane
+        sort_keys8(out)
+        return out
 
     @njit
     def bits(x):
@@ -423,17 +434,17 @@ def test_the_lane_keys_sort_like_python_and_round_entries_down():
     rng = np.random.default_rng(11)
     pool = np.array([0.0, 0.0, 1.0, 1.0, 5e-324, 1e-300, 0.5, 2.0, 1e300, np.inf, np.inf])
     for trial in range(3000):
-        e = (rng.choice(pool, 4) if trial % 2 else rng.exponential(1.0, 4)
-             * (rng.random(4) > 0.2) + np.where(rng.random(4) < 0.3, np.inf, 0.0))
+        e = (rng.choice(pool, 8) if trial % 2 else rng.exponential(1.0, 8)
+             * (rng.random(8) > 0.2) + np.where(rng.random(8) < 0.3, np.inf, 0.0))
         got = keys(e)
-        coarse = e.view(np.int64) >> 2
-        assert [k & 3 for k in got] == [lane for _, lane in sorted(zip(coarse, range(4)))]
-        if len(set(coarse)) == 4:  # no near-ties: the order of the values themselves
-            assert [k & 3 for k in got] == list(np.argsort(e, kind="stable"))
+        coarse = e.view(np.int64) >> 3
+        assert [k & 7 for k in got] == [lane for _, lane in sorted(zip(coarse, range(8)))]
+        if len(set(coarse)) == 8:  # no near-ties: the order of the values themselves
+            assert [k & 7 for k in got] == list(np.argsort(e, kind="stable"))
         for k in got:
-            true = e[k & 3]
-            back = np.int64(k & ~3).view(np.float64)
-            assert back <= true and bits(true) - (k & ~3) <= 3
+            true = e[k & 7]
+            back = np.int64(k & ~7).view(np.float64)
+            assert back <= true and bits(true) - (k & ~7) <= 7
     # The walk compares keys with a bound's bits: -0.0 (a hit at t = -0.0 >= t_min 0)
     # must read as the least bound, not a negative integer below every key.
     assert bits(-0.0 + 0.0) == 0 and bits(np.inf) > bits(1.7976931348623157e308)

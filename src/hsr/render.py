@@ -74,7 +74,7 @@ class Frame:
         and sets up faces as it fills, so its "geometry" time is the vertex transform and
         the rest counts as "visibility"). The ray caster runs no raster geometry stage:
         its counts are the triangles in, the degenerate ones and its own (the walked
-        4-wide BVH's nodes, rays cast, ray-triangle tests, the walk).
+        8-wide BVH's nodes, rays cast, ray-triangle tests, the walk).
     fragments : the algorithm's raw output (screen triangles, per-pixel triangle index).
     eye_depth, distance, normals : derived on first use (see the properties).
     """

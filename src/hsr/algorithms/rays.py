@@ -22,11 +22,12 @@ from numba import njit
 
 from .bvh import (
     COUNT_AT,
+    LANES,
+    NODE_WORDS,
     REF,
     _intersect,
-    careful_entries4,
+    careful_keys8,
     careful_packet_entries,
-    descend,
     face_normal,
     inverse_direction,
     next_box,
@@ -35,7 +36,7 @@ from .bvh import (
     stack_size,
     walk_stack,
 )
-from .simd import box_entries4, packet_entries4, prefetch
+from .simd import bit_count, box_keys8, lowest_bit, packet_entries8, prefetch, sort_keys8
 
 __all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "NEAREST", "ANY",
            "COUNT"]
@@ -88,7 +89,7 @@ SLOTS = 8
 # at 4096, 95 / 74 at 1024, 89-92 / 73 at 256 and 0; the terrain 144 / 108 at 4096,
 # 133 / 99 at 1024 and 256, whose two threads were slower at 256 (82 / 58 against
 # 73 / 54). 1024 is in the range good on both.
-HOT_NODES = 1024
+HOT_NODES = 512
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
  _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
@@ -104,7 +105,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
                 out_face, out_object, out_uv, out_normal, out_count, interleave,
                 last_occluder):
-    """Rays ``lo .. hi - 1`` through the 4-wide BVH of :func:`hsr.algorithms.bvh.widen`
+    """Rays ``lo .. hi - 1`` through the 8-wide BVH of :func:`hsr.algorithms.bvh.widen`
     in the layout of :func:`hsr.algorithms.bvh.node_records` (the root a wide node when
     ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
     ``mode`` :data:`NEAREST` writes ``out_t`` (+inf on a miss), ``out_face`` (-1),
@@ -151,6 +152,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
+    keys = np.empty(LANES, dtype=np.int64)  # a node's entries (descend)
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
     # _I_* constants): the ray (-1: none), where its walk stands, its bound, best hit
     # and hit count, its origin and inverse direction for the box tests, and the
@@ -231,14 +233,45 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
                     if careful:
-                        k0, k1, k2, k3, mask = careful_entries4(node_box, ref, ox, oy, oz,
-                                                                inv_dx, inv_dy, inv_dz, b)
+                        mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
+                                             inv_dz, b, keys)
                     else:
-                        k0, k1, k2, k3, mask = box_entries4(node_box, ref, ox, oy, oz,
-                                                            inv_dx, inv_dy, inv_dz, b)
-                    ref, n, top, entered = descend(k0, k1, k2, k3, mask, ref, node_link,
-                                                   stack_ref, stack_count, stack_t, top)
-                    if entered:
+                        mask = box_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz,
+                                         b, keys)
+                    # The ordered walk (Wald et al.'s nearest child first): into the
+                    # nearest entered box, the others pushed farthest first with their
+                    # keys (next_box drops one when a hit nearer than it has been found
+                    # meanwhile). Written out here: as an inlined function taking the
+                    # arrays, the bunny's camera rays took 88 ms instead of 49 (Numba
+                    # counts references to arrays handed to an inlined function).
+                    if mask != 0:
+                        if mask & (mask - 1) == 0:
+                            # Most nodes a random ray visits enter one box or none.
+                            lane = lowest_bit(mask)
+                        else:
+                            m = bit_count(mask) - 1  # the entered lanes pushed
+                            if m == 1:  # two: one comparison
+                                near = keys[lowest_bit(mask)]
+                                far = keys[lowest_bit(mask & (mask - 1))]
+                                if far < near:
+                                    near, far = far, near
+                                stack_ref[top] = node_link[ref, REF + (far & 7)]
+                                stack_count[top] = node_link[ref, COUNT_AT + (far & 7)]
+                                stack_t[top] = far
+                                top += 1
+                            else:
+                                # sort_keys8: a sorting network without branches. The
+                                # entered lanes lead (a missed lane sorts last, at +inf).
+                                sort_keys8(keys)
+                                for j in range(m, 0, -1):
+                                    stack_ref[top] = node_link[ref, REF + (keys[j] & 7)]
+                                    stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
+                                    stack_t[top] = keys[j]
+                                    top += 1
+                                near = keys[0]
+                            lane = near & 7
+                        ref, n = (np.int64(node_link[ref, REF + lane]),
+                                  np.int64(node_link[ref, COUNT_AT + lane]))
                         if interleave and (n != 0 or ref >= HOT_NODES):
                             break
                         continue
@@ -303,8 +336,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
                 if n == 0:
-                    prefetch(node_box, ref, 0)
-                    prefetch(node_box, ref, 64)
+                    for offset in range(0, 4 * NODE_WORDS, 64):
+                        prefetch(node_box, ref, offset)
                 else:
                     for offset in range(0, n * 9 * tris.itemsize, 64):
                         prefetch(tris, ref, offset)
@@ -338,7 +371,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                   out_face, out_object, out_uv, out_normal, out_count):
     """:func:`trace_range` four rays at a time: a packet (Wald, Slusallek, Benthin and
     Wagner 2001) walks the boxes that any of its rays enters, each box tested for the
-    four rays at once (:func:`hsr.algorithms.simd.packet_entries4`) and each ray
+    four rays at once (:func:`hsr.algorithms.simd.packet_entries8`) and each ray
     carried down only into boxes it enters before its own bound; at a leaf each
     walking ray runs the one-ray triangle test. For coherent rays (from one eye, close
     directions) the four walks are nearly one, and a node read serves four rays.
@@ -355,7 +388,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     frame = np.empty((11, 4))  # sx, sy, sz, okx, oky, okz, dx, dy, dz, t_min, t_max
     axes = np.empty((3, 4), dtype=np.int64)
     bound = np.empty(4)
-    entries = np.empty((4, 4))
+    entries = np.empty((LANES, 4))
     best_t, best_z, best_uv = np.empty(4), np.empty(4), np.empty((4, 2))
     best_f, best_k = np.empty(4, dtype=np.int64), np.empty(4, dtype=np.int64)
     count = np.empty(4, dtype=np.int64)
@@ -394,29 +427,49 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
         while walking:
             if n == 0:  # a wide node: the packet's nearest entered box next
                 if careful:
-                    mask16 = careful_packet_entries(node_box, ref, rays, bound, entries)
+                    mask = careful_packet_entries(node_box, ref, rays, bound, entries)
                 else:
-                    mask16 = packet_entries4(node_box, ref, rays, bound, entries)
-                # The entered boxes nearest first by Knuth's five comparators on
+                    mask = packet_entries8(node_box, ref, rays, bound, entries)
+                # The entered boxes nearest first by Batcher's 19 comparators on
                 # (nearest entry of their rays, box, rays) triples; the nearest walked
                 # next by its rays, the others pushed farthest first. (descend's vector
-                # keys, sorted_keys4, measured slower here: the bunny's primary rays
+                # keys measured slower here with four lanes: the bunny's primary rays
                 # 30.5 -> 32.3 ms; a packet's walks are coherent, so these branches are
                 # predicted.) Written out here: as an inlined function taking the
                 # arrays it ran 40% slower (Numba counts references to arrays handed to
                 # an inlined function).
-                mask16 &= active * 0x1111
-                if mask16 != 0:
-                    c0, c1 = mask16 & 15, (mask16 >> 4) & 15
-                    c2, c3 = (mask16 >> 8) & 15, mask16 >> 12
+                mask &= active * 0x11111111
+                if mask != 0:
+                    c0, c1 = mask & 15, (mask >> 4) & 15
+                    c2, c3 = (mask >> 8) & 15, (mask >> 12) & 15
+                    c4, c5 = (mask >> 16) & 15, (mask >> 20) & 15
+                    c6, c7 = (mask >> 24) & 15, mask >> 28
                     k0, k1, k2, k3 = (_nearest(entries, 0, c0), _nearest(entries, 1, c1),
                                       _nearest(entries, 2, c2), _nearest(entries, 3, c3))
+                    k4, k5, k6, k7 = (_nearest(entries, 4, c4), _nearest(entries, 5, c5),
+                                      _nearest(entries, 6, c6), _nearest(entries, 7, c7))
+                    # simd._ROUNDS8's network, round by round.
                     k0, l0, c0, k1, l1, c1 = _sorted_triple(k0, 0, c0, k1, 1, c1)
                     k2, l2, c2, k3, l3, c3 = _sorted_triple(k2, 2, c2, k3, 3, c3)
+                    k4, l4, c4, k5, l5, c5 = _sorted_triple(k4, 4, c4, k5, 5, c5)
+                    k6, l6, c6, k7, l7, c7 = _sorted_triple(k6, 6, c6, k7, 7, c7)
                     k0, l0, c0, k2, l2, c2 = _sorted_triple(k0, l0, c0, k2, l2, c2)
                     k1, l1, c1, k3, l3, c3 = _sorted_triple(k1, l1, c1, k3, l3, c3)
+                    k4, l4, c4, k6, l6, c6 = _sorted_triple(k4, l4, c4, k6, l6, c6)
+                    k5, l5, c5, k7, l7, c7 = _sorted_triple(k5, l5, c5, k7, l7, c7)
                     k1, l1, c1, k2, l2, c2 = _sorted_triple(k1, l1, c1, k2, l2, c2)
-                    for lane, rays_in in ((l3, c3), (l2, c2), (l1, c1)):
+                    k5, l5, c5, k6, l6, c6 = _sorted_triple(k5, l5, c5, k6, l6, c6)
+                    k0, l0, c0, k4, l4, c4 = _sorted_triple(k0, l0, c0, k4, l4, c4)
+                    k1, l1, c1, k5, l5, c5 = _sorted_triple(k1, l1, c1, k5, l5, c5)
+                    k2, l2, c2, k6, l6, c6 = _sorted_triple(k2, l2, c2, k6, l6, c6)
+                    k3, l3, c3, k7, l7, c7 = _sorted_triple(k3, l3, c3, k7, l7, c7)
+                    k2, l2, c2, k4, l4, c4 = _sorted_triple(k2, l2, c2, k4, l4, c4)
+                    k3, l3, c3, k5, l5, c5 = _sorted_triple(k3, l3, c3, k5, l5, c5)
+                    k1, l1, c1, k2, l2, c2 = _sorted_triple(k1, l1, c1, k2, l2, c2)
+                    k3, l3, c3, k4, l4, c4 = _sorted_triple(k3, l3, c3, k4, l4, c4)
+                    k5, l5, c5, k6, l6, c6 = _sorted_triple(k5, l5, c5, k6, l6, c6)
+                    for lane, rays_in in ((l7, c7), (l6, c6), (l5, c5), (l4, c4), (l3, c3),
+                                          (l2, c2), (l1, c1)):
                         if rays_in != 0:
                             stack_ref[top] = node_link[ref, REF + lane]
                             stack_count[top] = node_link[ref, COUNT_AT + lane]

@@ -1,15 +1,16 @@
-"""The 4-wide BVH's box test, and the ordering of its lanes, as LLVM vector operations.
+"""The 8-wide BVH's box test, and the ordering of its lanes, as LLVM vector operations.
 
-Numba leaves the slab test of four boxes scalar however its loop is shaped (checked
+Numba leaves the slab test of several boxes scalar however its loop is shaped (checked
 with ``inspect_asm``: ``vmulsd``/``vminsd`` on ``xmm``, no ``ymm``), so the walk of
 :func:`hsr.algorithms.rays.trace_range` spent most of a node on one lane at a time.
-:func:`box_entries4` writes the same arithmetic on ``<4 x double>`` values through a
-Numba intrinsic: each operation of the scalar test (float32 bound widened to float64,
-subtract, multiply, min, max, compare) once for four lanes, in the same order and
+:func:`box_keys8` writes the same arithmetic on ``<8 x double>`` values through a Numba
+intrinsic: each operation of the scalar test (float32 bound widened to float64,
+subtract, multiply, min, max, compare) once for eight lanes, in the same order and
 without fused multiply-adds, so every lane's result is bit for bit the scalar one
-(``_careful_entry`` without its NaN care). On a CPU without 256-bit vectors LLVM
-splits the operations; the results do not change. :func:`sorted_keys4` orders a node's
-entered lanes without branches (:func:`hsr.algorithms.bvh.descend`).
+(``_careful_entry`` without its NaN care). With AVX-512 the eight lanes are one
+register; on a CPU with narrower vectors LLVM splits the operations, and the results do
+not change. :func:`sort_keys8` orders a node's entered lanes without branches
+(:func:`hsr.algorithms.bvh.descend`).
 """
 
 from __future__ import annotations
@@ -18,20 +19,23 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_entries4", "packet_entries4", "sorted_keys4", "float_bits", "next_float32",
-           "grow_box", "prefetch"]
+__all__ = ["box_keys8", "packet_entries8", "sort_keys8", "lowest_bit", "bit_count",
+           "float_bits", "next_float32", "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
-_F4 = ir.VectorType(ir.FloatType(), 4)
+_I64 = ir.IntType(64)
 _D4 = ir.VectorType(ir.DoubleType(), 4)
-_L4 = ir.VectorType(ir.IntType(64), 4)
+_F8 = ir.VectorType(ir.FloatType(), 8)
+_D8 = ir.VectorType(ir.DoubleType(), 8)
+_L8 = ir.VectorType(_I64, 8)
 
 
-def _splat(builder, x):
-    """A float64 value in all four lanes."""
-    v = builder.insert_element(ir.Constant(_D4, ir.Undefined), x, ir.Constant(_I32, 0))
-    return builder.shuffle_vector(v, ir.Constant(_D4, ir.Undefined),
-                                  ir.Constant(ir.VectorType(_I32, 4), [0, 0, 0, 0]))
+def _splat(builder, x, width=4):
+    """A float64 value in all ``width`` lanes."""
+    vector = ir.VectorType(ir.DoubleType(), width)
+    v = builder.insert_element(ir.Constant(vector, ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, ir.Constant(vector, ir.Undefined),
+                                  ir.Constant(ir.VectorType(_I32, width), [0] * width))
 
 
 def _min(builder, x, y):
@@ -70,7 +74,7 @@ SLACK_ABS = 1e-300
 
 
 def _slab_test(builder, planes, origin, inv, bound):
-    """(entry, entered) per lane: the slab test on four lanes of float64 vectors,
+    """(entry, entered) per lane: the slab test on float64 vectors (any width),
     ``planes`` the six bounds (lo x, y, z, hi x, y, z), ``origin`` and ``inv`` the
     ray's three coordinates, ``bound`` the farthest entry kept. Every operation is the
     scalar test's (Kay and Kajiya 1986), in its order: t_in = max of the slabs' near
@@ -82,60 +86,74 @@ def _slab_test(builder, planes, origin, inv, bound):
         t1 = builder.fmul(builder.fsub(planes[3 + a], origin[a]), inv[a])
         near.append(_min(builder, t0, t1))
         far.append(_max(builder, t0, t1))
-    zero = ir.Constant(_D4, [0.0] * 4)
-    t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
+    vector = planes[0].type
+    width = vector.count
+
+    def constant(x):
+        return ir.Constant(vector, [x] * width)
+
+    t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2],
+                                                                constant(0.0)))
     t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
-    slack = builder.fadd(builder.fmul(t_out, ir.Constant(_D4, [SLACK] * 4)),
-                         ir.Constant(_D4, [SLACK_ABS] * 4))
+    slack = builder.fadd(builder.fmul(t_out, constant(SLACK)), constant(SLACK_ABS))
     entered = builder.and_(builder.fcmp_ordered("<=", t_in, slack),
                            builder.fcmp_ordered("<=", t_in, bound))
-    return builder.select(entered, t_in, ir.Constant(_D4, [float("inf")] * 4)), entered
+    return builder.select(entered, t_in, constant(float("inf"))), entered
+
+
+def _keys(builder, entries, lanes):
+    """The entries' IEEE bits with the lowest three replaced by the lane (see
+    :func:`sort_keys8`)."""
+    return builder.or_(builder.and_(builder.bitcast(entries, _L8), ir.Constant(_L8, [~7] * 8)),
+                       ir.Constant(_L8, lanes))
 
 
 @intrinsic
-def box_entries4(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
-    """``(e0, e1, e2, e3, mask)``: where the ray enters each of the four boxes in row ``w`` of
-    ``box`` (float32, a C-contiguous row starting with the lanes
-    ``[lo_x * 4, lo_y * 4, lo_z * 4, hi_x * 4, hi_y * 4, hi_z * 4]``), +inf when it
-    misses a box or enters it beyond ``bound``. The slab test (Kay and Kajiya 1986)
+def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
+    """Where the ray enters each of the eight boxes in row ``w`` of ``box`` (float32, a
+    C-contiguous row starting with the lanes ``[lo_x * 8, lo_y * 8, lo_z * 8, hi_x * 8,
+    hi_y * 8, hi_z * 8]``), +inf when it misses a box or enters it beyond ``bound``,
+    written to ``keys`` (int64, 8 contiguous) as the keys of :func:`sort_keys8`
+    (the entry's bits, lane in the lowest three). The slab test (Kay and Kajiya 1986)
     for a ray with no zero direction component (no 0 * inf): t_in = max of the three
     slabs' near distances and 0, t_out = min of their far ones, entered when
     ``t_in <= t_out SLACK + SLACK_ABS`` (the slack of the scalar test,
     :func:`hsr.algorithms.bvh._careful_entry`, which rounding of the distances needs).
-    ``mask``: bit k set when box k is entered (an int64, 0 .. 15)."""
-    sig = types.Tuple((types.float64,) * 4 + (types.int64,))(box, w, ox, oy, oz, inv_dx,
-                                                             inv_dy, inv_dz, bound)
+    Returns the mask of entered boxes, bit k for box k (an int64, 0 .. 255)."""
+    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys)
 
     def codegen(context, builder, sig, args):
-        array, row, ox, oy, oz, ix, iy, iz, bound = args
+        array, row, ox, oy, oz, ix, iy, iz, bound, out = args
         row = context.cast(builder, row, sig.args[1], types.intp)
         base = _row_pointer(context, builder, sig.args[0], array, row)
 
         def lanes(q):
-            """Bound q (lo x, y, z, hi x, y, z) of the four boxes, as float64."""
-            p = builder.bitcast(builder.gep(base, [_i64(4 * q)]), _F4.as_pointer())
-            return builder.fpext(builder.load(p, align=4), _D4)
+            """Bound q (lo x, y, z, hi x, y, z) of the eight boxes, as float64."""
+            p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
+            return builder.fpext(builder.load(p, align=4), _D8)
 
         entry, entered = _slab_test(builder, [lanes(q) for q in range(6)],
-                                    [_splat(builder, x) for x in (ox, oy, oz)],
-                                    [_splat(builder, x) for x in (ix, iy, iz)],
-                                    _splat(builder, bound))
-        values = [builder.extract_element(entry, ir.Constant(_I32, k)) for k in range(4)]
-        values.append(builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64)))
-        return context.make_tuple(builder, sig.return_type, values)
+                                    [_splat(builder, x, 8) for x in (ox, oy, oz)],
+                                    [_splat(builder, x, 8) for x in (ix, iy, iz)],
+                                    _splat(builder, bound, 8))
+        data = context.make_array(sig.args[9])(context, builder, out).data
+        builder.store(_keys(builder, entry, list(range(8))),
+                      builder.bitcast(data, _L8.as_pointer()), align=8)
+        return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
 
     return sig, codegen
 
 
 @intrinsic
-def packet_entries4(typingctx, box, w, rays, bound, out):
-    """The slab test of :func:`box_entries4` for four rays at once (a packet; Wald et
-    al. 2001) against each of the four boxes of row ``w``: ``rays`` (6, 4) float64, the
+def packet_entries8(typingctx, box, w, rays, bound, out):
+    """The slab test of :func:`box_keys8` for four rays at once (a packet; Wald et
+    al. 2001) against each of the eight boxes of row ``w``: ``rays`` (6, 4) float64, the
     rows origin x, y, z and inverse direction x, y, z of the four rays; ``bound`` (4,)
-    each ray's bound. Writes ``out[k, r]``, where ray r enters box k (+inf: missed, or
-    entered beyond its bound), and returns the mask of entries, bit ``4 k + r``. The
-    lanes are rays here, not boxes: each ray's arithmetic is the scalar test's, in the
-    same order, so its entries are bit for bit those of the one-ray test."""
+    each ray's bound. Writes ``out[k, r]`` ((8, 4) float64), where ray r enters box k
+    (+inf: missed, or entered beyond its bound), and returns the mask of entries, bit
+    ``4 k + r``. The lanes are rays here, not boxes: each ray's arithmetic is the scalar
+    test's, in the same order, so its entries are bit for bit those of the one-ray
+    test."""
     sig = types.int64(box, w, rays, bound, out)
 
     def codegen(context, builder, sig, args):
@@ -153,60 +171,89 @@ def packet_entries4(typingctx, box, w, rays, bound, out):
         limit = builder.load(vectors(sig.args[3], bound), align=8)
         entries = vectors(sig.args[4], out)
         mask = _i64(0)
-        for k in range(4):
+        for k in range(8):
             # Bound q (lo x, y, z, hi x, y, z) of box k, in all four lanes.
             planes = [_splat(builder, builder.fpext(builder.load(builder.gep(
-                base, [_i64(4 * q + k)])), ir.DoubleType())) for q in range(6)]
+                base, [_i64(8 * q + k)])), ir.DoubleType())) for q in range(6)]
             entry, entered = _slab_test(builder, planes, origin, inv, limit)
             builder.store(entry, builder.gep(entries, [_i64(k)]), align=8)
-            bits = builder.zext(builder.bitcast(entered, ir.IntType(4)), ir.IntType(64))
+            bits = builder.zext(builder.bitcast(entered, ir.IntType(4)), _I64)
             mask = builder.or_(mask, builder.shl(bits, _i64(4 * k)))
         return mask
 
     return sig, codegen
 
 
+# Batcher's odd-even merge sort for eight keys: 19 comparators in six rounds.
+_ROUNDS8 = ([(0, 1), (2, 3), (4, 5), (6, 7)], [(0, 2), (1, 3), (4, 6), (5, 7)],
+            [(1, 2), (5, 6)], [(0, 4), (1, 5), (2, 6), (3, 7)], [(2, 4), (3, 5)],
+            [(1, 2), (3, 4), (5, 6)])
+
+
 @intrinsic
-def sorted_keys4(typingctx, e0, e1, e2, e3):
-    """The four lanes of a wide node nearest first, as int64 keys ``(s0, s1, s2, s3)``:
-    each key is the lane's entry distance (>= 0, or +inf for a missed lane) read as its
-    IEEE bits, whose integer order is the order of the values, with the two lowest
-    bits replaced by the lane (``key & 3``). So keys are distinct, entries within four
-    units in the last place of each other go in lane order (the walk's order only
-    sets how soon a hit prunes, never the answer), and ``key & ~3`` read back is the
-    entry rounded down by at most three units in the last place, never past the true
-    entry: a bound compared with it keeps every box the true entry would keep (see
+def sort_keys8(typingctx, keys):
+    """Sort the eight int64 ``keys`` (8 contiguous) in place, least first: the lanes of a
+    wide node nearest first, when each key is the lane's entry distance (>= 0, or +inf
+    for a missed lane) read as its IEEE bits, whose integer order is the order of the
+    values, with the three lowest bits replaced by the lane (``key & 7``;
+    :func:`box_keys8` writes them so). So keys are distinct, entries within eight
+    units in the last place of each other go in lane order (the walk's order only sets
+    how soon a hit prunes, never the answer), and ``key & ~7`` read back is the entry
+    rounded down by at most seven units in the last place, never past the true entry:
+    a bound compared with it keeps every box the true entry would keep (see
     :func:`hsr.algorithms.bvh.next_box`).
 
-    Knuth's five-comparator network for four keys, as three rounds of vector min and
-    max with shuffles: no branch. Scalar selects written in Numba were turned into
-    branches by the compiler (seen with ``inspect_asm``), and which lanes are nearest is
-    what a random ray makes unpredictable."""
-    sig = types.UniTuple(types.int64, 4)(e0, e1, e2, e3)
+    Batcher's odd-even merge network as six rounds of vector min and max with
+    shuffles: no branch. Scalar selects written in Numba were turned into branches by
+    the compiler (seen with ``inspect_asm``), and which lanes are nearest is what a
+    random ray makes unpredictable."""
+    sig = types.void(keys)
 
     def codegen(context, builder, sig, args):
-        v = ir.Constant(_D4, ir.Undefined)
-        for k, x in enumerate(args):
-            v = builder.insert_element(v, x, ir.Constant(_I32, k))
-        keys = builder.or_(builder.and_(builder.bitcast(v, _L4), ir.Constant(_L4, [~3] * 4)),
-                           ir.Constant(_L4, [0, 1, 2, 3]))
+        pointer = builder.bitcast(context.make_array(sig.args[0])(context, builder,
+                                                                  args[0]).data,
+                                  _L8.as_pointer())
+        v = builder.load(pointer, align=8)
+        for pairs in _ROUNDS8:
+            partner, take = list(range(8)), list(range(8))
+            for i, j in pairs:
+                partner[i], partner[j] = j, i
+                take[j] = 8 + j  # the higher of the pair; i keeps the lower
+            other = builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
+                                           ir.Constant(ir.VectorType(_I32, 8), partner))
+            below = builder.icmp_signed("<", v, other)
+            low = builder.select(below, v, other)
+            high = builder.select(below, other, v)
+            v = builder.shuffle_vector(low, high, ir.Constant(ir.VectorType(_I32, 8), take))
+        builder.store(v, pointer, align=8)
+        return context.get_dummy_value()
 
-        def exchange(keys, partner, take):
-            """Compare each lane with lane ``partner[k]``; lane k takes the lower
-            (``take[k] < 4``) or the higher (``take[k] - 4``) of the two."""
-            other = builder.shuffle_vector(keys, ir.Constant(_L4, ir.Undefined),
-                                           ir.Constant(ir.VectorType(_I32, 4), partner))
-            below = builder.icmp_signed("<", keys, other)
-            low = builder.select(below, keys, other)
-            high = builder.select(below, other, keys)
-            return builder.shuffle_vector(low, high,
-                                          ir.Constant(ir.VectorType(_I32, 4), take))
+    return sig, codegen
 
-        keys = exchange(keys, [1, 0, 3, 2], [0, 5, 2, 7])  # (0, 1), (2, 3)
-        keys = exchange(keys, [2, 3, 0, 1], [0, 1, 6, 7])  # (0, 2), (1, 3)
-        keys = exchange(keys, [0, 2, 1, 3], [0, 1, 6, 3])  # (1, 2)
-        values = [builder.extract_element(keys, ir.Constant(_I32, k)) for k in range(4)]
-        return context.make_tuple(builder, sig.return_type, values)
+
+@intrinsic
+def lowest_bit(typingctx, x):
+    """The index of the lowest set bit of an int64 that is not 0 (LLVM's ``cttz``: one
+    instruction, where a loop over the bits branches once a bit)."""
+    sig = types.int64(types.int64)
+
+    def codegen(context, builder, sig, args):
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(_I64, [_I64, ir.IntType(1)]), "llvm.cttz.i64")
+        return builder.call(fn, [args[0], ir.Constant(ir.IntType(1), 1)])
+
+    return sig, codegen
+
+
+@intrinsic
+def bit_count(typingctx, x):
+    """The set bits of an int64 (LLVM's ``ctpop``)."""
+    sig = types.int64(types.int64)
+
+    def codegen(context, builder, sig, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_I64, [_I64]),
+                                            "llvm.ctpop.i64")
+        return builder.call(fn, [args[0]])
 
     return sig, codegen
 
@@ -214,7 +261,7 @@ def sorted_keys4(typingctx, e0, e1, e2, e3):
 @intrinsic
 def float_bits(typingctx, x):
     """The IEEE bits of a float64 as an int64 (for a value >= 0 their integer order is
-    the values' order; see :func:`sorted_keys4`)."""
+    the values' order; see :func:`sort_keys8`)."""
     sig = types.int64(types.float64)
 
     def codegen(context, builder, sig, args):

@@ -107,7 +107,7 @@ class RayScene:
         return self.bvh.n_faces
 
     def __repr__(self):
-        return (f"<hsr.RayScene: {self.n_faces:,} faces, {len(self.scene)} objects, 4-wide "
+        return (f"<hsr.RayScene: {self.n_faces:,} faces, {len(self.scene)} objects, 8-wide "
                 f"BVH of {self.bvh.n_wide_nodes:,} nodes built in {self.bvh.build_ms:.0f} ms>")
 
     def cast(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
