@@ -6,8 +6,8 @@ and the ray queries (:mod:`hsr.algorithms.rays`) walk, and the ray/triangle test
   for the walk (:func:`widen`, :func:`node_records`: a node's eight child boxes in one
   256-byte record, tested at once by :func:`hsr.algorithms.simd.box_keys8`);
   traversal is a stack walk, nearest entered box first, pruned by the best hit so far
-  (:func:`next_box`; the walks themselves are in :mod:`hsr.algorithms.rays`). The triangles are stored in leaf order (a leaf's corners
-  are one run of memory).
+  (:func:`next_box`; the walks themselves are in :mod:`hsr.algorithms.rays`). The
+  triangles are stored in leaf order (a leaf's corners are one run of memory).
 
 Intersection is the watertight test of Woop, Benthin & Wald (2013): the ray is made the
 +z axis by a permutation and a shear, and the three 2-D edge functions are evaluated so
@@ -41,11 +41,11 @@ __all__ = ["BVH", "build", "world_triangles", "widen", "node_records",
 LEAF_SIZE = 4
 N_BINS = 16
 # Children per node of the walked tree (the box test and the sorting network of the walks
-# are for eight). Eight against four, the same binary tree collapsed, one ray walked at
-# a time (an AMD EPYC, AVX-512): the bunny's random rays visit 1.91 wide nodes instead
-# of 2.46 and took 0.87-0.92x the time, a 1M-face terrain's 2.34 instead of 3.06,
-# 0.83-0.87x; camera rays 0.95-1.02x (more of their nodes enter several boxes, which
-# are sorted). The eight-box test is one AVX-512 vector, as long as four boxes took.
+# are for eight). Eight against four, the same binary tree collapsed (an AMD EPYC,
+# AVX-512: the eight-box test is one vector, as long as four boxes took): the bunny's
+# random rays visit 1.91 wide nodes instead of 2.46, a 1M-face terrain's 2.34 instead
+# of 3.06; RayScene on two threads, ms min, bunny random cast 52-58 -> 47-51, count
+# 70-84 -> 59-65, terrain random count 88-91 -> 74-75, camera rays about the same.
 LANES = 8
 # A walked node is one 256-byte record, four cache lines: 6 LANES float32 box bounds,
 # then LANES int32 references and LANES int32 counts (see node_records).

@@ -88,7 +88,8 @@ SLOTS = 8
 # the walk as it is now, random rays, one thread, cast / occluded ms: the bunny 105 / 80
 # at 4096, 95 / 74 at 1024, 89-92 / 73 at 256 and 0; the terrain 144 / 108 at 4096,
 # 133 / 99 at 1024 and 256, whose two threads were slower at 256 (82 / 58 against
-# 73 / 54). 1024 is in the range good on both.
+# 73 / 54). 1024 was in the range good on both: 128 KB, which the 8-wide tree's
+# 256-byte records fill at 512.
 HOT_NODES = 512
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
@@ -152,7 +153,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
-    keys = np.empty(LANES, dtype=np.int64)  # a node's entries (descend)
+    keys = np.empty(LANES, dtype=np.int64)  # a node's entry keys (box_keys8)
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
     # _I_* constants): the ray (-1: none), where its walk stands, its bound, best hit
     # and hit count, its origin and inverse direction for the box tests, and the
@@ -432,8 +433,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     mask = packet_entries8(node_box, ref, rays, bound, entries)
                 # The entered boxes nearest first by Batcher's 19 comparators on
                 # (nearest entry of their rays, box, rays) triples; the nearest walked
-                # next by its rays, the others pushed farthest first. (descend's vector
-                # keys measured slower here with four lanes: the bunny's primary rays
+                # next by its rays, the others pushed farthest first. (The one-ray walk's
+                # vector keys measured slower here with four lanes: the bunny's primary rays
                 # 30.5 -> 32.3 ms; a packet's walks are coherent, so these branches are
                 # predicted.) Written out here: as an inlined function taking the
                 # arrays it ran 40% slower (Numba counts references to arrays handed to
