@@ -415,8 +415,9 @@ def careful_packet_entries(box, w, rays, bound, out):
 
 @njit(cache=True, nogil=True, inline="always")
 def stack_size(wide_depth):
-    """Slots of one walk's stack: each wide node walked leaves at most LANES - 1
-    siblings behind, plus spare slots."""
+    """Slots of one walk's stack: each of the ``wide_depth + 1`` wide levels a walk
+    passes through leaves at most LANES - 1 siblings behind, which
+    ``(LANES - 1) * wide_depth + 2 * LANES`` covers with room to spare."""
     return (LANES - 1) * wide_depth + 2 * LANES
 
 

@@ -130,8 +130,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     returns ``(tests, problem, ray)``: the triangle tests made, or the first bad ray's
     problem and index, the rays before it traced and none after.
 
-    Each ray's walk is the ordered one of :func:`hsr.algorithms.bvh.descend` and
-    :func:`hsr.algorithms.bvh.next_box`, pruned by the nearest hit so far (``mode``
+    Each ray's walk is ordered, nearest entered box first (the step at a wide node is
+    written out below; :func:`hsr.algorithms.bvh.next_box` pops), pruned by the
+    nearest hit so far (``mode``
     NEAREST), by ``t_max`` otherwise. With ``interleave``, :data:`SLOTS` rays are
     walked in turn, each with its own stack and state: when a ray's next step reads a
     leaf's corners or a wide node past the top of the tree (:data:`HOT_NODES`), that
@@ -250,27 +251,22 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             # Most nodes a random ray visits enter one box or none.
                             lane = lowest_bit(mask)
                         else:
+                            # The entered lanes' keys nearest first in keys[0 .. m].
                             m = bit_count(mask) - 1  # the entered lanes pushed
                             if m == 1:  # two: one comparison
                                 near = keys[lowest_bit(mask)]
                                 far = keys[lowest_bit(mask & (mask - 1))]
-                                if far < near:
-                                    near, far = far, near
-                                stack_ref[top] = node_link[ref, REF + (far & 7)]
-                                stack_count[top] = node_link[ref, COUNT_AT + (far & 7)]
-                                stack_t[top] = far
-                                top += 1
+                                keys[0], keys[1] = min(near, far), max(near, far)
                             else:
                                 # sort_keys8: a sorting network without branches. The
                                 # entered lanes lead (a missed lane sorts last, at +inf).
                                 sort_keys8(keys)
-                                for j in range(m, 0, -1):
-                                    stack_ref[top] = node_link[ref, REF + (keys[j] & 7)]
-                                    stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
-                                    stack_t[top] = keys[j]
-                                    top += 1
-                                near = keys[0]
-                            lane = near & 7
+                            for j in range(m, 0, -1):
+                                stack_ref[top] = node_link[ref, REF + (keys[j] & 7)]
+                                stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
+                                stack_t[top] = keys[j]
+                                top += 1
+                            lane = keys[0] & 7
                         ref, n = (np.int64(node_link[ref, REF + lane]),
                                   np.int64(node_link[ref, COUNT_AT + lane]))
                         if interleave and (n != 0 or ref >= HOT_NODES):

@@ -9,8 +9,8 @@ subtract, multiply, min, max, compare) once for eight lanes, in the same order a
 without fused multiply-adds, so every lane's result is bit for bit the scalar one
 (``_careful_entry`` without its NaN care). With AVX-512 the eight lanes are one
 register; on a CPU with narrower vectors LLVM splits the operations, and the results do
-not change. :func:`sort_keys8` orders a node's entered lanes without branches
-(:func:`hsr.algorithms.bvh.descend`).
+not change. :func:`sort_keys8` orders a node's entered lanes without branches (the
+ordered step of :func:`hsr.algorithms.rays.trace_range`).
 """
 
 from __future__ import annotations
