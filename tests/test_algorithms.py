@@ -141,8 +141,8 @@ def _assert_same_hits(naive, bvh):
 
 @pytest.mark.parametrize("size, walk", [((100, 75), "packets"), ((24, 18), "interleaved")])
 def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, size, walk):
-    """Both walks of the BVH ray caster (packets of four pixels unless the faces
-    outnumber the pixels twice over, then single rays interleaved) against the naive
+    """Both walks of the BVH ray caster (packets of four pixels unless the faces are
+    more than PACKET_FACES_PER_PIXEL a pixel, then single rays interleaved) against the naive
     loop, which tests every face for every pixel in submission order: the same hits
     under each glCullFace mode, winding, depth function and a clear depth that cuts the
     model, on a scene whose faces are partly repeated (exact depth ties, which
@@ -153,7 +153,9 @@ def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, 
     scene = hsr.Mesh(mesh.positions, faces)
     cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
     width, height = size
-    assert (len(faces) <= 2 * width * height) == (walk == "packets")
+    from hsr.algorithms.raycast import PACKET_FACES_PER_PIXEL
+
+    assert (len(faces) <= PACKET_FACES_PER_PIXEL * width * height) == (walk == "packets")
     z = hsr.render(scene, cam, width, height).depth
     cut = float(np.median(z[z < 1]))  # the clear depth that hides the far half
     for cull in ("none", "back", "front", "front_and_back"):

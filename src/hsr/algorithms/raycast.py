@@ -84,14 +84,17 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 # The walks of the pixels' rays (stats["ray_walk"] names them).
 NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
-# Packets unless the faces outnumber the pixels this many times over. Measured (2 threads,
-# min ms packets / interleaved): a 1M-face terrain at 1920x1080 seen from above 184 / 201,
-# obliquely 147 / 175, edge-on 40 / 42; at 1024x1024 151 / 153, 115 / 131, 26 / 26; the
-# bunny at 256x256 7 / 9; but the terrain at 512x512 (four faces a pixel) 62 / 43 and
-# 44 / 37, and a 250k-face terrain at 256x256 from above 11.2 / 10.0: neighbouring
-# pixels meet neighbouring triangles (a packet's node reads serve four rays) until the
-# triangles get smaller than a pixel, when each ray meets triangles of its own.
-PACKET_FACES_PER_PIXEL = 2
+# Packets unless the faces are more than this many a pixel. Neighbouring pixels meet
+# neighbouring triangles (a packet's node reads serve four rays) until the triangles get
+# near a pixel's size, when each ray meets triangles of its own and the interleaved walk,
+# which overlaps their cache misses, wins. Measured with the 8-wide tree (2 threads, min
+# ms of hsr.render packets / interleaved, the benchmark's framed / filling views): the
+# bunny at 1024x1024 (0.07 faces a pixel) 42 / 47 and 72 / 78, at 512x512 (0.26) 13.7 /
+# 13.6 and 22 / 25, at 384x384 (0.47) 8.4 / 8.4 and 13.0 / 13.6; a 250k-face terrain
+# at 1024x1024 (0.24) 22.6 / 22.7 and 126 / 128; the 1M-face terrain at 1920x1080
+# (0.48) 36 / 30 and 212 / 184, at 1024x1024 (0.95) 30 / 25 and 193 / 167 (the 4-wide
+# tree's walks had put the change at 2 faces a pixel).
+PACKET_FACES_PER_PIXEL = 0.4
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
@@ -113,8 +116,8 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     coplanar faces resolve alike. With a ``bvh`` the rays go through the walks of
     :mod:`hsr.algorithms.rays` with the render state as their ``raster``: in packets
     of four neighbouring pixels (:func:`hsr.algorithms.rays.trace_packets`), whose rays
-    meet the same boxes, unless the faces outnumber the pixels
-    :data:`PACKET_FACES_PER_PIXEL` times over; then interleaved one by one
+    meet the same boxes, unless there are more than :data:`PACKET_FACES_PER_PIXEL`
+    faces a pixel; then interleaved one by one
     (:func:`hsr.algorithms.rays.trace_range`), which overlaps the cache misses of rays
     that each meet triangles of their own."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
