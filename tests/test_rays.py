@@ -360,6 +360,68 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
     assert 50 < entered < checked - 50  # both outcomes were exercised
 
 
+def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
+    """hsr.algorithms.simd.packet_keys8 (four rays against a node's eight boxes, a
+    vector of eight boxes per ray) and its careful scalar twin against the slab test
+    written here in NumPy for each ray: each ray's entries, the mask of the walking
+    rays' entries (bit 4 k + r; rays outside ``active`` count for nothing), and per box
+    the key of its walking rays' nearest entry."""
+    from numba import njit
+
+    from hsr.algorithms.bvh import careful_packet_keys8
+    from hsr.algorithms.simd import packet_keys8
+
+    @njit
+    def run(box, w, rays, bound, active, careful):
+        out, keys = np.empty((4, 8)), np.empty(8, dtype=np.int64)
+        if careful:
+            mask = careful_packet_keys8(box, w, rays, bound, active, out, keys)
+        else:
+            mask = packet_keys8(box, w, rays, bound, active, out, keys)
+        return out, keys, mask
+
+    rng = np.random.default_rng(11)
+    n_boxes = 300
+    lo = rng.uniform(-2, 2, (n_boxes, 8, 3))
+    hi = lo + rng.exponential(0.5, (n_boxes, 8, 3)) * (rng.random((n_boxes, 8, 3)) > 0.1)
+    lo[::6, 2], hi[::6, 2] = np.inf, np.inf  # empty lanes
+    box = np.concatenate([lo.transpose(0, 2, 1).reshape(n_boxes, 24),
+                          hi.transpose(0, 2, 1).reshape(n_boxes, 24),
+                          np.zeros((n_boxes, 16))], axis=1).astype(np.float32)
+    lo32, hi32 = box[:, :24].reshape(n_boxes, 3, 8), box[:, 24:48].reshape(n_boxes, 3, 8)
+    seen = set()
+    for w in range(n_boxes):
+        o = rng.uniform(-3, 3, (4, 3))
+        k = w % 8 if np.isfinite(lo[w, w % 8]).all() else 0  # a lane that is not empty
+        aim = (lo[w, k] + hi[w, k]) / 2
+        d = aim - o + rng.normal(0, 0.4, (4, 3))
+        rays = np.ascontiguousarray(np.concatenate([o.T, (1.0 / d).T]))  # (6, 4)
+        bound = rng.choice([np.inf, 1.7976931348623157e308, rng.uniform(0, 3), -1.0], 4)
+        bound = np.minimum(bound, 1.7976931348623157e308)
+        active = int(rng.integers(1, 16))
+        want = np.empty((4, 8))
+        for r in range(4):
+            t0 = (lo32[w].astype(np.float64) - o[r][:, None]) * rays[3:, r][:, None]
+            t1 = (hi32[w].astype(np.float64) - o[r][:, None]) * rays[3:, r][:, None]
+            t_in = np.maximum(np.minimum(t0, t1).max(axis=0), 0.0)
+            t_out = np.maximum(t0, t1).min(axis=0)
+            want[r] = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= bound[r]),
+                               t_in, np.inf)
+        walking = np.array([(active >> r) & 1 for r in range(4)], dtype=bool)
+        nearest = np.where(walking[:, None], want, np.inf).min(axis=0)
+        mask_want = sum(1 << (4 * k + r) for k in range(8) for r in range(4)
+                        if walking[r] and want[r, k] < np.inf)
+        for careful in (False, True):
+            out, keys, mask = run(box, w, rays, bound, active, careful)
+            np.testing.assert_array_equal(out, want)
+            assert mask == mask_want
+            np.testing.assert_array_equal(keys & 7, np.arange(8))
+            np.testing.assert_array_equal(keys >> 3, nearest.view(np.int64) >> 3)
+        seen.add((mask_want != 0, bool(np.isfinite(want[~walking]).any())))
+    # Nodes entered and not, and entries of rays not walking that had to be left out.
+    assert {(True, True), (False, False), (True, False)} <= seen
+
+
 def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
     """Rays aimed at corners of boxes whose bounds are exact in float32 (so the boxes
     are tight: no outward rounding to hide behind): whenever exact rational arithmetic

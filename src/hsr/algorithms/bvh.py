@@ -36,7 +36,7 @@ from .simd import (
 
 __all__ = ["BVH", "build", "world_triangles", "widen", "node_records",
            "inverse_direction", "careful_keys8", "next_box",
-           "careful_packet_entries", "stack_size", "walk_stack", "face_normal"]
+           "careful_packet_keys8", "stack_size", "walk_stack", "face_normal"]
 
 LEAF_SIZE = 4
 N_BINS = 16
@@ -399,17 +399,21 @@ def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def careful_packet_entries(box, w, rays, bound, out):
-    """:func:`hsr.algorithms.simd.packet_entries8` ray by ray with the NaN care of
+def careful_packet_keys8(box, w, rays, bound, active, out, keys):
+    """:func:`hsr.algorithms.simd.packet_keys8` ray by ray with the NaN care of
     :func:`_careful_entry`, for a packet holding a ray with a zero direction
     component."""
     mask = 0
-    for r in range(4):
-        for k in range(LANES):
+    for k in range(LANES):
+        nearest = np.inf
+        for r in range(4):
             e = _careful_entry(box, w, k, rays[0, r], rays[1, r], rays[2, r], rays[3, r],
                                rays[4, r], rays[5, r], bound[r])
-            out[k, r] = e
-            mask |= (e < np.inf) << (4 * k + r)
+            out[r, k] = e
+            if (active >> r) & 1 and e < np.inf:
+                mask |= 1 << (4 * k + r)
+                nearest = min(nearest, e)
+        keys[k] = float_bits(nearest) & ~7 | k
     return mask
 
 

@@ -27,7 +27,7 @@ from .bvh import (
     REF,
     _intersect,
     careful_keys8,
-    careful_packet_entries,
+    careful_packet_keys8,
     face_normal,
     inverse_direction,
     next_box,
@@ -36,7 +36,7 @@ from .bvh import (
     stack_size,
     walk_stack,
 )
-from .simd import bit_count, box_keys8, lowest_bit, packet_entries8, prefetch, sort_keys8
+from .simd import bit_count, box_keys8, lowest_bit, packet_keys8, prefetch, sort_keys8
 
 __all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "NEAREST", "ANY",
            "COUNT"]
@@ -91,6 +91,8 @@ SLOTS = 8
 # 73 / 54). 1024 was in the range good on both: 128 KB, which the 8-wide tree's
 # 256-byte records fill at 512.
 HOT_NODES = 512
+# How many rays ahead trace_range's pass over the hits fetches the hit's corners.
+RECORD_AHEAD = 16
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
  _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
@@ -357,6 +359,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     # code made the walk of random rays at the bunny 15% slower.
     if mode == NEAREST and raster is None:
         for i in range(lo, hi):
+            # The corners of the hit RECORD_AHEAD rays on are fetched meanwhile: rays
+            # that each hit a triangle of their own find it out of cache by now.
+            if i + RECORD_AHEAD < hi and out_object[i + RECORD_AHEAD] >= 0:
+                ahead = out_object[i + RECORD_AHEAD]
+                prefetch(tris, ahead, 0)
+                prefetch(tris, ahead, 9 * tris.itemsize - 1)
             _hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
                         i)
     return tests, 0, -1
@@ -368,7 +376,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                   out_face, out_object, out_uv, out_normal, out_count):
     """:func:`trace_range` four rays at a time: a packet (Wald, Slusallek, Benthin and
     Wagner 2001) walks the boxes that any of its rays enters, each box tested for the
-    four rays at once (:func:`hsr.algorithms.simd.packet_entries8`) and each ray
+    four rays at once (:func:`hsr.algorithms.simd.packet_keys8`) and each ray
     carried down only into boxes it enters before its own bound; at a leaf each
     walking ray runs the one-ray triangle test. For coherent rays (from one eye, close
     directions) the four walks are nearly one, and a node read serves four rays.
@@ -385,7 +393,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     frame = np.empty((11, 4))  # sx, sy, sz, okx, oky, okz, dx, dy, dz, t_min, t_max
     axes = np.empty((3, 4), dtype=np.int64)
     bound = np.empty(4)
-    entries = np.empty((LANES, 4))
+    entries = np.empty((4, LANES))  # each ray's entry into each box
+    keys = np.empty(LANES, dtype=np.int64)  # per box, its rays' nearest entry (sort_keys8)
     best_t, best_z, best_uv = np.empty(4), np.empty(4), np.empty((4, 2))
     best_f, best_k = np.empty(4, dtype=np.int64), np.empty(4, dtype=np.int64)
     count = np.empty(4, dtype=np.int64)
@@ -423,60 +432,41 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
         walking = leaf_face.shape[0] > 0
         while walking:
             if n == 0:  # a wide node: the packet's nearest entered box next
+                # Per box the nearest entry of the walking rays, as keys of sort_keys8.
                 if careful:
-                    mask = careful_packet_entries(node_box, ref, rays, bound, entries)
+                    mask = careful_packet_keys8(node_box, ref, rays, bound, active, entries,
+                                                keys)
                 else:
-                    mask = packet_entries8(node_box, ref, rays, bound, entries)
-                # The entered boxes nearest first by Batcher's 19 comparators on
-                # (nearest entry of their rays, box, rays) triples; the nearest walked
-                # next by its rays, the others pushed farthest first. (The one-ray walk's
-                # vector keys measured slower here with four lanes: the bunny's primary rays
-                # 30.5 -> 32.3 ms; a packet's walks are coherent, so these branches are
-                # predicted.) Written out here: as an inlined function taking the
-                # arrays it ran 40% slower (Numba counts references to arrays handed to
-                # an inlined function).
-                mask &= active * 0x11111111
+                    mask = packet_keys8(node_box, ref, rays, bound, active, entries, keys)
+                # The entered boxes nearest first (the step of trace_range, on the keys
+                # of the packet's nearest entries): the nearest walked next by the rays
+                # that enter it, the others pushed farthest first with each ray's
+                # entry. (Written out here, as in trace_range: an inlined function
+                # taking the arrays ran 40% slower.)
                 if mask != 0:
-                    c0, c1 = mask & 15, (mask >> 4) & 15
-                    c2, c3 = (mask >> 8) & 15, (mask >> 12) & 15
-                    c4, c5 = (mask >> 16) & 15, (mask >> 20) & 15
-                    c6, c7 = (mask >> 24) & 15, mask >> 28
-                    k0, k1, k2, k3 = (_nearest(entries, 0, c0), _nearest(entries, 1, c1),
-                                      _nearest(entries, 2, c2), _nearest(entries, 3, c3))
-                    k4, k5, k6, k7 = (_nearest(entries, 4, c4), _nearest(entries, 5, c5),
-                                      _nearest(entries, 6, c6), _nearest(entries, 7, c7))
-                    # simd._ROUNDS8's network, round by round.
-                    k0, l0, c0, k1, l1, c1 = _sorted_triple(k0, 0, c0, k1, 1, c1)
-                    k2, l2, c2, k3, l3, c3 = _sorted_triple(k2, 2, c2, k3, 3, c3)
-                    k4, l4, c4, k5, l5, c5 = _sorted_triple(k4, 4, c4, k5, 5, c5)
-                    k6, l6, c6, k7, l7, c7 = _sorted_triple(k6, 6, c6, k7, 7, c7)
-                    k0, l0, c0, k2, l2, c2 = _sorted_triple(k0, l0, c0, k2, l2, c2)
-                    k1, l1, c1, k3, l3, c3 = _sorted_triple(k1, l1, c1, k3, l3, c3)
-                    k4, l4, c4, k6, l6, c6 = _sorted_triple(k4, l4, c4, k6, l6, c6)
-                    k5, l5, c5, k7, l7, c7 = _sorted_triple(k5, l5, c5, k7, l7, c7)
-                    k1, l1, c1, k2, l2, c2 = _sorted_triple(k1, l1, c1, k2, l2, c2)
-                    k5, l5, c5, k6, l6, c6 = _sorted_triple(k5, l5, c5, k6, l6, c6)
-                    k0, l0, c0, k4, l4, c4 = _sorted_triple(k0, l0, c0, k4, l4, c4)
-                    k1, l1, c1, k5, l5, c5 = _sorted_triple(k1, l1, c1, k5, l5, c5)
-                    k2, l2, c2, k6, l6, c6 = _sorted_triple(k2, l2, c2, k6, l6, c6)
-                    k3, l3, c3, k7, l7, c7 = _sorted_triple(k3, l3, c3, k7, l7, c7)
-                    k2, l2, c2, k4, l4, c4 = _sorted_triple(k2, l2, c2, k4, l4, c4)
-                    k3, l3, c3, k5, l5, c5 = _sorted_triple(k3, l3, c3, k5, l5, c5)
-                    k1, l1, c1, k2, l2, c2 = _sorted_triple(k1, l1, c1, k2, l2, c2)
-                    k3, l3, c3, k4, l4, c4 = _sorted_triple(k3, l3, c3, k4, l4, c4)
-                    k5, l5, c5, k6, l6, c6 = _sorted_triple(k5, l5, c5, k6, l6, c6)
-                    for lane, rays_in in ((l7, c7), (l6, c6), (l5, c5), (l4, c4), (l3, c3),
-                                          (l2, c2), (l1, c1)):
-                        if rays_in != 0:
+                    boxes = (mask | (mask >> 1) | (mask >> 2) | (mask >> 3)) & 0x11111111
+                    m = bit_count(boxes) - 1  # the entered boxes pushed
+                    if m == 0:
+                        lane = lowest_bit(boxes) >> 2
+                    else:
+                        if m == 1:  # two: one comparison
+                            near = keys[lowest_bit(boxes) >> 2]
+                            far = keys[lowest_bit(boxes & (boxes - 1)) >> 2]
+                            keys[0], keys[1] = min(near, far), max(near, far)
+                        else:
+                            sort_keys8(keys)
+                        for j in range(m, 0, -1):
+                            lane = keys[j] & 7
                             stack_ref[top] = node_link[ref, REF + lane]
                             stack_count[top] = node_link[ref, COUNT_AT + lane]
-                            stack_rays[top] = rays_in
-                            stack_t[top, 0], stack_t[top, 1] = entries[lane, 0], entries[lane, 1]
-                            stack_t[top, 2], stack_t[top, 3] = entries[lane, 2], entries[lane, 3]
+                            stack_rays[top] = (mask >> (4 * lane)) & 15
+                            stack_t[top, 0], stack_t[top, 1] = entries[0, lane], entries[1, lane]
+                            stack_t[top, 2], stack_t[top, 3] = entries[2, lane], entries[3, lane]
                             top += 1
-                    ref, n = (np.int64(node_link[ref, REF + l0]),
-                              np.int64(node_link[ref, COUNT_AT + l0]))
-                    active = c0
+                        lane = keys[0] & 7
+                    active = (mask >> (4 * lane)) & 15
+                    ref, n = (np.int64(node_link[ref, REF + lane]),
+                              np.int64(node_link[ref, COUNT_AT + lane]))
                     continue
             else:  # a leaf: each walking ray tests its triangles
                 if not framed:
@@ -602,22 +592,6 @@ def _ranks_before(z, f, best_z, best_f, lequal):
     z-buffer decides (no best yet: ``best_f`` < 0): nearer, or as near and drawn later
     under GL_LEQUAL (earlier under GL_LESS, where the first drawn stays)."""
     return best_f < 0 or z < best_z or (z == best_z and (f > best_f if lequal else f < best_f))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _nearest(entries, k, rays):
-    """The nearest entry into box k of the rays in mask ``rays`` (+inf: none)."""
-    return min(min(entries[k, 0] if rays & 1 else np.inf, entries[k, 1] if rays & 2 else np.inf),
-               min(entries[k, 2] if rays & 4 else np.inf, entries[k, 3] if rays & 8 else np.inf))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sorted_triple(ka, la, ma, kb, lb, mb):
-    """One comparator of a sorting network on (key, lane, rays) triples: the two in
-    order of their keys, by selects (equal keys keep their order)."""
-    swap = kb < ka
-    return ((kb if swap else ka), (lb if swap else la), (mb if swap else ma),
-            (ka if swap else kb), (la if swap else lb), (ma if swap else mb))
 
 
 @njit(cache=True, nogil=True, inline="always")

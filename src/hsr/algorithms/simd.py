@@ -19,7 +19,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_keys8", "packet_entries8", "sort_keys8", "lowest_bit", "bit_count",
+__all__ = ["box_keys8", "packet_keys8", "sort_keys8", "lowest_bit", "bit_count",
            "float_bits", "next_float32", "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
@@ -144,41 +144,68 @@ def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys
     return sig, codegen
 
 
+def _spread8(builder, bits):
+    """Bit k of an 8-bit mask (an i64) moved to bit 4 k (three shift-or-mask steps)."""
+    x = bits
+    for shift, keep in ((12, 0x000F000F), (6, 0x03030303), (3, 0x11111111)):
+        x = builder.and_(builder.or_(x, builder.shl(x, _i64(shift))), _i64(keep))
+    return x
+
+
 @intrinsic
-def packet_entries8(typingctx, box, w, rays, bound, out):
-    """The slab test of :func:`box_keys8` for four rays at once (a packet; Wald et
-    al. 2001) against each of the eight boxes of row ``w``: ``rays`` (6, 4) float64, the
-    rows origin x, y, z and inverse direction x, y, z of the four rays; ``bound`` (4,)
-    each ray's bound. Writes ``out[k, r]`` ((8, 4) float64), where ray r enters box k
-    (+inf: missed, or entered beyond its bound), and returns the mask of entries, bit
-    ``4 k + r``. The lanes are rays here, not boxes: each ray's arithmetic is the scalar
-    test's, in the same order, so its entries are bit for bit those of the one-ray
-    test."""
-    sig = types.int64(box, w, rays, bound, out)
+def packet_keys8(typingctx, box, w, rays, bound, active, out, keys):
+    """The slab test of :func:`box_keys8` for a packet of four rays (Wald et al. 2001)
+    against the eight boxes of row ``w``, ray by ray, each ray's eight boxes as one
+    ``<8 x double>`` vector (the node's bounds are read and widened once for the
+    four): ``rays`` (6, 4) float64, the rows origin x, y, z and inverse direction x, y,
+    z of the four rays; ``bound`` (4,) each ray's bound; ``active`` the mask of the
+    rays walking this node (bit r). Writes ``out[r, k]`` ((4, 8) float64), where ray r
+    enters box k (+inf: missed, or entered beyond its bound), and ``keys`` (int64, 8
+    contiguous): per box the nearest entry of its active rays as a key of
+    :func:`sort_keys8` (+inf when none enters it). Returns the mask of the active rays'
+    entries, bit ``4 k + r``. Each ray's arithmetic is the scalar test's, in the same
+    order, so its entries are bit for bit those of the one-ray test."""
+    if any(a.layout != "C" for a in (rays, bound, out, keys)):
+        return None  # read as raw rows: a typing error, not a wrong answer
+    sig = types.int64(box, w, rays, bound, active, out, keys)
 
     def codegen(context, builder, sig, args):
-        array, row, rays, bound, out = args
+        array, row, rays_v, bound_v, active_v, out_v, keys_v = args
         row = context.cast(builder, row, sig.args[1], types.intp)
+        active_v = context.cast(builder, active_v, sig.args[4], types.int64)
         base = _row_pointer(context, builder, sig.args[0], array, row)
 
-        def vectors(ty, value):
-            data = context.make_array(ty)(context, builder, value).data
-            return builder.bitcast(data, _D4.as_pointer())
+        def data(k):
+            return context.make_array(sig.args[k])(context, builder, args[k]).data
 
-        ray = vectors(sig.args[2], rays)
-        origin = [builder.load(builder.gep(ray, [_i64(a)]), align=8) for a in range(3)]
-        inv = [builder.load(builder.gep(ray, [_i64(3 + a)]), align=8) for a in range(3)]
-        limit = builder.load(vectors(sig.args[3], bound), align=8)
-        entries = vectors(sig.args[4], out)
+        ray = data(2)
+        limit = data(3)
+        entries = builder.bitcast(data(5), _D8.as_pointer())
+        planes = []
+        for q in range(6):
+            p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
+            planes.append(builder.fpext(builder.load(p, align=4), _D8))
+        inf = ir.Constant(_D8, [float("inf")] * 8)
+        nearest = inf
         mask = _i64(0)
-        for k in range(8):
-            # Bound q (lo x, y, z, hi x, y, z) of box k, in all four lanes.
-            planes = [_splat(builder, builder.fpext(builder.load(builder.gep(
-                base, [_i64(8 * q + k)])), ir.DoubleType())) for q in range(6)]
-            entry, entered = _slab_test(builder, planes, origin, inv, limit)
-            builder.store(entry, builder.gep(entries, [_i64(k)]), align=8)
-            bits = builder.zext(builder.bitcast(entered, ir.IntType(4)), _I64)
-            mask = builder.or_(mask, builder.shl(bits, _i64(4 * k)))
+        def scalar(pointer, at):
+            return _splat(builder, builder.load(builder.gep(pointer, [_i64(at)])), 8)
+
+        for r in range(4):
+            entry, entered = _slab_test(builder, planes,
+                                        [scalar(ray, 4 * a + r) for a in range(3)],
+                                        [scalar(ray, 4 * (3 + a) + r) for a in range(3)],
+                                        scalar(limit, r))
+            builder.store(entry, builder.gep(entries, [_i64(r)]), align=8)
+            walking = builder.trunc(builder.lshr(active_v, _i64(r)), ir.IntType(1))
+            entered = builder.and_(entered, builder.select(
+                walking, ir.Constant(ir.VectorType(ir.IntType(1), 8), [1] * 8),
+                ir.Constant(ir.VectorType(ir.IntType(1), 8), [0] * 8)))
+            nearest = _min(builder, nearest, builder.select(entered, entry, inf))
+            bits = builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
+            mask = builder.or_(mask, builder.shl(_spread8(builder, bits), _i64(r)))
+        builder.store(_keys(builder, nearest, list(range(8))),
+                      builder.bitcast(data(6), _L8.as_pointer()), align=8)
         return mask
 
     return sig, codegen
