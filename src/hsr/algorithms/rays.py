@@ -106,8 +106,7 @@ RECORD_AHEAD = 16
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
-                out_face, out_object, out_uv, out_normal, out_count, interleave,
-                last_occluder):
+                out_face, out_object, out_uv, out_normal, out_count, interleave):
     """Rays ``lo .. hi - 1`` through the 8-wide BVH of :func:`hsr.algorithms.bvh.widen`
     in the layout of :func:`hsr.algorithms.bvh.node_records` (the root a wide node when
     ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
@@ -145,13 +144,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     before the next starts: for coherent rays, which find what they read in cache
     where the ray before left it, switching only costs (the bunny's 1M camera rays,
     ``occluded``: 35 ms interleaved, 29 ms not). Each ray's steps are the one-ray
-    walk's either way, so are its answers.
-
-    With ``last_occluder`` (for coherent rays walked one by one; ``mode`` ANY only), a
-    ray first tests the triangle that ended the last hit ray's walk, and is answered
-    without a walk when it meets it (the bunny's 1M camera rays, ``occluded`` on two
-    threads: 34-36 -> 27-31 ms). Random rays rarely meet it, and paid 15% more for
-    the extra test."""
+    walk's either way, so are its answers. (Coherent rays as many as four a triangle go
+    through :func:`trace_packets` instead.)"""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
@@ -165,7 +159,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
     tests = 0
     next_ray, busy = lo, 0
-    last_hit = -1  # the slot of the last hit of an ANY query
     if leaf_face.shape[0] == 0:  # no faces: every ray misses
         for i in range(lo, hi):
             if mode == NEAREST:
@@ -207,27 +200,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 slot_f[s, _F_BOUND] = min(t_max[i if per_ray[1] else 0], LARGEST)
                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
                 slot_f[s, _F_Z] = np.inf
-                if mode == ANY and last_occluder and last_hit >= 0:
-                    # The last occluder first (Haines and Greenberg's shadow cache,
-                    # 1986): a ray beside the last one that hit likely meets the same
-                    # triangle, and a hit there ends its query without a walk. The
-                    # test and the interval check are the leaf's, so is the answer.
-                    dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-                    kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(
-                        slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ], dx, dy, dz)
-                    (slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ], slot_f[s, _F_SX],
-                     slot_f[s, _F_SY], slot_f[s, _F_SZ], slot_f[s, _F_OKX], slot_f[s, _F_OKY],
-                     slot_f[s, _F_OKZ]) = kx, ky, kz, sx, sy, sz, okx, oky, okz
-                    slot_i[s, _I_FRAMED] = 1
-                    tests += 1
-                    t = _intersect(tris, last_hit, okx, oky, okz, kx, ky, kz, sx, sy, sz,
-                                   cull_code, front_ccw, dx, dy, dz)[0]
-                    if (t_min[i if per_ray[0] else 0] <= t) & (t <= t_max[i if per_ray[1]
-                                                                           else 0]):
-                        out_count[i] = 1
-                        slot_i[s, _I_RAY] = -1
-                        busy -= 1
-                        continue
             ref, n, top = slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP]
             b = slot_f[s, _F_BOUND]
             ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
@@ -297,7 +269,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             continue
                         if mode == ANY:
                             slot_i[s, _I_COUNT] = 1
-                            last_hit = k
                             done = True
                             break
                         if mode == COUNT:

@@ -159,21 +159,19 @@ class RayScene:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
         # Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
         # close) find in cache what the ray before read, unless the triangles are about
-        # as many as the rays (each ray then meets triangles of its own). With many
-        # rays a triangle, they go through the walk in packets of four, except for
-        # `occluded`, whose walks stop at different depths: those are walked one by
-        # one, the last occluder tested first (trace_range's last_occluder). Other
+        # as many as the rays (each ray then meets triangles of its own). With four
+        # rays a triangle or more, they go through the walk in packets of four. Other
         # rays go through trace_range eight at a time per thread (its interleave),
         # which hides cache misses. Measured, 1M camera rays, one thread, ms for
-        # packets / interleaved / one by one: the bunny's cast 52 / 81 / 73, count
-        # 80 / 127 / 109, occluded (two threads) - / 35 / 30; a 1M-face terrain's
-        # cast 55 / 48 / 53, count 131 / 95 / 136, occluded - / 22 / 26 (the last
-        # occluder, interleaved, is eight rays back and seldom met: 21 -> 25 ms with
-        # it). The answers are the same on every path.
+        # packets / interleaved: the bunny's cast 52 / 68, occluded 45 / 59 (49 walked
+        # one by one with the last occluder tested first, which this path had until
+        # packets tested a node as one vector per ray), count 77 / 111; a 250k-face
+        # terrain's cast 40 / 44, occluded 37 / 39, count 74 / 84; a 1M-face terrain's
+        # (one ray a face) cast 48 / 47, occluded 45 / 41, count 120 / 89. The answers
+        # are the same on every path.
         coherent = _coherent(origins, directions, self.scene_size)
-        dense = 4 * self.bvh.n_faces <= n
-        kernel, last = ((trace_packets, ()) if coherent and dense and mode != 1 else (
-            trace_range, (not (coherent and dense), coherent and dense)))
+        kernel, extra = ((trace_packets, ()) if coherent and 4 * self.bvh.n_faces <= n
+                         else (trace_range, (True,)))
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             bvh = self.bvh
@@ -185,7 +183,7 @@ class RayScene:
                 t0, t1, mode, None, bvh.corners, bvh.leaf_face, bvh.node_box,
                 bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth,
                 self.face_offsets, *outputs,
-                *last, on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
+                *extra, on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
         # The rays are checked chunk by chunk as they are traced (their data is in cache
         # then); the first bad ray of all is reported, whatever was traced.
         bad = [(ray, problem) for _, problem, ray in results if problem]
