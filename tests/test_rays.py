@@ -422,6 +422,60 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
     assert {(True, True), (False, False), (True, False)} <= seen
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
+    """hsr.algorithms.simd.leaf_filter4 (the watertight test's edge values for four
+    triangles as vector lanes) against the same check written here in NumPy, and
+    against the scalar test (bvh._intersect) it stands in front of: a lane is kept
+    exactly when the scalar test does not return its early miss. Leaves of one to four
+    triangles, corners in float64 and float32, rays through corners and edges (zero
+    edge values), and degenerate triangles (zero sum)."""
+    from numba import njit
+
+    from hsr.algorithms.bvh import _intersect, ray_frame
+    from hsr.algorithms.simd import leaf_filter4
+
+    @njit
+    def run(tris, k0, n, o, d):
+        kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(o[0], o[1], o[2], d[0], d[1], d[2])
+        mask = leaf_filter4(tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy)
+        scalar = np.empty(n)
+        for i in range(n):
+            scalar[i] = _intersect(tris, k0 + i, okx, oky, okz, kx, ky, kz, sx, sy, sz, 0,
+                                   True, d[0], d[1], d[2])[0]
+        return mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz)
+
+    rng = np.random.default_rng(8)
+    tris = rng.normal(size=(4000, 3, 3))
+    tris[::9, 2] = tris[::9, 0] + 0.5 * (tris[::9, 1] - tris[::9, 0])  # degenerate
+    tris = tris.astype(dtype)
+    kept = cleared = 0
+    for trial in range(800):
+        n = 1 + trial % 4
+        k0 = int(rng.integers(0, len(tris) - 4))
+        o = rng.normal(size=3) * 3
+        target = tris[k0 + trial % n].astype(np.float64)
+        # Aim at a corner, an edge's midpoint or inside the triangle.
+        aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
+        d = aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
+        mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz) = run(tris, k0, n, o, d)
+        c = tris[k0:k0 + n].astype(np.float64)
+        z = c[:, :, kz] - okz
+        x = c[:, :, kx] - okx - sx * z
+        y = c[:, :, ky] - oky - sy * z
+        u = x[:, 2] * y[:, 1] - y[:, 2] * x[:, 1]
+        v = x[:, 0] * y[:, 2] - y[:, 0] * x[:, 2]
+        w = x[:, 1] * y[:, 0] - y[:, 1] * x[:, 0]
+        miss = (((u < 0) | (v < 0) | (w < 0)) & ((u > 0) | (v > 0) | (w > 0))) | (u + v + w == 0)
+        want = sum(1 << i for i in range(n) if not miss[i])
+        assert mask == want
+        for i in range(n):  # cleared lanes are the scalar test's early misses
+            assert ((mask >> i) & 1) == (scalar[i] != -1.0)
+        kept += bin(mask).count("1")
+        cleared += n - bin(mask).count("1")
+    assert kept > 200 and cleared > 200
+
+
 def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
     """Rays aimed at corners of boxes whose bounds are exact in float32 (so the boxes
     are tight: no outward rounding to hide behind): whenever exact rational arithmetic

@@ -36,7 +36,15 @@ from .bvh import (
     stack_size,
     walk_stack,
 )
-from .simd import bit_count, box_keys8, lowest_bit, packet_keys8, prefetch, sort_keys8
+from .simd import (
+    bit_count,
+    box_keys8,
+    leaf_filter4,
+    lowest_bit,
+    packet_keys8,
+    prefetch,
+    sort_keys8,
+)
 
 __all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "NEAREST", "ANY",
            "COUNT"]
@@ -261,38 +269,47 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     okx, oky, okz = slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]
                     t0 = t_min[i if per_ray[0] else 0]
                     t1 = t_max[i if per_ray[1] else 0]
-                    for k in range(ref, ref + n):
-                        tests += 1
-                        t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                sz, cull_code, front_ccw, dx, dy, dz)
-                        if not ((t0 <= t) & (t <= t1)):
-                            continue
-                        if mode == ANY:
-                            slot_i[s, _I_COUNT] = 1
-                            done = True
-                            break
-                        if mode == COUNT:
-                            if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
-                                    tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-                                slot_i[s, _I_COUNT] += 1
-                            continue
-                        f = leaf_face[k]
-                        if raster is not None:
-                            rank = raster[3]
-                            zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
-                            z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                            if _ranks_before(z, f, slot_f[s, _F_Z], slot_i[s, _I_FACE],
-                                             raster[2]):
+                    for quad in range(ref, ref + n, 4):
+                        # The watertight test four triangles at once, then the scalar one on
+                        # the few that pass its first check (leaf_filter4).
+                        m = min(4, ref + n - quad)
+                        tests += m
+                        left = leaf_filter4(tris, quad, m, okx, oky, okz, kx, ky, kz, sx, sy)
+                        while left != 0:
+                            k = quad + lowest_bit(left)
+                            left &= left - 1
+                            t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
+                                                    sz, cull_code, front_ccw, dx, dy, dz)
+                            if not ((t0 <= t) & (t <= t1)):
+                                continue
+                            if mode == ANY:
+                                slot_i[s, _I_COUNT] = 1
+                                done = True
+                                break
+                            if mode == COUNT:
+                                if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
+                                        tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+                                    slot_i[s, _I_COUNT] += 1
+                                continue
+                            f = leaf_face[k]
+                            if raster is not None:
+                                rank = raster[3]
+                                zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
+                                z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                if _ranks_before(z, f, slot_f[s, _F_Z], slot_i[s, _I_FACE],
+                                                 raster[2]):
+                                    slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
+                                    slot_f[s, _F_Z] = z
+                                    slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
+                                    b = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                continue
+                            if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
+                                                       and f < slot_i[s, _I_FACE]):
                                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
-                                slot_f[s, _F_Z] = z
                                 slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
-                                b = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                            continue
-                        if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
-                                                   and f < slot_i[s, _I_FACE]):
-                            slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
-                            slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
-                            b = t
+                                b = t
+                        if done:
+                            break
                     if done:
                         break
                 ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, b,
@@ -457,38 +474,47 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     sx, sy, sz = frame[0, r], frame[1, r], frame[2, r]
                     okx, oky, okz = frame[3, r], frame[4, r], frame[5, r]
                     t0, t1 = frame[9, r], frame[10, r]
-                    for k in range(ref, ref + n):
-                        tests += 1
-                        t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                sz, cull_code, front_ccw, frame[6, r],
-                                                frame[7, r], frame[8, r])
-                        if not ((t0 <= t) & (t <= t1)):
-                            continue
-                        if mode == ANY:  # done: this ray enters no box any more
-                            count[r] = 1
-                            bound[r] = -1.0
-                            break
-                        if mode == COUNT:
-                            if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
-                                    tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-                                count[r] += 1
-                            continue
-                        f = leaf_face[k]
-                        if raster is not None:
-                            rank = raster[3]
-                            zc0, zc1, wc0, wc1 = _clip_zw(rank, rays[0, r], rays[1, r],
-                                                          rays[2, r], frame[6, r], frame[7, r],
-                                                          frame[8, r])
-                            z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                            if _ranks_before(z, f, best_z[r], best_f[r], raster[2]):
-                                best_t[r], best_z[r], best_f[r], best_k[r] = t, z, f, k
+                    for quad in range(ref, ref + n, 4):
+                        # The watertight test four triangles at once, then the scalar one on
+                        # the few that pass its first check (leaf_filter4).
+                        m = min(4, ref + n - quad)
+                        tests += m
+                        left = leaf_filter4(tris, quad, m, okx, oky, okz, kx, ky, kz, sx, sy)
+                        while left != 0:
+                            k = quad + lowest_bit(left)
+                            left &= left - 1
+                            t, u, v, w = _intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
+                                                    sz, cull_code, front_ccw, frame[6, r],
+                                                    frame[7, r], frame[8, r])
+                            if not ((t0 <= t) & (t <= t1)):
+                                continue
+                            if mode == ANY:  # done: this ray enters no box any more
+                                count[r] = 1
+                                bound[r] = -1.0
+                                break
+                            if mode == COUNT:
+                                if (u != 0.0 and v != 0.0 and w != 0.0) or _owns(
+                                        tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+                                    count[r] += 1
+                                continue
+                            f = leaf_face[k]
+                            if raster is not None:
+                                rank = raster[3]
+                                zc0, zc1, wc0, wc1 = _clip_zw(rank, rays[0, r], rays[1, r],
+                                                              rays[2, r], frame[6, r], frame[7, r],
+                                                              frame[8, r])
+                                z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                if _ranks_before(z, f, best_z[r], best_f[r], raster[2]):
+                                    best_t[r], best_z[r], best_f[r], best_k[r] = t, z, f, k
+                                    best_uv[r, 0], best_uv[r, 1] = v, w
+                                    bound[r] = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                continue
+                            if t < best_t[r] or (t == best_t[r] and f < best_f[r]):
+                                best_t[r], best_f[r], best_k[r] = t, f, k
                                 best_uv[r, 0], best_uv[r, 1] = v, w
-                                bound[r] = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                            continue
-                        if t < best_t[r] or (t == best_t[r] and f < best_f[r]):
-                            best_t[r], best_f[r], best_k[r] = t, f, k
-                            best_uv[r, 0], best_uv[r, 1] = v, w
-                            bound[r] = t
+                                bound[r] = t
+                        if mode == ANY and count[r] != 0:
+                            break
             # The next box on the stack that one of its rays still enters before that
             # ray's bound, walked by those rays.
             walking = False

@@ -19,7 +19,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_keys8", "packet_keys8", "sort_keys8", "lowest_bit", "bit_count",
+__all__ = ["box_keys8", "packet_keys8", "leaf_filter4", "sort_keys8", "lowest_bit", "bit_count",
            "float_bits", "next_float32", "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
@@ -207,6 +207,78 @@ def packet_keys8(typingctx, box, w, rays, bound, active, out, keys):
         builder.store(_keys(builder, nearest, list(range(8))),
                       builder.bitcast(data(6), _L8.as_pointer()), align=8)
         return mask
+
+    return sig, codegen
+
+
+@intrinsic
+def leaf_filter4(typingctx, tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy):
+    """Which of the triangles ``k0 .. k0 + n - 1`` (n <= 4) of ``tris`` ((F, 3, 3),
+    float64 or float32 corners) the ray can hit: bit i set unless the watertight test
+    (:func:`hsr.algorithms.bvh._intersect`, Woop, Benthin & Wald 2013) finds the edge
+    values of triangle k0 + i of mixed signs or their sum zero, its misses before any
+    culling. The four triangles are the lanes of ``<4 x double>`` vectors, each lane
+    computed with the scalar test's operations in its order (corners widened to
+    float64, no fused multiply-adds), so a lane is cleared exactly when the scalar test
+    returns its miss there; the caller runs the scalar test on the lanes left (a hit
+    or a culled face; most triangles a ray tests it misses)."""
+    sig = types.int64(tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy)
+
+    def codegen(context, builder, sig, args):
+        array, k0_v, n_v, okx, oky, okz, kx, ky, kz, sx, sy = args
+        k0_v = context.cast(builder, k0_v, sig.args[1], types.intp)
+        n_v = context.cast(builder, n_v, sig.args[2], types.intp)
+        axes = [context.cast(builder, v, t, types.intp)
+                for v, t in zip((kx, ky, kz), sig.args[6:9])]
+        ary = context.make_array(sig.args[0])(context, builder, array)
+        strides = cgutils.unpack_tuple(builder, ary.strides, 3)
+        raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+        element = context.get_value_type(sig.args[0].dtype)
+        last = builder.sub(n_v, _i64(1))
+        rows = []
+        for i in range(4):
+            # Lanes past n repeat the first triangle (cleared below).
+            lane = builder.select(builder.icmp_signed("<=", _i64(i), last), _i64(i), _i64(0))
+            rows.append(builder.mul(builder.add(k0_v, lane), strides[0]))
+
+        def corner(j, axis):
+            """Coordinate ``axis`` of corner j of the four triangles, as float64."""
+            v = ir.Constant(_D4, ir.Undefined)
+            offset = builder.add(builder.mul(_i64(j), strides[1]),
+                                 builder.mul(axis, strides[2]))
+            for i in range(4):
+                p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
+                                    element.as_pointer())
+                x = builder.load(p)
+                if element != ir.DoubleType():
+                    x = builder.fpext(x, ir.DoubleType())
+                v = builder.insert_element(v, x, ir.Constant(_I32, i))
+            return v
+
+        ox, oy, oz = (_splat(builder, x) for x in (okx, oky, okz))
+        shear_x, shear_y = _splat(builder, sx), _splat(builder, sy)
+        zs = [builder.fsub(corner(j, axes[2]), oz) for j in range(3)]
+        xs = [builder.fsub(builder.fsub(corner(j, axes[0]), ox), builder.fmul(shear_x, zs[j]))
+              for j in range(3)]
+        ys = [builder.fsub(builder.fsub(corner(j, axes[1]), oy), builder.fmul(shear_y, zs[j]))
+              for j in range(3)]
+        (ax, bx, cx), (ay, by, cy) = xs, ys
+        u = builder.fsub(builder.fmul(cx, by), builder.fmul(cy, bx))
+        v = builder.fsub(builder.fmul(ax, cy), builder.fmul(ay, cx))
+        w = builder.fsub(builder.fmul(bx, ay), builder.fmul(by, ax))
+        det = builder.fadd(builder.fadd(u, v), w)
+        zero = ir.Constant(_D4, [0.0] * 4)
+
+        def any3(op):
+            return builder.or_(builder.or_(builder.fcmp_ordered(op, u, zero),
+                                           builder.fcmp_ordered(op, v, zero)),
+                               builder.fcmp_ordered(op, w, zero))
+
+        miss = builder.or_(builder.and_(any3("<"), any3(">")),
+                           builder.fcmp_ordered("==", det, zero))
+        bits = builder.zext(builder.bitcast(builder.not_(miss), ir.IntType(4)), _I64)
+        # Only the n lanes that hold the leaf's triangles.
+        return builder.and_(bits, builder.sub(builder.shl(_i64(1), n_v), _i64(1)))
 
     return sig, codegen
 
