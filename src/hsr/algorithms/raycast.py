@@ -86,15 +86,16 @@ NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
 # Packets unless the faces are more than this many a pixel. Neighbouring pixels meet
 # neighbouring triangles (a packet's node reads serve four rays) until the triangles get
-# near a pixel's size, when each ray meets triangles of its own and the interleaved walk,
-# which overlaps their cache misses, wins. Measured with the 8-wide tree (2 threads, min
-# ms of hsr.render packets / interleaved, the benchmark's framed / filling views): the
-# bunny at 1024x1024 (0.07 faces a pixel) 42 / 47 and 72 / 78, at 512x512 (0.26) 13.7 /
-# 13.6 and 22 / 25, at 384x384 (0.47) 8.4 / 8.4 and 13.0 / 13.6; a 250k-face terrain
-# at 1024x1024 (0.24) 22.6 / 22.7 and 126 / 128; the 1M-face terrain at 1920x1080
-# (0.48) 36 / 30 and 212 / 184, at 1024x1024 (0.95) 30 / 25 and 193 / 167 (the 4-wide
-# tree's walks had put the change at 2 faces a pixel).
-PACKET_FACES_PER_PIXEL = 0.4
+# smaller than a pixel, when each ray meets triangles of its own and the interleaved
+# walk, which overlaps their cache misses, wins. Measured with packets testing a node as
+# one vector per ray (2 threads, min ms of hsr.render packets / interleaved, the
+# benchmark's framed / filling views): the 1M-face terrain at 1920x1080 (0.48 faces a
+# pixel) 21 / 26 and 137 / 174, at 1024x1024 (0.95) 24.5 / 24.4 and 126 / 158, at 724x724
+# (1.9) 13.2 / 12.5 and 79 / 82, at 600x600 (2.8) 10.1 / 9.0 and 66 / 59, at 512x512
+# (3.8) 10.7 / 7.9 and 52 / 44; the bunny at 512x512 (0.26) 8.7 / 12.0 and 15 / 23.
+# (Packets testing a box for four rays at a time had put the change lower, at about
+# half a face a pixel.)
+PACKET_FACES_PER_PIXEL = 2
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
