@@ -153,8 +153,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     before the next starts: for coherent rays, which find what they read in cache
     where the ray before left it, switching only costs (the bunny's 1M camera rays,
     ``occluded``: 35 ms interleaved, 29 ms not). Each ray's steps are the one-ray
-    walk's either way, so are its answers. (Coherent rays as many as four a triangle go
-    through :func:`trace_packets` instead.)"""
+    walk's either way, so are its answers. (Coherent rays that are many for the
+    triangles, a camera's pixels, go through :func:`trace_packets` instead: RayScene
+    sends them there from four rays a face, the ray caster up to two faces a pixel.)"""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
