@@ -587,13 +587,16 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 2, n))
     for mode in (0, 1, 2):
         answers = []
-        for kernel, last in ((trace_range, (False,)), (trace_packets, ()),
-                             (trace_range, (True,))):
+        # Each ray walked alone (ranges of one ray), the packets, the interleaved walk.
+        for kernel, rows in ((trace_range, [(i, i + 1) for i in range(n)]),
+                             (trace_packets, [(0, n)]), (trace_range, [(0, n)])):
             out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                    np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
-            kernel(0, n, origins, directions, t_min, t_max, mode, None, bvh.corners,
-                   bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
-                   bvh.wide_depth, rays.face_offsets, *out, *last)
+            for r_lo, r_hi in rows:
+                kernel(r_lo, r_hi, origins, directions, t_min, t_max, mode, None,
+                       bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
+                       bvh.root_ref, bvh.root_count, bvh.wide_depth, rays.face_offsets,
+                       *out)
             answers.append(out if mode == 0 else out[5:])
         for single, packet, interleaved in zip(*answers):
             np.testing.assert_array_equal(single, packet)
@@ -605,7 +608,7 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     """trace_range walks SLOTS rays in turn, switching at leaves and at wide nodes past
     HOT_NODES (the bunny's tree has more): every ray of a long chunk (slots refilled
     thousands of times, a last round part-full) gets, in all three queries, exactly
-    what it gets walked alone and what the walk without interleaving gives, with
+    what it gets walked alone (a range of one ray), with
     random and axis-parallel rays (the careful box test) mixed and per-ray intervals;
     a sample's any-hit answers equal brute force."""
     from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
@@ -628,24 +631,22 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     t_max = np.where(rng.random(n) < 0.5, np.inf, t_min + rng.uniform(0, 2, n))
     sample = rng.choice(n, 150, replace=False)
 
-    def walk(mode, rows, interleave):
+    def walk(mode, rows):
         out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
                np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
         for r_lo, r_hi in rows:
             trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, None,
                         bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
                         bvh.root_ref, bvh.root_count, bvh.wide_depth, rays.face_offsets,
-                        *out, interleave)
+                        *out)
         return out if mode == 0 else out[5:]
 
     for mode in (0, 1, 2):
-        together = walk(mode, [(0, n)], True)
-        in_turn = walk(mode, [(0, n)], False)
-        alone = walk(mode, [(i, i + 1) for i in sample], True)
+        together = walk(mode, [(0, n)])
+        alone = walk(mode, [(i, i + 1) for i in range(n)])
         assert (together[0] != 7).all()  # every ray written
-        for a, b, c in zip(together, in_turn, alone):
+        for a, b in zip(together, alone):
             np.testing.assert_array_equal(a, b)
-            np.testing.assert_array_equal(a[sample], c[sample])
         if mode == 1:
             counts = [brute_force(bunny.positions[bunny.faces], origins[i:i + 1],
                                   directions[i:i + 1], t_min[i], t_max[i])[3][0]
@@ -684,7 +685,7 @@ def test_camera_rays_cut_short_answer_occluded_as_brute_force(bunny):
     trace_range(0, n, origins, directions, np.zeros(1), t_max, ANY, None, bvh.corners,
                 bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
                 bvh.wide_depth, rays.face_offsets, np.empty(0), np.empty(0, np.int32),
-                np.empty(0, np.int32), np.empty((0, 2)), np.empty((0, 3)), plain, False)
+                np.empty(0, np.int32), np.empty((0, 2)), np.empty((0, 3)), plain)
     sample = rng.choice(n, 200, replace=False)
     hit = [brute_force(bunny.positions[bunny.faces], origins[i:i + 1], directions[i:i + 1],
                        0.0, t_max[i])[3][0] > 0 for i in sample]

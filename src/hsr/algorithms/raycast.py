@@ -343,7 +343,7 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
             made, problem, _ = trace_range(
                 0, n, origins, directions, t_min, t_max, NEAREST, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, no_offsets, out_t,
-                out_face, out_object, out_uv, no_normal, no_count, True)
+                out_face, out_object, out_uv, no_normal, no_count)
         if problem:
             return -1
         tests += made

@@ -115,7 +115,7 @@ RECORD_AHEAD = 16
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
-                out_face, out_object, out_uv, out_normal, out_count, interleave):
+                out_face, out_object, out_uv, out_normal, out_count):
     """Rays ``lo .. hi - 1`` through the 8-wide BVH of :func:`hsr.algorithms.bvh.widen`
     in the layout of :func:`hsr.algorithms.bvh.node_records` (the root a wide node when
     ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
@@ -143,17 +143,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     Each ray's walk is ordered, nearest entered box first (the step at a wide node is
     written out below; :func:`hsr.algorithms.bvh.next_box` pops), pruned by the
     nearest hit so far (``mode``
-    NEAREST), by ``t_max`` otherwise. With ``interleave``, :data:`SLOTS` rays are
-    walked in turn, each with its own stack and state: when a ray's next step reads a
-    leaf's corners or a wide node past the top of the tree (:data:`HOT_NODES`), that
-    memory is prefetched (:func:`hsr.algorithms.simd.prefetch`) and the next ray takes
-    a step, so the reads of several walks are under way at once instead of one after
-    another (the interleaving of independent pointer chases of Kocberber et al. 2015,
-    "Asynchronous memory access chaining"). Without, each ray is walked to its end
-    before the next starts: for coherent rays, which find what they read in cache
-    where the ray before left it, switching only costs (the bunny's 1M camera rays,
-    ``occluded``: 35 ms interleaved, 29 ms not). Each ray's steps are the one-ray
-    walk's either way, so are its answers. (Coherent rays that are many for the
+    NEAREST), by ``t_max`` otherwise. :data:`SLOTS` rays are walked in turn, each with
+    its own stack and state: when a ray's next step reads a leaf's corners or a wide
+    node past the top of the tree (:data:`HOT_NODES`), that memory is prefetched
+    (:func:`hsr.algorithms.simd.prefetch`) and the next ray takes a step, so the reads
+    of several walks are under way at once instead of one after another (the
+    interleaving of independent pointer chases of Kocberber et al. 2015, "Asynchronous
+    memory access chaining"). Each ray's steps are those of its walk alone (a range of
+    one ray), so are its answers. (Coherent rays that are many for the
     triangles, a camera's pixels, go through :func:`trace_packets` instead: RayScene
     sends them there from four rays a face, the ray caster up to two faces a pixel.)"""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
@@ -253,7 +250,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             lane = keys[0] & 7
                         ref, n = (np.int64(node_link[ref, REF + lane]),
                                   np.int64(node_link[ref, COUNT_AT + lane]))
-                        if interleave and (n != 0 or ref >= HOT_NODES):
+                        if n != 0 or ref >= HOT_NODES:
                             break
                         continue
                 else:  # a leaf: slots ref .. ref + n - 1
@@ -319,7 +316,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 if not walking:
                     done = True
                     break
-                if interleave and (n != 0 or ref >= HOT_NODES):
+                if n != 0 or ref >= HOT_NODES:
                     break
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top

@@ -161,7 +161,7 @@ class RayScene:
         # close) find in cache what the ray before read, unless the triangles are about
         # as many as the rays (each ray then meets triangles of its own). With four
         # rays a triangle or more, they go through the walk in packets of four. Other
-        # rays go through trace_range eight at a time per thread (its interleave),
+        # rays go through trace_range, eight at a time per thread (interleaved),
         # which hides cache misses. Measured, 1M camera rays, one thread, ms for
         # packets / interleaved: the bunny's cast 52 / 68, occluded 45 / 59 (49 walked
         # one by one with the last occluder tested first, which this path had until
@@ -170,8 +170,7 @@ class RayScene:
         # (one ray a face) cast 48 / 47, occluded 45 / 41, count 120 / 89. The answers
         # are the same on every path.
         coherent = _coherent(origins, directions, self.scene_size)
-        kernel, extra = ((trace_packets, ()) if coherent and 4 * self.bvh.n_faces <= n
-                         else (trace_range, (True,)))
+        kernel = trace_packets if coherent and 4 * self.bvh.n_faces <= n else trace_range
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             bvh = self.bvh
@@ -183,7 +182,7 @@ class RayScene:
                 t0, t1, mode, None, bvh.corners, bvh.leaf_face, bvh.node_box,
                 bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth,
                 self.face_offsets, *outputs,
-                *extra, on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
+                on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
         # The rays are checked chunk by chunk as they are traced (their data is in cache
         # then); the first bad ray of all is reported, whatever was traced.
         bad = [(ray, problem) for _, problem, ray in results if problem]
