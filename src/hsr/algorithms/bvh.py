@@ -267,60 +267,133 @@ def _up32(x):
 
 
 @njit(cache=True, nogil=True)
+def _collapse_plan(node_min, node_max, node_left):
+    """The 8-wide collapse of the binary tree of least expected node visits (Ylitie,
+    Karras and Laine 2017, "Efficient incoherent ray traversal on GPUs through
+    compressed wide BVHs", sec. 4.1, by dynamic programming from the leaves up).
+
+    Returns (order, second, choice): ``order`` the binary nodes reached from the root
+    in depth-first order (a node, its first child's subtree, its second's), ``second[p]``
+    the position in ``order`` of the second child of ``order[p]`` (the first is at
+    p + 1; -1 for a leaf),
+    and ``choice[p, j - 1]`` how the subtree at ``p`` best fills at most j lanes: 0 for
+    one lane (the node itself: a leaf, or a wide node of its own), else the lanes given
+    to its first child (the rest go to the second).
+
+    Cost of a collapse: the surface area of each wide node's box, summed (the rays
+    that reach a node in proportion, MacDonald and Booth 1990); every binary leaf is a
+    lane of some wide node whichever the collapse, so the leaves add the same to each
+    and drop out. The greedy collapse (expand the child of largest area while a node
+    has room, Wald et al. 2008) fills the top of the tree and leaves the bottom, where
+    most nodes are, about half empty: 4.2 lanes a node for a 1M-face terrain."""
+    n = node_left.shape[0]
+    # Depth-first (pre-)order, the order the build wrote the nodes in, so the reads
+    # below run through memory (breadth-first, 65 ms for a 1M-face terrain's plan).
+    order = np.empty(n, dtype=np.int64)
+    second = np.empty(n, dtype=np.int64)  # position of the second child (-1: a leaf)
+    stack = np.empty(n, dtype=np.int64)
+    parent = np.empty(n, dtype=np.int64)
+    stack[0], parent[0], top, tail = 0, -1, 1, 0
+    while top > 0:
+        top -= 1
+        b, up = stack[top], parent[top]
+        if up >= 0:
+            second[up] = tail  # (the first child is popped right after its parent)
+        order[tail] = b
+        second[tail] = -1
+        if node_left[b] >= 0:
+            stack[top], parent[top] = node_left[b] + 1, tail
+            stack[top + 1], parent[top + 1] = node_left[b], -1
+            top += 2
+        tail += 1
+    cost = np.empty((tail, LANES))
+    choice = np.zeros((tail, LANES), dtype=np.int8)
+    leaves = np.empty(tail, dtype=np.int64)  # binary leaves in the subtree
+    for p in range(tail - 1, -1, -1):
+        if second[p] < 0:
+            leaves[p] = 1
+            cost[p, :] = 0.0  # a leaf lane: the same in every collapse
+            continue
+        a, b = p + 1, second[p]
+        la, lb = leaves[a], leaves[b]
+        leaves[p] = la + lb
+        # The two subtrees in at most j lanes (a subtree of L leaves uses at most L).
+        for j in range(2, LANES + 1):
+            best, pick = np.inf, 1
+            for k in range(max(1, j - lb), min(j - 1, la) + 1):
+                c = cost[a, k - 1] + cost[b, j - k - 1]
+                if c < best:
+                    best, pick = c, k
+            if j > 2 and cost[p, j - 2] <= best:  # fewer lanes do as well
+                best, pick = cost[p, j - 2], choice[p, j - 2]
+            cost[p, j - 1], choice[p, j - 1] = best, pick
+        b_ = order[p]
+        dx = node_max[b_, 0] - node_min[b_, 0]
+        dy = node_max[b_, 1] - node_min[b_, 1]
+        dz = node_max[b_, 2] - node_min[b_, 2]
+        # One lane: the node made a wide node of its own, holding its subtree in eight;
+        # with fewer lanes to give, that may beat splitting them between the children.
+        cost[p, 0], choice[p, 0] = dx * dy + dy * dz + dz * dx + cost[p, LANES - 1], 0
+        for j in range(2, LANES + 1):
+            if cost[p, 0] <= cost[p, j - 1]:
+                cost[p, j - 1], choice[p, j - 1] = cost[p, 0], 0
+    return order[:tail], second[:tail], choice
+
+
+@njit(cache=True, nogil=True)
 def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_link):
-    """The binary BVH collapsed into a LANES-wide one (each wide node takes the two
-    children of a binary node and, while it has room, replaces the inner child of
-    largest surface area by that child's two children: Wald et al. 2008, "Getting rid of
-    packets"), written into the records of :func:`node_records` (``node_box``,
-    ``node_link``, with room for a wide node per inner binary node). A wide node's lanes
-    are its children: boxes as [lo_x.., lo_y.., lo_z.., hi_x.., hi_y.., hi_z..] rounded
-    outwards to float32 (an empty lane's box lies at +inf, so every ray misses it);
-    references a leaf's first slot with its count > 0, a wide node's number with count
-    0, or count -1 for an empty lane. Returns (wide nodes, deepest wide level). The
-    root must be an inner node.
+    """The binary BVH collapsed into a LANES-wide one (the collapse of
+    :func:`_collapse_plan`: least surface area of wide nodes), written into the records
+    of :func:`node_records` (``node_box``, ``node_link``, with room for a wide node per
+    inner binary node). A wide node's lanes are its children: boxes as [lo_x.., lo_y..,
+    lo_z.., hi_x.., hi_y.., hi_z..] rounded outwards to float32 (an empty lane's box
+    lies at +inf, so every ray misses it); references a leaf's first slot with its
+    count > 0, a wide node's number with count 0, or count -1 for an empty lane.
+    Returns (wide nodes, deepest wide level). The root must be an inner node.
 
     Wide nodes are numbered in level order (the root, then its children, then theirs),
     a node's wide children next to each other: the first few thousand are the top of
     the tree, which every walk passes through, and :func:`hsr.algorithms.rays.trace_range`
     counts on that (``HOT_NODES``). Each record is written once, as its node is made."""
+    order, second, choice = _collapse_plan(node_min, node_max, node_left)
     n = node_box.shape[0]
-    todo_node = np.empty(n, dtype=np.int64)  # binary node -> its wide node, to fill
-    todo_wide = np.empty(n, dtype=np.int64)
+    todo_pos = np.empty(n, dtype=np.int64)  # binary node (its position in order) ->
+    todo_wide = np.empty(n, dtype=np.int64)  # its wide node, to fill
     todo_level = np.empty(n, dtype=np.int64)
-    todo_node[0], todo_wide[0], todo_level[0] = 0, 0, 0
+    todo_pos[0], todo_wide[0], todo_level[0] = 0, 0, 0
     # A queue (first in, first out): level order. Each binary node enters it once.
     head, top, n_wide, depth = 0, 1, 1, 0
     kids = np.empty(LANES, dtype=np.int64)
+    split_pos = np.empty(2 * LANES, dtype=np.int64)  # (subtree, lanes) still to split
+    split_j = np.empty(2 * LANES, dtype=np.int64)
     while head < top:
-        b, w, level = todo_node[head], todo_wide[head], todo_level[head]
+        p, w, level = todo_pos[head], todo_wide[head], todo_level[head]
         head += 1
         depth = max(depth, level)
-        kids[0], kids[1] = node_left[b], node_left[b] + 1
-        m = 2
-        while m < LANES:
-            pick, best = -1, -1.0
-            for j in range(m):
-                c = kids[j]
-                if node_left[c] >= 0:
-                    dx = node_max[c, 0] - node_min[c, 0]
-                    dy = node_max[c, 1] - node_min[c, 1]
-                    dz = node_max[c, 2] - node_min[c, 2]
-                    area = dx * dy + dy * dz + dz * dx
-                    if area > best:
-                        pick, best = j, area
-            if pick < 0:
-                break
-            c = kids[pick]
-            kids[pick] = node_left[c]
-            kids[m] = node_left[c] + 1
-            m += 1
+        # The node's two subtrees in eight lanes, split as the plan says.
+        k = choice[p, LANES - 1]
+        split_pos[0], split_j[0] = second[p], LANES - k
+        split_pos[1], split_j[1] = p + 1, k
+        sp, m = 2, 0
+        while sp > 0:
+            sp -= 1
+            q, j = split_pos[sp], split_j[sp]
+            c = choice[q, j - 1]
+            if c == 0:
+                kids[m] = q
+                m += 1
+            else:
+                split_pos[sp], split_j[sp] = second[q], j - c
+                split_pos[sp + 1], split_j[sp + 1] = q + 1, c
+                sp += 2
         for lane in range(LANES):
             if lane >= m:
                 for a in range(6):
                     node_box[w, LANES * a + lane] = np.inf
                 node_link[w, REF + lane], node_link[w, COUNT_AT + lane] = 0, -1
                 continue
-            c = kids[lane]
+            q = kids[lane]
+            c = order[q]
             for a in range(3):
                 node_box[w, LANES * a + lane] = _down32(node_min[c, a])
                 node_box[w, LANES * (3 + a) + lane] = _up32(node_max[c, a])
@@ -329,7 +402,7 @@ def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_
                 node_link[w, COUNT_AT + lane] = node_count[c]
             else:
                 node_link[w, REF + lane], node_link[w, COUNT_AT + lane] = n_wide, 0
-                todo_node[top], todo_wide[top], todo_level[top] = c, n_wide, level + 1
+                todo_pos[top], todo_wide[top], todo_level[top] = q, n_wide, level + 1
                 top += 1
                 n_wide += 1
     return n_wide, depth
