@@ -19,8 +19,8 @@ alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer 
 (below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
 (``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``
 (``--only-batch`` runs just that). ``--memory`` prints instead the resident memory a
-ray scene adds per face, hsr's and Open3D's, each built in a fresh process. Runs on
-demand, never in the test suite; a missing peer is left out.
+ray scene adds per face, hsr's and Open3D's, each built in a fresh process (the median
+of three). Runs on demand, never in the test suite; a missing peer is left out.
 """
 
 from __future__ import annotations
@@ -190,6 +190,14 @@ print((rss() - before) / mesh.n_faces)
     return float(done.stdout.split()[-1]) if done.returncode == 0 else None
 
 
+MEMORY_RUNS = 3
+
+
+def _median(values):
+    """The median of the readings, None if any is missing."""
+    return None if None in values else float(np.median(values))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="*", default=[
@@ -211,7 +219,10 @@ def main(argv=None):
         print("| model | resident bytes per face: hsr RayScene | Open3D | hsr / Open3D |")
         print("|---|---|---|---|")
         for spec in args.models:
-            mine, theirs = scene_memory(spec, "hsr"), scene_memory(spec, "open3d")
+            # The median of three fresh processes each: one reading of a small scene
+            # moves by a tenth (allocator and thread arenas, a megabyte either way).
+            mine, theirs = (_median([scene_memory(spec, peer) for _ in range(MEMORY_RUNS)])
+                            for peer in ("hsr", "open3d"))
             ratio = f"{mine / theirs:.2f}" if mine and theirs else "-"
             cells = ("-" if b is None else f"{b:.0f}" for b in (mine, theirs))
             print(f"| {os.path.basename(spec)} | {' | '.join(cells)} | {ratio} |")
