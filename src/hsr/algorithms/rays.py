@@ -446,6 +446,18 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             lane = keys[j] & 7
                             stack_ref[top] = node_link[ref, REF + lane]
                             stack_count[top] = node_link[ref, COUNT_AT + lane]
+                            # A box pushed is often walked next by another of the
+                            # packet's rays: its memory is fetched now, while the nearest
+                            # is walked (one thread, ms min of 4 alternating runs: a 1M
+                            # terrain's filling rays 198 -> 186, its camera rays 46.8 ->
+                            # 43.3; the bunny's 50.7 -> 49.9; in trace_range, whose rays
+                            # walk alone, it lost on the terrain's rays).
+                            if stack_count[top] > 0:
+                                for offset in range(0, stack_count[top] * 9 * tris.itemsize, 64):
+                                    prefetch(tris, stack_ref[top], offset)
+                            elif stack_ref[top] >= HOT_NODES:
+                                for offset in range(0, 4 * NODE_WORDS, 64):
+                                    prefetch(node_box, stack_ref[top], offset)
                             stack_rays[top] = (mask >> (4 * lane)) & 15
                             stack_t[top, 0], stack_t[top, 1] = entries[0, lane], entries[1, lane]
                             stack_t[top, 2], stack_t[top, 3] = entries[2, lane], entries[3, lane]
