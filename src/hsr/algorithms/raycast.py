@@ -85,17 +85,19 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
 # Packets unless the faces are more than this many a pixel. Neighbouring pixels meet
-# neighbouring triangles (a packet's node reads serve four rays) until the triangles get
-# smaller than a pixel, when each ray meets triangles of its own and the interleaved
-# walk, which overlaps their cache misses, wins. Measured with packets testing a node as
-# one vector per ray (2 threads, min ms of hsr.render packets / interleaved, the
-# benchmark's framed / filling views): the 1M-face terrain at 1920x1080 (0.48 faces a
-# pixel) 21 / 26 and 137 / 174, at 1024x1024 (0.95) 24.5 / 24.4 and 126 / 158, at 724x724
-# (1.9) 13.2 / 12.5 and 79 / 82, at 600x600 (2.8) 10.1 / 9.0 and 66 / 59, at 512x512
-# (3.8) 10.7 / 7.9 and 52 / 44; the bunny at 512x512 (0.26) 8.7 / 12.0 and 15 / 23.
-# (Packets testing a box for four rays at a time had put the change lower, at about
-# half a face a pixel.)
-PACKET_FACES_PER_PIXEL = 2
+# neighbouring triangles (a packet's node reads serve four rays, and what it pushes is
+# fetched while it walks the nearest box) until the triangles get much smaller than a
+# pixel, when each ray meets triangles of its own and the interleaved walk, which
+# overlaps their cache misses, wins. Measured with the least-cost 8-wide tree and
+# packets fetching what they push (2 threads, min ms of hsr.render packets /
+# interleaved, the benchmark's filling / framed views): the 1M-face terrain at
+# 1920x1080 (0.48 faces a pixel) filling 123 / 189, at 1024x1024 (0.95) 123 / 156, at
+# 724x724 (1.9) 67 / 83, at 600x600 (2.8) 52 / 59, at 512x512 (3.8) 42 / 45, at 400x400
+# (6.3) 38.0 / 38.2 and framed 7.5 / 7.3, at 300x300 (11) 29.0 / 24.9 and 5.2 / 4.5; the
+# bunny filling 256x256 (1.1) 7.6 / 9.4, 128x128 (4.2) 3.2 / 3.5, 96x96 (7.5) 2.4 / 2.3.
+# (With the greedy tree and no fetching the change was at about 2 faces a pixel; with
+# packets testing a box for four rays at a time, at about half a face.)
+PACKET_FACES_PER_PIXEL = 5
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
