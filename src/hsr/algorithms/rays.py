@@ -231,6 +231,24 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         if mask & (mask - 1) == 0:
                             # Most nodes a random ray visits enter one box or none.
                             lane = lowest_bit(mask)
+                        elif mode != NEAREST:
+                            # Any hit ends an `occluded` walk, and `count` walks every
+                            # entered box: the order does not matter (Embree's any-hit
+                            # walk does not sort either). The lowest lane walked next.
+                            # One thread, ms min of three alternating runs: count, the
+                            # terrain's random rays 147.6 -> 143.4, camera rays 84.8 ->
+                            # 79.9, the bunny's 110.8 -> 108.6 and 103.8 -> 101.4;
+                            # occluded within 5% either way. (Packets, which fetch what
+                            # they push, lost 5-13% on the terrain without their order.)
+                            lane = lowest_bit(mask)
+                            rest = mask & (mask - 1)
+                            while rest != 0:
+                                other = lowest_bit(rest)
+                                rest &= rest - 1
+                                stack_ref[top] = node_link[ref, REF + other]
+                                stack_count[top] = node_link[ref, COUNT_AT + other]
+                                stack_t[top] = keys[other]
+                                top += 1
                         else:
                             # The entered lanes' keys nearest first in keys[0 .. m].
                             m = bit_count(mask) - 1  # the entered lanes pushed
