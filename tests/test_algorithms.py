@@ -493,6 +493,37 @@ def test_wide_tree_is_the_least_cost_collapse_of_the_binary_tree(seed):
     assert total <= _least_collapse_cost(bvh) * (1 + 1e-6)
 
 
+@pytest.mark.parametrize("copies", [5, 6, 8])
+def test_few_overlapping_faces_make_a_wide_root_of_their_leaves(copies):
+    """A mesh of a few copies of one triangle: the binary root splits them in two (more
+    than LEAF_SIZE), and a single leaf of them all would cost less than any split
+    (the boxes coincide), but the root of the walked tree is a wide node: it takes the
+    best split into eight lanes, not the plan's one-lane choice (which once stood for
+    it: the first child got no lanes, right only because lane count 0 read the plan's
+    last column). Every slot in one leaf, and the walks answer as the naive loop."""
+    tri = np.array([[0.0, 0.0, -5.0], [1.0, 0.0, -5.0], [0.0, 1.0, -5.0]])
+    mesh = hsr.Mesh(np.concatenate([tri] * copies), np.arange(3 * copies).reshape(-1, 3))
+    bvh = rc.build(mesh, threads=1)
+    assert bvh.node_left[0] >= 0 and bvh.root_count == 0
+    _, _, choice, split = rc._collapse_plan(
+        bvh.node_min.astype(np.float64), bvh.node_max.astype(np.float64),
+        bvh.node_left.astype(np.int64), bvh.node_count.astype(np.int64))
+    assert choice[0, rc.LANES - 1] == -1 and 1 <= split[0] < rc.LANES
+    link = bvh.node_link[:, rc.REF:]
+    refs, counts = link[:, :rc.LANES], link[:, rc.LANES:]
+    slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
+                                                                counts[counts > 0])])
+    assert np.array_equal(np.sort(slots), np.arange(copies))
+    cam = hsr.Camera(eye=(0.25, 0.25, -4.0), target=(0.25, 0.25, -5.0), up=(0, 1, 0),
+                     fov_y=60, near=0.1, far=100)
+    for depth_func in ("less", "lequal"):  # ties: the first face, or the last
+        a = hsr.render(mesh, cam, 32, 24, algorithm="raycast", options={"bvh": bvh},
+                       depth_func=depth_func)
+        b = hsr.render(mesh, cam, 32, 24, algorithm="raycast", options={"accel": "none"},
+                       depth_func=depth_func)
+        assert np.array_equal(a.face_id, b.face_id) and (a.face_id >= 0).sum() > 100
+
+
 def test_wide_tree_fills_its_nodes():
     """A height field's tree: the collapse of least cost fills the wide nodes (the
     greedy one, expanding the largest child while a node had room, left the bottom

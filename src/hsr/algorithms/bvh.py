@@ -283,13 +283,14 @@ def _collapse_plan(node_min, node_max, node_left, node_count):
     2017, "Efficient incoherent ray traversal on GPUs through compressed wide BVHs",
     sec. 4.1, by dynamic programming from the leaves up).
 
-    Returns (order, second, choice): ``order`` the binary nodes reached from the root
+    Returns (order, second, choice, split): ``order`` the binary nodes reached from the root
     in depth-first order (a node, its first child's subtree, its second's), ``second[p]``
     the position in ``order`` of the second child of ``order[p]`` (the first is at
     p + 1; -1 for a leaf), and ``choice[p, j - 1]`` how the subtree at ``p`` best fills
     at most j lanes: 0 for one lane, the node itself (a leaf, or a wide node of its
     own), -1 for one lane that is a leaf of all its triangles (at most LEAF_MAX), else
-    the lanes given to its first child (the rest go to the second).
+    the lanes given to its first child (the rest go to the second); ``split[p]`` the
+    lanes given to the first child when the node at ``p`` is a wide node.
 
     Cost of a collapse (the surface area heuristic, MacDonald and Booth 1990: the rays
     that reach a box in proportion to its area): C_NODE times the area of each wide
@@ -320,6 +321,7 @@ def _collapse_plan(node_min, node_max, node_left, node_count):
         tail += 1
     cost = np.empty((tail, LANES))
     choice = np.zeros((tail, LANES), dtype=np.int8)
+    split = np.zeros(tail, dtype=np.int8)  # a wide node's split of its eight lanes
     leaves = np.empty(tail, dtype=np.int64)  # binary leaves in the subtree
     for p in range(tail - 1, -1, -1):
         b_ = order[p]
@@ -345,16 +347,19 @@ def _collapse_plan(node_min, node_max, node_left, node_count):
             if j > 2 and cost[p, j - 2] <= best:  # fewer lanes do as well
                 best, pick = cost[p, j - 2], choice[p, j - 2]
             cost[p, j - 1], choice[p, j - 1] = best, pick
+        split[p] = choice[p, LANES - 1]
         # One lane: the node made a wide node of its own, holding its subtree in eight,
         # or a leaf of all its triangles; with fewer lanes to give, that may beat
-        # splitting them between the children.
+        # splitting them between the children. (Even in eight lanes a leaf may: a few
+        # triangles whose boxes overlap; split keeps the eight-lane split for the
+        # node made a wide node anyway, the root.)
         cost[p, 0], choice[p, 0] = area * C_NODE + cost[p, LANES - 1], 0
         if node_count[b_] <= LEAF_MAX and as_leaf < cost[p, 0]:
             cost[p, 0], choice[p, 0] = as_leaf, -1
         for j in range(2, LANES + 1):
             if cost[p, 0] <= cost[p, j - 1]:
-                cost[p, j - 1], choice[p, j - 1] = cost[p, 0], 0
-    return order[:tail], second[:tail], choice
+                cost[p, j - 1], choice[p, j - 1] = cost[p, 0], choice[p, 0]
+    return order[:tail], second[:tail], choice, split
 
 
 @njit(cache=True, nogil=True)
@@ -373,7 +378,7 @@ def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_
     a node's wide children next to each other: the first few thousand are the top of
     the tree, which every walk passes through, and :func:`hsr.algorithms.rays.trace_range`
     counts on that (``HOT_NODES``). Each record is written once, as its node is made."""
-    order, second, choice = _collapse_plan(node_min, node_max, node_left, node_count)
+    order, second, choice, split = _collapse_plan(node_min, node_max, node_left, node_count)
     n = node_box.shape[0]
     todo_pos = np.empty(n, dtype=np.int64)  # binary node (its position in order) ->
     todo_wide = np.empty(n, dtype=np.int64)  # its wide node, to fill
@@ -389,7 +394,7 @@ def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_
         head += 1
         depth = max(depth, level)
         # The node's two subtrees in eight lanes, split as the plan says.
-        k = choice[p, LANES - 1]
+        k = split[p]
         split_pos[0], split_j[0] = second[p], LANES - k
         split_pos[1], split_j[1] = p + 1, k
         sp, m = 2, 0
