@@ -112,6 +112,18 @@ RECORD_AHEAD = 16
 
 # error_model "numpy": IEEE division, without the zero test Numba adds to each division
 # under Python's rules (every divisor in the walks is non-zero or checked first).
+@njit(cache=True, nogil=True, inline="always")
+def _fetch_box(node_box, tris, ref, n):
+    """Prefetch the memory of the walk's box (ref, n): a wide node's 256-byte record
+    (n == 0), or a leaf's n triangles' corners from slot ref."""
+    if n == 0:
+        for offset in range(0, 4 * NODE_WORDS, 64):
+            prefetch(node_box, ref, offset)
+    else:
+        for offset in range(0, n * 9 * tris.itemsize, 64):
+            prefetch(tris, ref, offset)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
@@ -152,7 +164,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     memory access chaining"). Each ray's steps are those of its walk alone (a range of
     one ray), so are its answers. (Coherent rays that are many for the
     triangles, a camera's pixels, go through :func:`trace_packets` instead: RayScene
-    sends them there from four rays a face, the ray caster up to two faces a pixel.)"""
+    sends them there from four rays a face, the ray caster up to
+    :data:`hsr.algorithms.raycast.PACKET_FACES_PER_PIXEL` faces a pixel.)"""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
@@ -339,12 +352,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
-                if n == 0:
-                    for offset in range(0, 4 * NODE_WORDS, 64):
-                        prefetch(node_box, ref, offset)
-                else:
-                    for offset in range(0, n * 9 * tris.itemsize, 64):
-                        prefetch(tris, ref, offset)
+                _fetch_box(node_box, tris, ref, n)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
@@ -470,12 +478,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             # terrain's filling rays 198 -> 186, its camera rays 46.8 ->
                             # 43.3; the bunny's 50.7 -> 49.9; in trace_range, whose rays
                             # walk alone, it lost on the terrain's rays).
-                            if stack_count[top] > 0:
-                                for offset in range(0, stack_count[top] * 9 * tris.itemsize, 64):
-                                    prefetch(tris, stack_ref[top], offset)
-                            elif stack_ref[top] >= HOT_NODES:
-                                for offset in range(0, 4 * NODE_WORDS, 64):
-                                    prefetch(node_box, stack_ref[top], offset)
+                            if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
+                                _fetch_box(node_box, tris, stack_ref[top], stack_count[top])
                             stack_rays[top] = (mask >> (4 * lane)) & 15
                             stack_t[top, 0], stack_t[top, 1] = entries[0, lane], entries[1, lane]
                             stack_t[top, 2], stack_t[top, 3] = entries[2, lane], entries[3, lane]
