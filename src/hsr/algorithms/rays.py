@@ -113,15 +113,18 @@ RECORD_AHEAD = 16
 # error_model "numpy": IEEE division, without the zero test Numba adds to each division
 # under Python's rules (every divisor in the walks is non-zero or checked first).
 @njit(cache=True, nogil=True, inline="always")
-def _fetch_box(node_box, tris, ref, n):
+def _fetch_box(node_box, tris, leaf_face, ref, n, faces):
     """Prefetch the memory of the walk's box (ref, n): a wide node's 256-byte record
-    (n == 0), or a leaf's n triangles' corners from slot ref."""
+    (n == 0), or a leaf's n triangles' corners from slot ref, and their face ids if
+    ``faces`` (the nearest hit's walk reads the id of each hit it finds)."""
     if n == 0:
         for offset in range(0, 4 * NODE_WORDS, 64):
             prefetch(node_box, ref, offset)
     else:
         for offset in range(0, n * 9 * tris.itemsize, 64):
             prefetch(tris, ref, offset)
+        if faces:
+            prefetch(leaf_face, ref, 0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -352,7 +355,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
-                _fetch_box(node_box, tris, ref, n)
+                _fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
@@ -479,7 +482,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             # 43.3; the bunny's 50.7 -> 49.9; in trace_range, whose rays
                             # walk alone, it lost on the terrain's rays).
                             if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
-                                _fetch_box(node_box, tris, stack_ref[top], stack_count[top])
+                                _fetch_box(node_box, tris, leaf_face, stack_ref[top],
+                                           stack_count[top], mode == NEAREST)
                             stack_rays[top] = (mask >> (4 * lane)) & 15
                             stack_t[top, 0], stack_t[top, 1] = entries[0, lane], entries[1, lane]
                             stack_t[top, 2], stack_t[top, 3] = entries[2, lane], entries[3, lane]
