@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numba import njit
 from test_zbuffer_reference import small_scene
 
 import hsr
@@ -16,6 +17,7 @@ from conftest import against_zbuffer, coplanar_soup
 from hsr import scenes
 from hsr.algorithms import ALGORITHMS
 from hsr.algorithms.fragments import face_barycentrics
+from hsr.algorithms.rays import _clip_zw, _depth32, _t_bound
 from reference import ambiguous_pixels, compare, reference_render
 
 W, H = 96, 72
@@ -194,6 +196,70 @@ def test_bvh_ray_caster_equals_the_naive_loop_on_random_soups(seed, n, cull, fun
     state = hsr.RenderState(cull=cull, depth_func=func, front_face=front)
     naive, bvh = _naive_and_bvh(scene, cam, width, height, state)
     _assert_same_hits(naive, bvh)
+
+
+@njit  # not cached: a cache would not see a change to the inlined _t_bound
+def _bound_misses(rank, o, d, ts):
+    """Per hit parameter t of the ray o + t d: -1 if the ray caster's bound on it
+    (_t_bound) holds, else 0 (the bound is before t) or 1 (just past the bound the
+    float32 window depth is as near as the hit's: a hit there could rank first but
+    would be pruned); and the bounds."""
+    zc0, zc1, wc0, wc1 = _clip_zw(rank, o[0], o[1], o[2], d[0], d[1], d[2])
+    out, bounds = np.full(len(ts), -1), np.empty(len(ts))
+    for i in range(len(ts)):
+        t = ts[i]
+        z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+        bound = _t_bound(t, z, zc0, zc1, wc0, wc1, rank)
+        bounds[i] = bound
+        past = np.nextafter(bound, np.inf)
+        if bound < t:
+            out[i] = 0
+        elif past <= 1.0 and not _depth32(past, zc0, zc1, wc0, wc1, rank[8], rank[9]) > z:
+            out[i] = 1
+    return out, bounds
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), ratio=st.sampled_from([1.01, 2.0, 30.0, 120.0, 1e4,
+                                                               1e7]),
+       ortho=st.booleans(), depth_range=st.sampled_from([(0.0, 1.0), (0.2, 0.7), (0.0, 1e-3),
+                                                         (0.999, 1.0)]))
+def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ortho,
+                                                                depth_range):
+    """The ray caster prunes a pixel ray's walk past the bound of its best hit
+    (hsr.algorithms.rays._t_bound): no point past it may have a float32 window depth
+    as near as the hit's (a tie, which submission order decides, or nearer). Checked
+    with the walk's own depth arithmetic on the rays the ray caster makes, for hits
+    all along random pixel rays, with far / near from 1.01 to 1e7 (the rays' tie reach
+    where it is small enough, else solving at each hit), perspective and orthographic,
+    and depth ranges wide and narrow. Where the reach is used the bound stays within
+    REACH_MAX of the hit (it prunes)."""
+    from hsr.algorithms.raycast import _row_rays
+    from hsr.algorithms.rays import REACH_MAX, window_ranking
+
+    rng = np.random.default_rng(seed)
+    near = float(rng.uniform(0.01, 2.0))
+    direction = rng.normal(size=3)
+    cam = hsr.Camera(eye=tuple(rng.uniform(-3, 3, 3)), target=tuple(rng.uniform(-3, 3, 3)
+                                                                     + direction),
+                     up=(0, 1, 0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction)
+                     else (1, 0, 0), fov_y=float(rng.uniform(10, 120)), near=near,
+                     far=near * ratio, ortho_height=2.0 if ortho else None)
+    width, height = int(rng.integers(1, 50)), int(rng.integers(1, 50))
+    view_proj = cam.projection_matrix(width / height) @ cam.view_matrix
+    rank = window_ranking(view_proj, depth_range)
+    reach = rank[10]
+    if depth_range == (0.0, 1.0) and (ratio <= 30 or ortho):
+        assert reach == reach  # the reach is what the ray caster's usual views use
+    rays = np.empty((6, width))
+    ts = np.concatenate([rng.uniform(0, 1, 200), rng.uniform(0, 1, 50) ** 8, [0.0, 1.0]])
+    for _ in range(20):
+        r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
+        _row_rays(np.linalg.inv(view_proj), width, height, r, c, c + 1, rays)
+        misses, bounds = _bound_misses(rank, rays[:3, 0].copy(), rays[3:, 0].copy(), ts)
+        assert (misses < 0).all(), (ts[misses >= 0][:3], misses[misses >= 0][:3])
+        if reach == reach:
+            assert (bounds - ts <= 1.01 * REACH_MAX).all()
 
 
 @settings(max_examples=60, deadline=None)

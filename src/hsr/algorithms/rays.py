@@ -47,8 +47,8 @@ from .simd import (
     sort_keys8,
 )
 
-__all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "NEAREST", "ANY",
-           "COUNT"]
+__all__ = ["trace_range", "trace_packets", "check_rays", "window_ranking", "tie_reach",
+           "NEAREST", "ANY", "COUNT"]
 
 NEAREST, ANY, COUNT = 0, 1, 2
 # A walk's bound starts at t_max made finite, so that a missed box (entered at +inf)
@@ -342,7 +342,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                     slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
                                     slot_f[s, _F_Z] = z
                                     slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
-                                    b = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                    b = _t_bound(t, z, zc0, zc1, wc0, wc1, rank)
                                 continue
                             if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
                                                        and f < slot_i[s, _I_FACE]):
@@ -552,7 +552,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                                 if _ranks_before(z, f, best_z[r], best_f[r], raster[2]):
                                     best_t[r], best_z[r], best_f[r], best_k[r] = t, z, f, k
                                     best_uv[r, 0], best_uv[r, 1] = v, w
-                                    bound[r] = _t_bound(z, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                    bound[r] = _t_bound(t, z, zc0, zc1, wc0, wc1, rank)
                                 continue
                             if t < best_t[r] or (t == best_t[r] and f < best_f[r]):
                                 best_t[r], best_f[r], best_k[r] = t, f, k
@@ -588,12 +588,59 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
 
 
 def window_ranking(view_proj, depth_range) -> np.ndarray:
-    """The ray caster's ranking (``raster[3]`` of :func:`trace_range`): rows 2 and 3 of
-    ``view_proj`` (the ray's clip z and w) and the scale and offset that take NDC depth
-    to window depth for glDepthRange ``depth_range`` (near, far)."""
+    """The ray caster's ranking (``raster[3]`` of :func:`trace_range`) for the rays of
+    pixels (NDC x, y in [-1, 1]) from the near plane (t = 0) to the far plane (t = 1):
+    rows 2 and 3 of ``view_proj`` (the ray's clip z and w), the scale and offset that
+    take NDC depth to window depth for glDepthRange ``depth_range`` (near, far), and
+    the rays' tie reach (:func:`tie_reach`)."""
     near, far = depth_range
+    scale = 0.5 * (far - near)
     return np.concatenate([np.asarray(view_proj, dtype=np.float64)[2:4].ravel(),
-                           [0.5 * (far - near), 0.5 * (far + near)]])
+                           [scale, 0.5 * (far + near), tie_reach(view_proj, scale)]])
+
+
+# Window depths (float32, in [0, 1] between the near and far planes) that round to
+# the same float32, or the wrong way round, are less than one float32 step apart (at
+# most 2**-23 in [0, 1]) plus the float64 rounding of computing them (~1e-15): four
+# steps bound that with room to spare.
+DEPTH_TIE = 2.0 ** -21
+# The largest tie reach used (far / near beyond about 100): past it, solving for the
+# next float32 depth at each hit prunes boxes better.
+REACH_MAX = 1e-4
+
+
+def tie_reach(view_proj, depth_scale) -> float:
+    """How far past a hit (in t, on [0, 1]) another hit of the same pixel ray can still
+    rank before it or tie (window depths within :data:`DEPTH_TIE`), for every pixel ray
+    of ``view_proj``; NaN when that bound does not hold or exceeds :data:`REACH_MAX`
+    (then :func:`_t_bound` solves at each hit).
+
+    A pixel ray runs from NDC (x, y, -1) to (x, y, 1): in clip space from l0 (x, y, -1, 1)
+    to l1 (x, y, 1, 1), l0 and l1 its clip w at the two planes, so along it clip w is
+    W(t) = l0 + t (l1 - l0) and clip z Z(t) = -l0 + t (l1 + l0): two of its points
+    differ in window depth ``scale Z / W + offset`` by ``scale (t' - t) K / (W(t)
+    W(t'))`` with K = W(0) Z'(t) - Z(0) W'(t) = 2 l0 l1.
+    A step D solves to ``t' - t = a W(t) / (1 - a (l1 - l0))``, ``a = D W(t) / (scale
+    K)``; with ``a |l1 - l0| <= 1/2`` that is at most ``2 a W(t)``, so at most
+    ``D / scale * max(l0, l1) / min(l0, l1)``. The ratio l1 / l0 is a ratio of affine
+    functions of (x, y) (1 / l is row 3 of the inverse of ``view_proj`` times the NDC
+    point), so its largest value either way is at a corner of the image."""
+    if not depth_scale > 0.0:
+        return np.nan
+    try:
+        inverse_w = np.linalg.inv(np.asarray(view_proj, dtype=np.float64))[3]
+    except np.linalg.LinAlgError:
+        return np.nan
+    corners = np.array([[x, y] for x in (-1.0, 1.0) for y in (-1.0, 1.0)])
+    near_w = 1.0 / (corners @ inverse_w[:2] - inverse_w[2] + inverse_w[3])
+    far_w = 1.0 / (corners @ inverse_w[:2] + inverse_w[2] + inverse_w[3])
+    if not (np.all(near_w > 0.0) and np.all(far_w > 0.0) and np.all(np.isfinite(near_w))
+            and np.all(np.isfinite(far_w))):
+        return np.nan
+    ratio = float(np.max(np.maximum(far_w / near_w, near_w / far_w)))
+    # (1 + 1e-6): the walk's clip w and z come from the rays as made, to float64 rounding.
+    reach = DEPTH_TIE / depth_scale * ratio * (1.0 + 1e-6) + 1e-12
+    return reach if reach <= REACH_MAX else np.nan
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -614,9 +661,18 @@ def _depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
-    """The ray parameter past which window depth exceeds the next float32 above ``z``
-    (window depth grows monotonically along the ray): a hit beyond it cannot tie."""
+def _t_bound(t, z, zc0, zc1, wc0, wc1, rank):
+    """The ray parameter past which no hit can rank before the hit at ``t`` (float32
+    window depth ``z``) nor tie with it (window depth grows monotonically along the
+    ray): ``t`` plus the rays' tie reach (:func:`tie_reach`, ``rank[10]``), else past
+    the next float32 above ``z``. With the reach only an add waits on the hit, where
+    solving takes two divisions after the depth's own, and the walk's next step waits
+    on the bound: the packet walk of the 1M-face terrain filling 1024x1024, one thread,
+    208.1 -> 201.1 ms (the median of five alternating runs' minimums; 188 without
+    ranking)."""
+    reach, depth_scale, depth_offset = rank[10], rank[8], rank[9]
+    if reach == reach:
+        return min(1.0, t * (1.0 + 1e-9) + reach)
     if depth_scale == 0.0:
         return 1.0
     # next_float32, not np.nextafter, which calls libm (0.7% of a 1M-face terrain's
@@ -627,8 +683,11 @@ def _t_bound(z, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
     denom = zn * wc1 - zc1
     if denom == 0.0:
         return 1.0
-    t = (zc0 - zn * wc0) / denom
-    return min(1.0, t * (1.0 + 1e-9) + 1e-12) if t == t else 1.0
+    solved = (zc0 - zn * wc0) / denom
+    # Past the far plane (z rounded up to the far plane's depth when far / near is
+    # large) the solution can cross the pole of the depth map and come out before the
+    # hit; NaN for a degenerate ray: no pruning then.
+    return min(1.0, solved * (1.0 + 1e-9) + 1e-12) if solved >= t else 1.0
 
 
 @njit(cache=True, nogil=True, inline="always")
