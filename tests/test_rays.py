@@ -173,6 +173,33 @@ def _closed_meshes():
             "icosphere": hsr.Mesh(ico.vertices, ico.faces)}
 
 
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(60, 300),
+       t_max=st.sampled_from([np.inf, 1.5]))
+def test_axis_parallel_random_rays_equal_brute_force(seed, n, t_max):
+    """Rays with one or two zero direction components (the careful box test, which
+    keeps its entries where the vector test for any-hit and count walks keeps none),
+    from scattered origins in no order (walked one by one, interleaved), through soups
+    large enough for a tree of several wide nodes: cast, occluded and count equal a
+    brute-force test."""
+    rng = np.random.default_rng(seed)
+    tris = _soup(rng, n)
+    mesh = hsr.Mesh(tris.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    origins = rng.uniform(-2, 2, (400, 3))
+    directions = rng.normal(size=(400, 3))
+    directions[rng.random((400, 3)) < 0.45] = 0.0
+    directions[np.abs(directions).sum(axis=1) == 0, 2] = -1.0
+    assert ((directions == 0).sum(axis=1) >= 1).mean() > 0.5
+    rays = hsr.RayScene(mesh, threads=1)
+    assert rays.bvh.n_wide_nodes > 1
+    t, f, _, count = brute_force(tris, origins, directions, 0.0, t_max)
+    hits = rays.cast(origins, directions, 0.0, t_max)
+    np.testing.assert_array_equal(hits.face_id, f)
+    np.testing.assert_allclose(hits.t[f >= 0], t[f >= 0], rtol=1e-9)
+    np.testing.assert_array_equal(rays.occluded(origins, directions, 0.0, t_max), f >= 0)
+    np.testing.assert_array_equal(rays.count(origins, directions, 0.0, t_max), count)
+
+
 @pytest.mark.parametrize("name", ["cube", "octahedron", "icosphere"])
 def test_count_parity_through_edges_and_vertices(name):
     """From inside a closed mesh every ray crosses it an odd number of times, from
@@ -313,19 +340,20 @@ def test_a_bad_ray_deep_in_a_large_query_is_the_one_named():
 
 
 def test_the_vector_box_test_equals_a_numpy_slab_test():
-    """hsr.algorithms.simd.box_keys8 (LLVM vector code) against the slab test written
-    here in NumPy on float64, lane by lane: boxes around, beside and behind the origin,
-    empty lanes (at +inf), thin boxes, and a bound cutting some boxes off. Each key is
-    the entry's bits with the lane in the lowest three."""
+    """hsr.algorithms.simd.box_keys8 (LLVM vector code; box_mask8, its mask alone)
+    against the slab test written here in NumPy on float64, lane by lane: boxes around,
+    beside and behind the origin, empty lanes (at +inf), thin boxes, and a bound cutting
+    some boxes off. Each key is the entry's bits with the lane in the lowest three."""
     from numba import njit
 
-    from hsr.algorithms.simd import box_keys8
+    from hsr.algorithms.simd import box_keys8, box_mask8
 
     @njit
     def entries(box, w, o, inv, bound):
         keys = np.empty(8, dtype=np.int64)
         mask = box_keys8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
-        return keys, mask
+        alone = box_mask8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound)
+        return keys, mask, alone
 
     rng = np.random.default_rng(3)
     n_boxes = 400
@@ -351,10 +379,10 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
         t_out = np.maximum(t0, t1).min(axis=0)
         want = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= bound), t_in,
                         np.inf)
-        keys, mask = entries(box, w, o, inv, bound)
+        keys, mask, alone = entries(box, w, o, inv, bound)
         np.testing.assert_array_equal(keys & 7, np.arange(8))
         np.testing.assert_array_equal(keys >> 3, want.view(np.int64) >> 3)
-        assert mask == sum(1 << k for k in range(8) if want[k] < np.inf)
+        assert mask == alone == sum(1 << k for k in range(8) if want[k] < np.inf)
         checked += 8
         entered += np.isfinite(want).sum()
     assert 50 < entered < checked - 50  # both outcomes were exercised

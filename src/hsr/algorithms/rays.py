@@ -39,6 +39,7 @@ from .bvh import (
 from .simd import (
     bit_count,
     box_keys8,
+    box_mask8,
     leaf_filter4,
     lowest_bit,
     next_float32,
@@ -242,6 +243,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     if careful:
                         mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
                                              inv_dz, b, keys)
+                    elif mode != NEAREST:  # (the entries unused: see below)
+                        mask = box_mask8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, b)
                     else:
                         mask = box_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz,
                                          b, keys)
@@ -264,6 +267,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             # 79.9, the bunny's 110.8 -> 108.6 and 103.8 -> 101.4;
                             # occluded within 5% either way. (Packets, which fetch what
                             # they push, lost 5-13% on the terrain without their order.)
+                            # Their bound never shrinks, so every box pushed is walked:
+                            # no entry is kept, nor compared when it is popped.
                             lane = lowest_bit(mask)
                             rest = mask & (mask - 1)
                             while rest != 0:
@@ -271,7 +276,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                 rest &= rest - 1
                                 stack_ref[top] = node_link[ref, REF + other]
                                 stack_count[top] = node_link[ref, COUNT_AT + other]
-                                stack_t[top] = keys[other]
                                 top += 1
                         else:
                             # The entered lanes' keys nearest first in keys[0 .. m].
@@ -353,8 +357,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             break
                     if done:
                         break
-                ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, b,
-                                                s * one_stack)
+                if mode == NEAREST:
+                    ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, b,
+                                                    s * one_stack)
+                else:
+                    walking = top > s * one_stack
+                    if walking:
+                        top -= 1
+                        ref, n = np.int64(stack_ref[top]), np.int64(stack_count[top])
                 if not walking:
                     done = True
                     break

@@ -19,8 +19,8 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_keys8", "packet_keys8", "leaf_filter4", "sort_keys8", "lowest_bit", "bit_count",
-           "float_bits", "next_float32", "grow_box", "prefetch"]
+__all__ = ["box_keys8", "box_mask8", "packet_keys8", "leaf_filter4", "sort_keys8", "lowest_bit",
+           "bit_count", "float_bits", "next_float32", "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -108,6 +108,25 @@ def _keys(builder, entries, lanes):
                        ir.Constant(_L8, lanes))
 
 
+def _box_test8(context, builder, arg_types, args):
+    """(entry, entered) of the slab test of a ray against the eight boxes of row ``w``
+    (``args``: box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound; see
+    :func:`box_keys8`)."""
+    array, row, ox, oy, oz, ix, iy, iz, bound = args[:9]
+    row = context.cast(builder, row, arg_types[1], types.intp)
+    base = _row_pointer(context, builder, arg_types[0], array, row)
+
+    def lanes(q):
+        """Bound q (lo x, y, z, hi x, y, z) of the eight boxes, as float64."""
+        p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
+        return builder.fpext(builder.load(p, align=4), _D8)
+
+    return _slab_test(builder, [lanes(q) for q in range(6)],
+                      [_splat(builder, x, 8) for x in (ox, oy, oz)],
+                      [_splat(builder, x, 8) for x in (ix, iy, iz)],
+                      _splat(builder, bound, 8))
+
+
 @intrinsic
 def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
     """Where the ray enters each of the eight boxes in row ``w`` of ``box`` (float32, a
@@ -123,22 +142,24 @@ def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys
     sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys)
 
     def codegen(context, builder, sig, args):
-        array, row, ox, oy, oz, ix, iy, iz, bound, out = args
-        row = context.cast(builder, row, sig.args[1], types.intp)
-        base = _row_pointer(context, builder, sig.args[0], array, row)
-
-        def lanes(q):
-            """Bound q (lo x, y, z, hi x, y, z) of the eight boxes, as float64."""
-            p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
-            return builder.fpext(builder.load(p, align=4), _D8)
-
-        entry, entered = _slab_test(builder, [lanes(q) for q in range(6)],
-                                    [_splat(builder, x, 8) for x in (ox, oy, oz)],
-                                    [_splat(builder, x, 8) for x in (ix, iy, iz)],
-                                    _splat(builder, bound, 8))
-        data = context.make_array(sig.args[9])(context, builder, out).data
+        entry, entered = _box_test8(context, builder, sig.args, args)
+        data = context.make_array(sig.args[9])(context, builder, args[9]).data
         builder.store(_keys(builder, entry, list(range(8))),
                       builder.bitcast(data, _L8.as_pointer()), align=8)
+        return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
+
+    return sig, codegen
+
+
+@intrinsic
+def box_mask8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
+    """The mask of :func:`box_keys8` alone, for walks whose bound never shrinks (any
+    hit, every hit): the order of the boxes does not matter to them, so their entries
+    are not needed."""
+    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound)
+
+    def codegen(context, builder, sig, args):
+        _, entered = _box_test8(context, builder, sig.args, args)
         return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
 
     return sig, codegen
