@@ -629,10 +629,11 @@ def tie_reach(view_proj, depth_scale) -> float:
     to l1 (x, y, 1, 1), l0 and l1 its clip w at the two planes, so along it clip w is
     W(t) = l0 + t (l1 - l0) and clip z Z(t) = -l0 + t (l1 + l0): two of its points
     differ in window depth ``scale Z / W + offset`` by ``scale (t' - t) K / (W(t)
-    W(t'))`` with K = W(0) Z'(t) - Z(0) W'(t) = 2 l0 l1.
+    W(t'))`` with K = W(0) Z' - Z(0) W' = 2 l0 l1 (Z' and W' the slopes).
     A step D solves to ``t' - t = a W(t) / (1 - a (l1 - l0))``, ``a = D W(t) / (scale
     K)``; with ``a |l1 - l0| <= 1/2`` that is at most ``2 a W(t)``, so at most
-    ``D / scale * max(l0, l1) / min(l0, l1)``. The ratio l1 / l0 is a ratio of affine
+    ``D / scale * max(l0, l1) / min(l0, l1)`` (``a |l1 - l0|`` is at most half of that,
+    far below 1/2 for any reach kept). The ratio l1 / l0 is a ratio of affine
     functions of (x, y) (1 / l is row 3 of the inverse of ``view_proj`` times the NDC
     point), so its largest value either way is at a corner of the image."""
     if not depth_scale > 0.0:
