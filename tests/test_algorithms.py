@@ -252,10 +252,11 @@ def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ort
     if depth_range == (0.0, 1.0) and (ratio <= 30 or ortho):
         assert reach == reach  # the reach is what the ray caster's usual views use
     rays = np.empty((6, width))
+    inverse = np.linalg.inv(view_proj)
     ts = np.concatenate([rng.uniform(0, 1, 200), rng.uniform(0, 1, 50) ** 8, [0.0, 1.0]])
     for _ in range(20):
         r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
-        _row_rays(np.linalg.inv(view_proj), width, height, r, c, c + 1, rays)
+        _row_rays(inverse, width, height, r, c, c + 1, rays)
         misses, bounds = _bound_misses(rank, rays[:3, 0].copy(), rays[3:, 0].copy(), ts)
         assert (misses < 0).all(), (ts[misses >= 0][:3], misses[misses >= 0][:3])
         if reach == reach:
