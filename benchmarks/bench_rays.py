@@ -17,10 +17,12 @@ its scene lazily), Embree's likewise, alternating, ``--rounds`` x ``--repeat`` e
 (min / median). Each query runs in blocks of ``--repeat`` that
 alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
 (below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
-(``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``
-(``--only-batch`` runs just that). ``--memory`` prints instead the resident memory a
-ray scene adds per face, hsr's and Open3D's, each built in a fresh process (the median
-of three). Runs on demand, never in the test suite; a missing peer is left out.
+(``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``,
+``--batch-rounds`` alternating runs each (``--only-batch`` runs just that).
+``--memory`` prints instead the resident memory a ray scene adds per face, held once
+built and at the peak while building, hsr's and Open3D's, each built in a fresh
+process (the median of three). Runs on demand, never
+in the test suite; a missing peer is left out.
 """
 
 from __future__ import annotations
@@ -95,12 +97,14 @@ def embree_peer(mesh):
     return build, queries
 
 
-def batch_vs_open3d(views: int, size: int) -> None:
+def batch_vs_open3d(views: int, size: int, rounds: int) -> None:
     """Views per second of ``hsr batch`` (``render_views`` with its defaults: a local
-    cluster of this machine's cores) of the bunny from ``sphere:VIEWS`` at SIZE x SIZE,
-    face ids + eye depth written as .npy, against a loop of Open3D ``cast_rays`` (scene
-    built once, one pinhole ray set per view, the same two buffers written), same
-    cameras, same cores, both warm (a first run of each is not timed)."""
+    cluster of this machine's cores, started and closed by each run) of the bunny from
+    ``sphere:VIEWS`` at SIZE x SIZE, face ids + eye depth written as .npy, against a
+    loop of Open3D ``cast_rays`` (scene built once, one pinhole ray set per view, the
+    same two buffers written), same cameras, same cores. Both warm (a first run of each
+    is not timed), then ``rounds`` runs of each, alternating; printed: views per second
+    at the fastest and the median run of each, and their ratios."""
     import tempfile
 
     try:
@@ -135,28 +139,37 @@ def batch_vs_open3d(views: int, size: int) -> None:
             np.save(os.path.join(out, f"ids_{k:04d}.npy"), ids)
             np.save(os.path.join(out, f"eye_{k:04d}.npy"), eye_depth)
 
+    runs = {"hsr batch": lambda out: render_views(
+        [path], f"sphere:{views}", (size, size), ("ids", "eye_depth"), out, progress=False),
+        "Open3D loop": open3d_loop}
+    seconds: dict[str, list] = {name: [] for name in runs}
     with tempfile.TemporaryDirectory() as tmp:
-        timings_s = {}
-        for name, run in (("hsr batch", lambda out: render_views(
-                [path], f"sphere:{views}", (size, size), ("ids", "eye_depth"), out,
-                progress=False)), ("Open3D loop", open3d_loop)):
+        for name, run in runs.items():
             run(os.path.join(tmp, name.replace(" ", "_") + "_warm"))
-            t0 = time.perf_counter()
-            run(os.path.join(tmp, name.replace(" ", "_")))
-            timings_s[name] = time.perf_counter() - t0
-    mine, theirs = timings_s["hsr batch"], timings_s["Open3D loop"]
-    print(f"\nbunny, sphere:{views} at {size}x{size}, ids + eye depth written: hsr batch "
-          f"{views / mine:.1f} views/s ({mine:.2f} s), Open3D cast_rays loop "
-          f"{views / theirs:.1f} views/s ({theirs:.2f} s); hsr / Open3D views/s "
-          f"{theirs / mine:.2f}")
+        for r in range(rounds):
+            for name, run in runs.items():
+                t0 = time.perf_counter()
+                run(os.path.join(tmp, f"{name.replace(' ', '_')}_{r}"))
+                seconds[name].append(time.perf_counter() - t0)
+    (mine_lo, mine_med), (theirs_lo, theirs_med) = (
+        (min(s), float(np.median(s))) for s in seconds.values())
+    print(f"\nbunny, sphere:{views} at {size}x{size}, ids + eye depth written, {rounds} "
+          f"alternating runs each, views/s fastest / median run: hsr batch "
+          f"{views / mine_lo:.1f} / {views / mine_med:.1f}, Open3D cast_rays loop "
+          f"{views / theirs_lo:.1f} / {views / theirs_med:.1f}; hsr / Open3D views/s "
+          f"{theirs_lo / mine_lo:.2f} / {theirs_med / mine_med:.2f}")
+    print("runs (s): " + "; ".join(f"{name} " + " ".join(f"{x:.2f}" for x in s)
+                                  for name, s in seconds.items()))
 
 
-def scene_memory(spec: str, peer: str) -> float | None:
+def scene_memory(spec: str, peer: str) -> tuple[float, float] | None:
     """Bytes per face that building a ray scene of ``spec`` adds to a fresh process's
     resident memory (hsr's ``RayScene``, or Open3D's ``RaycastingScene`` after its
-    first query commits it): the model loaded and the code compiled before the first
-    reading, freed memory handed back (``malloc_trim``) before both; None without the
-    peer."""
+    first query commits it), ``(held, peak)``: held once built, and the peak while
+    building (the kernel's high-water mark, VmHWM, reset before the build through
+    ``/proc/self/clear_refs``), both above the resident memory before it. The model is
+    loaded and the code compiled before the first reading, freed memory handed back
+    (``malloc_trim``) before both; None without the peer."""
     import subprocess
 
     code = f"""
@@ -172,30 +185,42 @@ def rss():
     libc.malloc_trim(0)  # freed scratch back to the system: count what is held
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+def peak():
+    with open("/proc/self/status") as fh:
+        return next(int(l.split()[1]) * 1024 for l in fh if l.startswith("VmHWM:"))
+def reset_peak():
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
 mesh, _ = load_model({spec!r})
 if {peer!r} == "hsr":
     hsr.RayScene(load_model("terrain:20000")[0])  # compiled code is not the scene's
     before = rss()
+    reset_peak()
     scene = hsr.RayScene(mesh)
 else:
     import open3d as o3d
     before = rss()
+    reset_peak()
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(mesh.positions.astype(np.float32)),
                         o3d.core.Tensor(mesh.faces.astype(np.uint32)))
     scene.cast_rays(o3d.core.Tensor(np.zeros((1, 6), np.float32)))
-print((rss() - before) / mesh.n_faces)
+top = peak()
+print((rss() - before) / mesh.n_faces, (top - before) / mesh.n_faces)
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    return float(done.stdout.split()[-1]) if done.returncode == 0 else None
+    if done.returncode != 0:
+        return None
+    held, top = done.stdout.split()[-2:]
+    return float(held), float(top)
 
 
 MEMORY_RUNS = 3
 
 
 def _median(values):
-    """The median of the readings, None if any is missing."""
-    return None if None in values else float(np.median(values))
+    """The median of each reading, None if any is missing."""
+    return None if None in values else tuple(float(x) for x in np.median(values, axis=0))
 
 
 def main(argv=None):
@@ -208,24 +233,30 @@ def main(argv=None):
     parser.add_argument("--batch-views", type=int, default=128,
                         help="views of the batch comparison (0: skip it)")
     parser.add_argument("--batch-size", type=int, default=512)
+    parser.add_argument("--batch-rounds", type=int, default=5,
+                        help="timed runs of each side of the batch comparison, alternating")
     parser.add_argument("--only-batch", action="store_true", help="just the batch comparison")
     parser.add_argument("--memory", action="store_true",
                         help="just the memory a ray scene adds per face, hsr and Open3D")
     args = parser.parse_args(argv)
     if args.only_batch:
-        batch_vs_open3d(args.batch_views, args.batch_size)
+        batch_vs_open3d(args.batch_views, args.batch_size, args.batch_rounds)
         return 0
     if args.memory:
-        print("| model | resident bytes per face: hsr RayScene | Open3D | hsr / Open3D |")
-        print("|---|---|---|---|")
+        print("| model | held bytes per face: hsr RayScene | Open3D | hsr / Open3D "
+              "| peak while building: hsr | Open3D | hsr / Open3D |")
+        print("|---|---|---|---|---|---|---|")
         for spec in args.models:
             # The median of three fresh processes each: one reading of a small scene
             # moves by a tenth (allocator and thread arenas, a megabyte either way).
             mine, theirs = (_median([scene_memory(spec, peer) for _ in range(MEMORY_RUNS)])
                             for peer in ("hsr", "open3d"))
-            ratio = f"{mine / theirs:.2f}" if mine and theirs else "-"
-            cells = ("-" if b is None else f"{b:.0f}" for b in (mine, theirs))
-            print(f"| {os.path.basename(spec)} | {' | '.join(cells)} | {ratio} |")
+            cells = []
+            for k in range(2):  # held, peak
+                a, b = (None if x is None else x[k] for x in (mine, theirs))
+                cells += ["-" if a is None else f"{a:.0f}", "-" if b is None else f"{b:.0f}",
+                          f"{a / b:.2f}" if a and b else "-"]
+            print(f"| {os.path.basename(spec)} | {' | '.join(cells)} |")
         return 0
     rng = np.random.default_rng(0)
     print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "
@@ -284,7 +315,7 @@ def main(argv=None):
     print(f"\nvisible_vertices, bunny ({len(bunny.positions):,} vertices, RayScene reused): "
           f"{lo:.1f} / {med:.1f} ms (min / median); peak RSS {peak_gb():.2f} GB")
     if args.batch_views:
-        batch_vs_open3d(args.batch_views, args.batch_size)
+        batch_vs_open3d(args.batch_views, args.batch_size, args.batch_rounds)
     return 0
 
 

@@ -139,15 +139,46 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
     n_faces = len(faces)
     if n_faces >= 2**31:  # the walk's references are int32
         raise MeshError(f"a BVH takes fewer than 2**31 faces, got {n_faces:,}")
+    # Each array is let go as soon as the build is past it, and the walk's arrays are
+    # made after the build's records are gone: the peak resident memory of a build is
+    # that of its largest phase, not of all of them (the 1M-face terrain's 330 bytes a
+    # face -> ~130, as Open3D's build peaks at about 140; bench_rays.py --memory).
     with Workers(threads) as workers:
         # The passes over every face on all threads; each writes its own rows.
         with_area = np.empty(n_faces, dtype=np.bool_)
         workers.run_range(_flag_area, n_faces, positions, faces, with_area)
-        slots = np.flatnonzero(with_area)
+        slots = np.flatnonzero(with_area).astype(np.int32)  # fewer than 2**31 faces
+        del with_area
         prim = np.empty((len(slots), 9))
         workers.run_range(_fill_prims, len(slots), positions, faces, slots, prim)
         arrays = _build(prim, slots, workers, keep_tree)
+        del prim, slots  # (tri_index is slots, partitioned into leaf order)
         node_min, node_max, node_left, node_start, node_count, tri_index, n_nodes = arrays
+        del arrays
+        bounds = np.array([node_min[0], node_max[0]])
+        if node_left[0] >= 0:
+            # A wide node per inner binary node at most: fewer than half the nodes (the
+            # leaves are one more than the inner nodes). Records are written once each,
+            # as widen makes them; the room past the last is never touched, so never
+            # paged in.
+            node_box, node_link = node_records(n_nodes // 2 + 1)
+            n_wide, depth = widen(node_min, node_max, node_left, node_start, node_count,
+                                  node_box, node_link)
+            node_box, node_link = node_box[:n_wide], node_link[:n_wide]
+            root = (0, 0)
+        else:  # one leaf (or none): it is the root
+            node_box, node_link = node_records(1)
+            node_box[:] = np.inf
+            node_link[:, REF:COUNT_AT], node_link[:, COUNT_AT:] = 0, -1
+            depth = 0
+            root = (int(node_start[0]), int(node_count[0]))
+        # The binary tree is kept for reading, in half the bytes: its boxes in float32
+        # rounded outwards (still holding what they bound), its indices in int32.
+        kept = slice(None) if keep_tree else slice(0, 0)
+        tree = (_outwards32(node_min[kept], -np.inf), _outwards32(node_max[kept], np.inf),
+                node_left[kept].astype(np.int32), node_start[kept].astype(np.int32),
+                node_count[kept].astype(np.int32))
+        del node_min, node_max, node_left, node_start, node_count
         # A scene whose vertices are all float32 values (as binary PLY, STL and glTF
         # files give them) keeps its corners in float32: half the bytes, and every
         # test reads them back as the same float64 values, so no answer changes.
@@ -155,31 +186,9 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
                            dtype=np.float32 if _float32_exact(positions) else np.float64)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
-    if node_left[0] >= 0:
-        # A wide node per inner binary node at most: fewer than half the nodes (the
-        # leaves are one more than the inner nodes). Records are written once each, as
-        # widen makes them; the room past the last is never touched, so never paged in.
-        node_box, node_link = node_records(n_nodes // 2 + 1)
-        n_wide, depth = widen(node_min, node_max, node_left, node_start, node_count,
-                              node_box, node_link)
-        node_box, node_link = node_box[:n_wide], node_link[:n_wide]
-        root = (0, 0)
-    else:  # one leaf (or none): it is the root
-        node_box, node_link = node_records(1)
-        node_box[:] = np.inf
-        node_link[:, REF:COUNT_AT], node_link[:, COUNT_AT:] = 0, -1
-        depth = 0
-        root = (int(node_start[0]), int(node_count[0]))
-    bounds = np.array([node_min[0], node_max[0]])
-    # The binary tree is kept for reading, in half the bytes: its boxes in float32
-    # rounded outwards (still holding what they bound), its indices in int32.
-    tri_index = tri_index.astype(np.int32)
-    kept = slice(None) if keep_tree else slice(0, 0)
-    return BVH(_outwards32(node_min[kept], -np.inf), _outwards32(node_max[kept], np.inf),
-               node_left[kept].astype(np.int32), node_start[kept].astype(np.int32),
-               node_count[kept].astype(np.int32), tri_index, corners=corners,
-               n_faces=n_faces, node_box=node_box, node_link=node_link, root_ref=root[0],
-               root_count=root[1], wide_depth=depth, leaf_face=tri_index, bounds=bounds,
+    return BVH(*tree, tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
+               node_link=node_link, root_ref=root[0], root_count=root[1], wide_depth=depth,
+               leaf_face=tri_index, bounds=bounds,
                build_ms=1e3 * (time.perf_counter() - t0))
 
 
@@ -551,7 +560,8 @@ def next_box(stack_ref, stack_count, stack_t, top, bound, bottom):
 def _build(prim, slots, workers, keep_tree=True):
     """The binary SAH tree over the records ``prim`` of faces ``slots``
     (:func:`_fill_prims`): (node_min, node_max, node_left, node_start, node_count, leaf
-    order of the faces, number of nodes).
+    order of the faces, number of nodes). ``prim`` and ``slots`` are partitioned in
+    place: ``slots`` becomes the leaf order.
 
     In parallel (``workers``, :class:`hsr.parallel.Workers`): the top of the tree is
     split on one thread until every open node holds at most 1 / (4 threads) of the
@@ -562,12 +572,9 @@ def _build(prim, slots, workers, keep_tree=True):
     tree is the same as on one thread, node numbering aside.
     """
     n = len(slots)
-    order = slots.copy()
+    order = slots
     max_nodes = max(1, 2 * n)
-    # Uninitialised: _grow writes each node as it makes it.
-    nodes = (np.empty((max_nodes, 3)), np.empty((max_nodes, 3)),
-             np.empty(max_nodes, dtype=np.int64), np.empty(max_nodes, dtype=np.int64),
-             np.empty(max_nodes, dtype=np.int64))
+    nodes = _node_arrays(max_nodes)
     nodes[2][0], nodes[3][0], nodes[4][0] = -1, 0, n  # the root holds every slot
     cutoff = n // (4 * workers.threads) if workers.threads > 1 and n > 4096 else 0
     pending = np.empty(max_nodes, dtype=np.int64)
@@ -588,6 +595,19 @@ def _build(prim, slots, workers, keep_tree=True):
     _close_up(nodes[2], n_top, pending, base, ends)
     keep = np.concatenate([np.arange(n_top)] + [np.arange(s, e) for s, e in zip(base, ends)])
     return (*(a[keep] for a in nodes), order, n_nodes)
+
+
+@njit(cache=True, nogil=True)
+def _node_arrays(n):
+    """Room for ``n`` nodes of the binary tree as built: (node_min, node_max, node_left,
+    node_start, node_count), uninitialised (_grow writes each node as it makes it).
+    Made by Numba's allocator, not NumPy's: NumPy asks for transparent huge pages for
+    arrays of 4 MB or more (``madvise``), so that writing anywhere pages in 2 MB, and
+    the subtrees built in parallel write their nodes in ranges apart from each other,
+    with room between them (each subtree may need up to twice its faces): the 1M-face
+    terrain's node arrays took 111 bytes a face resident for the 42 written."""
+    return (np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64))
 
 
 @njit(cache=True, nogil=True)
