@@ -727,6 +727,55 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
             assert 20 < np.count_nonzero(counts) < 130  # hits and misses both tested
 
 
+def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(bunny):
+    """trace_range answers a ray that enters none of the root's boxes as it reads it,
+    without a slot: in a long chunk where runs of such rays (pointing away from the
+    bunny, or towards it but stopped short by t_max) sit between rays that walk, every
+    output of every ray is written (outputs start as garbage) and equals the packet
+    walk's, which has no such shortcut; the rays stopped short answer as misses, and
+    the nearest hits of a sample equal brute force."""
+    from hsr.algorithms.rays import trace_packets, trace_range
+
+    rays = hsr.RayScene(bunny)
+    bvh = rays.bvh
+    rng = np.random.default_rng(21)
+    lo, hi = np.array(bunny.bounds())
+    center, size = (lo + hi) / 2, np.linalg.norm(hi - lo)
+    n = 3001
+    away = rng.normal(size=(n, 3))
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    origins = center + 2 * size * away
+    kind = rng.integers(0, 3, n)  # 0: away, 1: towards but short, 2: into the box
+    targets = rng.uniform(lo, hi, (n, 3))
+    directions = np.where((kind == 0)[:, None], away, targets - origins)
+    t_max = np.where(kind == 1, 0.2, np.inf)
+    t_min = np.zeros(1)
+    answers = []
+    for kernel in (trace_range, trace_packets):
+        out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
+               np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
+        kernel(0, n, origins, directions, t_min, t_max, 0, None, bvh.corners,
+               bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
+               bvh.wide_depth, rays.face_offsets, *out)
+        counts = np.full(n, 7, np.int32)
+        kernel(0, n, origins, directions, t_min, t_max, 2, None, bvh.corners,
+               bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
+               bvh.wide_depth, rays.face_offsets, *out[:5], counts)
+        answers.append((*out[:5], counts))
+    for mine, packets in zip(*answers):
+        np.testing.assert_array_equal(mine, packets)
+    t, face, object_id, uv, normal, count = answers[0]
+    missed = kind < 2
+    assert np.isinf(t[missed]).all() and (face[missed] == -1).all()
+    assert (object_id[missed] == -1).all() and (count[missed] == 0).all()
+    assert (uv[missed] == 0).all() and (normal[missed] == 0).all()
+    assert 0.2 < (face[kind == 2] >= 0).mean() < 1.0  # some walk to a hit, some do not
+    sample = rng.choice(np.flatnonzero(kind == 2), 40, replace=False)
+    want_t, want_f, _, _ = brute_force(bunny.positions[bunny.faces], origins[sample],
+                                       directions[sample])
+    np.testing.assert_array_equal(face[sample], want_f)
+    np.testing.assert_allclose(t[sample][want_f >= 0], want_t[want_f >= 0], rtol=1e-9)
+
 def test_camera_rays_cut_short_answer_occluded_as_brute_force(bunny):
     """Camera rays, coherent and as many as four a triangle (so RayScene walks them in
     packets), a third of them stopped around where they meet the model: rays of one
