@@ -11,6 +11,7 @@ at a distance ``e`` is about ``e**2 / near * 2**-24``.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..algorithms.fragments import barycentrics_at
 from ..scene.mesh import instance_of, normal_matrix
@@ -24,8 +25,25 @@ def surface_points(scene, screen, face_id: np.ndarray):
     rows, cols = np.nonzero(face_id >= 0)
     faces = face_id[rows, cols].astype(np.int64)
     bary = barycentrics_at(screen, rows, cols, faces)
-    corners = scene.world_triangles()[faces] if len(faces) else np.zeros((0, 3, 3))
-    return rows, cols, faces, np.einsum("kc,kcj->kj", bary, corners), bary
+    positions, world_faces = scene.world_mesh()
+    points = np.empty((len(faces), 3))
+    _weigh_corners(np.ascontiguousarray(positions, dtype=np.float64), world_faces, faces,
+                   bary, points)
+    return rows, cols, faces, points, bary
+
+
+@njit(cache=True, nogil=True)
+def _weigh_corners(positions, world_faces, faces, bary, points):
+    """``points[k]``: the world corners of face ``faces[k]`` weighted by ``bary[k]``,
+    summed corner by corner in order (the values of NumPy's ``einsum("kc,kcj->kj")``
+    over the gathered (K, 3, 3) corners, without gathering every face of the scene
+    first: a 512 x 512 view of the bunny spent 8 ms there)."""
+    for k in range(faces.shape[0]):
+        f = faces[k]
+        a, b, c = world_faces[f, 0], world_faces[f, 1], world_faces[f, 2]
+        for j in range(3):
+            points[k, j] = (bary[k, 0] * positions[a, j] + bary[k, 1] * positions[b, j]
+                            + bary[k, 2] * positions[c, j])
 
 
 def eye_depth(camera, surface, shape) -> np.ndarray:
