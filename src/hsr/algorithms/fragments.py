@@ -76,8 +76,8 @@ def _barycentrics(pos_clip, source_faces, rows, cols, faces, width, height, out)
     for k in range(rows.shape[0]):
         x = (cols[k] + 0.5) * step_x - 1.0
         y = ((height - 1 - rows[k]) + 0.5) * step_y - 1.0  # window y is up
-        a, b, c = source_faces[faces[k], 0], source_faces[faces[k], 1], \
-            source_faces[faces[k], 2]
+        f = faces[k]
+        a, b, c = source_faces[f, 0], source_faces[f, 1], source_faces[f, 2]
         u0, u1, u2 = (pos_clip[a, 0] - x * pos_clip[a, 3], pos_clip[b, 0] - x * pos_clip[b, 3],
                       pos_clip[c, 0] - x * pos_clip[c, 3])
         v0, v1, v2 = (pos_clip[a, 1] - y * pos_clip[a, 3], pos_clip[b, 1] - y * pos_clip[b, 3],
