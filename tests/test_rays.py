@@ -288,8 +288,12 @@ def peak():
 mesh = hsr.scenes.terrain_mesh(600_000)
 hsr.RayScene(hsr.scenes.terrain_mesh(20_000))  # compiled before the reading
 before = resident()
-with open("/proc/self/clear_refs", "w") as fh:
-    fh.write("5")
+try:
+    with open("/proc/self/clear_refs", "w") as fh:
+        fh.write("5")
+except OSError:  # (a sandbox may refuse it)
+    print("no-reset")
+    raise SystemExit(0)
 scene = hsr.RayScene(mesh)
 top = peak()
 b = scene.bvh
@@ -300,6 +304,8 @@ print((resident() - before) / mesh.n_faces, (top - before) / mesh.n_faces,
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
+    if "no-reset" in done.stdout:
+        pytest.skip("this process may not reset its peak resident size")
     held, peak, arrays = (float(x) for x in done.stdout.split()[-3:])
     assert arrays < 90
     assert held < arrays + 10, (held, arrays)
