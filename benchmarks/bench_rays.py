@@ -21,8 +21,8 @@ alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer 
 ``--batch-rounds`` alternating runs each (``--only-batch`` runs just that).
 ``--memory`` prints instead the resident memory a ray scene adds per face, held once
 built and at the peak while building, hsr's and Open3D's, each built in a fresh
-process (the median of three). Runs on demand, never
-in the test suite; a missing peer is left out.
+process (the median of three). Runs on demand, never in the test suite; a missing peer
+is left out.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from numba import njit
 from ..algorithms.fragments import barycentrics_at
 from ..scene.mesh import instance_of, normal_matrix
 
-__all__ = ["surface_points", "eye_depth", "distance", "normals"]
+__all__ = ["surface_points", "points_at", "eye_depth", "distance", "normals"]
 
 
 def surface_points(scene, screen, face_id: np.ndarray):
@@ -24,12 +24,22 @@ def surface_points(scene, screen, face_id: np.ndarray):
     pixels of ``face_id``."""
     rows, cols = np.nonzero(face_id >= 0)
     faces = face_id[rows, cols].astype(np.int64)
+    points, bary = points_at(scene, screen, rows, cols, faces)
+    return rows, cols, faces, points, bary
+
+
+def points_at(scene, screen, rows, cols, faces) -> tuple[np.ndarray, np.ndarray]:
+    """``(points (K, 3) world, barycentrics (K, 3))`` of pixel centres (``rows``,
+    ``cols``) on the global ``faces``: the perspective-correct barycentrics of
+    :func:`hsr.algorithms.fragments.barycentrics_at` weighting the faces' world
+    corners."""
+    faces = np.asarray(faces, dtype=np.int64)
     bary = barycentrics_at(screen, rows, cols, faces)
     positions, world_faces = scene.world_mesh()
     points = np.empty((len(faces), 3))
     _weigh_corners(np.ascontiguousarray(positions, dtype=np.float64), world_faces, faces,
                    bary, points)
-    return rows, cols, faces, points, bary
+    return points, bary
 
 
 @njit(cache=True, nogil=True)

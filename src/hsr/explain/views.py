@@ -451,7 +451,7 @@ def zfight_winner(scene, camera, width, height, fmt):
     """(H, W) int8: which floor wins each pixel (0 lower, 1 upper, -1 none) when both are
     drawn in order with GL_LESS into a depth buffer of format ``fmt``. Exact eye depths
     come from perspective-correct barycentrics on each floor."""
-    from ..algorithms.fragments import barycentrics_at
+    from ..appearance.buffers import points_at
 
     base = render(scene, camera, width, height, depth_test=False)
     screen = base.fragments.screen
@@ -459,14 +459,12 @@ def zfight_winner(scene, camera, width, height, fmt):
     stored = np.full((height, width), np.inf)
     winner = np.full((height, width), -1, np.int8)
     offsets = scene.face_offsets()
-    world_all = scene.world_triangles()
     for k, inst in enumerate(scene.instances):
         single = render(Scene([inst]), camera, width, height)
         rows, cols = np.nonzero(single.face_id >= 0)
         faces = single.face_id[rows, cols] + offsets[k]
-        bary = barycentrics_at(screen, rows, cols, faces)
-        world = world_all[faces]
-        eye = np.einsum("ij,ijk->ik", bary, world) @ view[:3, :3].T + view[:3, 3]
+        world, _ = points_at(scene, screen, rows, cols, faces)
+        eye = world @ view[:3, :3].T + view[:3, 3]
         d = quantize_depth(window_depth(-eye[:, 2], camera.near, camera.far,
                                         fmt == "float32-reversed"), fmt)
         key = -d if fmt == "float32-reversed" else d  # reversed z: GL_GREATER
