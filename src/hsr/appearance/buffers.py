@@ -24,18 +24,19 @@ def surface_points(scene, screen, face_id: np.ndarray):
     pixels of ``face_id``."""
     rows, cols = np.nonzero(face_id >= 0)
     faces = face_id[rows, cols].astype(np.int64)
-    points, bary = points_at(scene, screen, rows, cols, faces)
+    points, bary = points_at(scene.world_mesh(), screen, rows, cols, faces)
     return rows, cols, faces, points, bary
 
 
-def points_at(scene, screen, rows, cols, faces) -> tuple[np.ndarray, np.ndarray]:
+def points_at(world, screen, rows, cols, faces) -> tuple[np.ndarray, np.ndarray]:
     """``(points (K, 3) world, barycentrics (K, 3))`` of pixel centres (``rows``,
     ``cols``) on the global ``faces``: the perspective-correct barycentrics of
     :func:`hsr.algorithms.fragments.barycentrics_at` weighting the faces' world
-    corners."""
+    corners. ``world``: the scene's ``world_mesh()`` (vertices placed once by the
+    caller, which may look up several sets of pixels)."""
     faces = np.asarray(faces, dtype=np.int64)
     bary = barycentrics_at(screen, rows, cols, faces)
-    positions, world_faces = scene.world_mesh()
+    positions, world_faces = world
     points = np.empty((len(faces), 3))
     _weigh_corners(np.ascontiguousarray(positions, dtype=np.float64), world_faces, faces,
                    bary, points)

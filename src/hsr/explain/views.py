@@ -459,11 +459,12 @@ def zfight_winner(scene, camera, width, height, fmt):
     stored = np.full((height, width), np.inf)
     winner = np.full((height, width), -1, np.int8)
     offsets = scene.face_offsets()
+    world_mesh = scene.world_mesh()
     for k, inst in enumerate(scene.instances):
         single = render(Scene([inst]), camera, width, height)
         rows, cols = np.nonzero(single.face_id >= 0)
         faces = single.face_id[rows, cols] + offsets[k]
-        world, _ = points_at(scene, screen, rows, cols, faces)
+        world, _ = points_at(world_mesh, screen, rows, cols, faces)
         eye = world @ view[:3, :3].T + view[:3, 3]
         d = quantize_depth(window_depth(-eye[:, 2], camera.near, camera.far,
                                         fmt == "float32-reversed"), fmt)
