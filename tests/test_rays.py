@@ -311,6 +311,7 @@ print((resident() - before) / mesh.n_faces, (top - before) / mesh.n_faces,
     assert held < arrays + 10, (held, arrays)
     assert peak < 200, (peak, held)
 
+
 def test_concurrent_queries_on_one_scene(bunny):
     from concurrent.futures import ThreadPoolExecutor
 
