@@ -10,8 +10,10 @@ user pays on the first run, and its OpenMP workers spin between calls.)
 from __future__ import annotations
 
 import itertools
+import math
 import queue
 import threading
+import weakref
 from concurrent.futures import ThreadPoolExecutor, wait
 from contextlib import AbstractContextManager, contextmanager
 
@@ -19,8 +21,9 @@ import numba
 import numpy as np
 from numpy.typing import DTypeLike
 
-__all__ = ["Workers", "Workspace", "split_range", "progress_bar", "default_workspace",
-           "release_default_workspace", "DEFAULT_KEEP_BYTES"]
+__all__ = ["Workers", "Workspace", "OutputPool", "split_range", "progress_bar",
+           "default_workspace", "release_default_workspace", "DEFAULT_KEEP_BYTES",
+           "OUTPUT_KEEP_BYTES"]
 
 
 def progress_bar(enabled: bool, total: int, desc: str, unit: str = "view"):
@@ -48,6 +51,97 @@ def check_threads(threads) -> None:
     if threads is not None and (isinstance(threads, bool) or not isinstance(
             threads, (int, np.integer)) or threads < 1):
         raise RenderError(f"threads must be a positive integer or None, got {threads!r}")
+
+
+# Bytes of dropped outputs an OutputPool keeps for later calls: a 1080p frame's buffers
+# are 23 MB (colour, depth, face ids), the nearest hits of 1M rays 56 MB; a 4K frame's
+# are 91 MB, of which two of its three blocks are kept. Per thread that renders (each
+# has its own default workspace) and per RayScene.
+OUTPUT_KEEP_BYTES = 64 << 20
+
+
+class _Lease:
+    """The memory of one array a call returned: the array is made from this object's
+    ``__array_interface__``, so NumPy keeps the object as the array's base, and every
+    view of it keeps it too. When the last of them is gone, the block goes back to its
+    pool."""
+
+    __slots__ = ("block", "pool", "__array_interface__")
+
+    def __init__(self, block: np.ndarray, shape: tuple, dtype: np.dtype, pool) -> None:
+        self.block, self.pool = block, pool
+        self.__array_interface__ = {"shape": shape, "typestr": dtype.str, "version": 3,
+                                    "data": (block.ctypes.data, False)}
+
+    def __del__(self):
+        pool = self.pool()
+        if pool is not None:
+            pool.give_back(self.block)
+
+
+class OutputPool:
+    """Memory for the arrays a call returns to its caller (a frame's colour, depth and
+    face ids; a ray query's answers), recycled once the caller has dropped them: up to
+    ``keep_bytes`` of dropped blocks are kept, the oldest let go first, and a call
+    asking for an array of a kept block's size gets that block (uninitialised, as
+    ``np.empty``). Arrays larger than ``keep_bytes`` are plain ``np.empty`` ones.
+
+    Why: an array freed by the caller goes back to glibc, whose heap gives its top back
+    to the kernel when a free leaves more than M_TRIM_THRESHOLD there; the next call's
+    outputs then fault every page in again (on this project's VMs 1,500-3,000 page
+    faults a call and several milliseconds: see :class:`Workspace`). Thread-safe: an
+    array may be dropped on any thread."""
+
+    def __init__(self, keep_bytes: int = OUTPUT_KEEP_BYTES) -> None:
+        self.keep_bytes = int(keep_bytes)
+        self._free: list[np.ndarray] = []  # oldest first
+        self._free_bytes = 0
+        self._lock = threading.Lock()
+
+    def empty(self, shape: int | tuple[int, ...], dtype: DTypeLike = np.float64) -> np.ndarray:
+        """An uninitialised array of ``shape`` and ``dtype``, in a kept block when one of
+        its size is free."""
+        dtype = np.dtype(dtype)
+        dims = tuple(int(n) for n in ((shape,) if isinstance(shape, (int, np.integer))
+                                      else shape))
+        nbytes = math.prod(dims) * dtype.itemsize
+        if nbytes == 0 or nbytes > self.keep_bytes or dtype.hasobject:
+            return np.empty(dims, dtype=dtype)
+        block = None
+        with self._lock:
+            for k in range(len(self._free) - 1, -1, -1):
+                if self._free[k].nbytes == nbytes:
+                    block = self._free.pop(k)
+                    self._free_bytes -= nbytes
+                    break
+        if block is None:
+            block = np.empty(nbytes, dtype=np.uint8)
+        return np.asarray(_Lease(block, dims, dtype, weakref.ref(self)))
+
+    def give_back(self, block: np.ndarray) -> None:
+        """Keep ``block`` (its arrays are all gone) for a later :meth:`empty`."""
+        # Called from _Lease.__del__, on whichever thread dropped the last array, maybe
+        # inside empty() on this one (a garbage collection there): never wait for the
+        # lock. When another holder has it, the block is simply freed.
+        if not self._lock.acquire(blocking=False):
+            return
+        try:
+            self._free.append(block)
+            self._free_bytes += block.nbytes
+            while self._free_bytes > self.keep_bytes:
+                self._free_bytes -= self._free.pop(0).nbytes
+        finally:
+            self._lock.release()
+
+    def held_bytes(self) -> int:
+        """Bytes of dropped outputs kept."""
+        return self._free_bytes
+
+    def clear(self) -> None:
+        """Let every kept block go."""
+        with self._lock:
+            self._free.clear()
+            self._free_bytes = 0
 
 
 class Workers:
@@ -135,6 +229,12 @@ class Workers:
         report()
         return results
 
+    def output(self, shape: int | tuple[int, ...], dtype: DTypeLike = np.float64) -> np.ndarray:
+        """An uninitialised array the render returns (a frame's buffers). Fresh here; a
+        :class:`Workspace` recycles the memory of the outputs its caller has dropped
+        (:class:`OutputPool`)."""
+        return np.empty(shape, dtype=dtype)
+
     def scratch(self, key: str, rows: int, shape: tuple = (),
                 dtype: DTypeLike = np.float64) -> np.ndarray:
         """An uninitialised (rows, *shape) array for work inside one render (never for
@@ -162,7 +262,9 @@ class Workspace(Workers):
     process's heap history: the 1M-face terrain at 1080p rendered after the
     tinyrenderer head and the bunny faulted 5,200-5,700 pages (~21 MB) a render and took
     99-168 ms; kept here, 0-2 faults and 72-100 ms. Kept: the z-buffer's set-up records
-    and face status, and the thread pool. One render at a time uses a workspace (another
+    and face status, and the thread pool. The frames' own buffers (colour, depth, face
+    ids), which the caller holds, come from an :class:`OutputPool`: once the caller
+    drops a frame, the next render reuses its memory. One render at a time uses a workspace (another
     thread's render raises :class:`~hsr.errors.RenderError`); it holds its largest
     buffers until closed or dropped. Plain ``hsr.render`` calls use one of the calling
     thread's own (:func:`default_workspace`)."""
@@ -171,6 +273,7 @@ class Workspace(Workers):
         super().__init__(threads)
         self._buffers: dict = {}
         self._lock = threading.Lock()
+        self.outputs = OutputPool()
         self.busy = False  # held by a render (the per-thread default's own flag)
         self.requested = threads
 
@@ -186,9 +289,14 @@ class Workspace(Workers):
         self.close()
 
     def close(self) -> None:
-        """Stop the threads and drop the buffers (a later render starts them again)."""
+        """Stop the threads and drop the buffers and the kept outputs (a later render
+        starts them again)."""
         super().__exit__()
         self.drop_buffers()
+        self.outputs.clear()
+
+    def output(self, shape: int | tuple[int, ...], dtype: DTypeLike = np.float64) -> np.ndarray:
+        return self.outputs.empty(shape, dtype)
 
     def scratch(self, key: str, rows: int, shape: tuple = (),
                 dtype: DTypeLike = np.float64) -> np.ndarray:

@@ -348,7 +348,7 @@ def _render(scene, camera, width, height, algorithm, state, look, background, co
         color = np.zeros((height, width, 3), dtype=np.uint8)
         covered = int(np.count_nonzero(fragments.face_id >= 0))
     else:
-        color = np.empty((height, width, 3), dtype=np.uint8)
+        color = workers.output((height, width, 3), np.uint8)
         covered = paint_faces(workers, fragments.face_id, NO_COLORS, background, color)
     face_id = fragments.face_id
     # 4. Optional passes, each a call into its stage.

@@ -128,11 +128,11 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     cull_code = ["none", "back", "front", "front_and_back"].index(state.cull.value)
     front_ccw = state.front_face.value == "ccw"
     lequal = state.depth_func.value == "lequal"
-    face = np.empty((height, width), dtype=np.int32)
-    depth = np.empty((height, width), dtype=np.float32)
+    face = workers.output((height, width), np.int32)
+    depth = workers.output((height, width), np.float32)
     shape = (height, width) if extras else (1, 1)
-    distance = np.empty(shape, dtype=np.float64)
-    bary = np.empty(shape + (3,), dtype=np.float64)
+    distance = workers.output(shape, np.float64)
+    bary = workers.output(shape + (3,), np.float64)
     eye = np.asarray(camera.eye, dtype=np.float64)
     forward = np.asarray(camera.forward, dtype=np.float64)
     # Many row chunks, handed out as threads free up: rays cost unevenly across the image.

@@ -51,8 +51,8 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
     live = np.flatnonzero(covers_pixels(bbox))
     # Edge table: triangles ordered by the first scan line they touch.
     edge_table = live[np.argsort(bbox[live, 2], kind="stable")]
-    face = np.empty((height, width), dtype=np.int32)
-    depth = np.empty((height, width), dtype=np.float32)
+    face = workers.output((height, width), np.int32)
+    depth = workers.output((height, width), np.float32)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     bands = band_split(row_work, workers.threads)
     results = workers.run(_scan_rows, bands, edge_table, vert_fixed, edge_bias, bbox, zplane,

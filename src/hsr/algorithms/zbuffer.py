@@ -144,7 +144,7 @@ def _resolve_streamed(screen: ScreenTriangles, state: RenderState, depth_buffer,
     width, height, n_faces = geometry.width, geometry.height, len(geometry.faces)
     # Fresh buffers are cleared by the first chunk's fill.
     depth, face, clear, count_tested, count_written = fill_targets(
-        width, height, state, depth_buffer, counts)
+        width, height, state, workers, depth_buffer, counts)
     z_lo, z_hi = min(state.depth_range), max(state.depth_range)
     keep_ccw, keep_cw = geometry.keep_by_facing()
     factor, units = (float(v) for v in state.polygon_offset)

@@ -531,7 +531,7 @@ def shade_visible(ctx: ShadeContext, fragments, state, background):
     the look allows it, else per fragment. Returns ((H, W, 3) uint8, pixels covered)."""
     face_id = fragments.face_id
     height, width = face_id.shape
-    color = np.empty((height, width, 3), dtype=np.uint8)
+    color = ctx.workers.output((height, width, 3), np.uint8)
     look = ctx.look
     if state.polygon_mode != "fill" or not ctx.per_pixel:
         # Lines and points take a per-face colour (no fragment to shade between corners).

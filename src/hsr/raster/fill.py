@@ -32,14 +32,15 @@ __all__ = ["band_split", "fill_bands", "fill_band", "fill_band_less", "fill_kern
 FIRST_WINS = 8
 
 
-def fill_targets(width, height, state, depth_buffer=None, counts=False):
+def fill_targets(width, height, state, workers, depth_buffer=None, counts=False):
     """The buffers a fill draws into: ``(depth, face, clear, count_tested,
-    count_written)``. Fresh buffers are cleared by the fill itself (``clear`` = the
-    state's clear depth); over ``depth_buffer`` nothing is cleared (``clear`` = NaN) and
-    ``face`` starts at -1. The count arrays are (H, W) with ``counts``, else (1, 1)."""
+    count_written)``. Fresh buffers (``workers.output``: the frame returns them) are
+    cleared by the fill itself (``clear`` = the state's clear depth); over
+    ``depth_buffer`` nothing is cleared (``clear`` = NaN) and ``face`` starts at -1. The
+    count arrays are (H, W) with ``counts``, else (1, 1)."""
     if depth_buffer is None:
-        depth = np.empty((height, width), dtype=np.float32)
-        face = np.empty((height, width), dtype=np.int32)
+        depth = workers.output((height, width), np.float32)
+        face = workers.output((height, width), np.int32)
         clear = state.clear_depth
     else:
         depth, clear = depth_buffer, np.nan
@@ -320,7 +321,7 @@ def rasterize(xy_window, depth_window, tri_face, width, height, state, workers, 
     depth_func = state.depth_func.code if depth_func is None else depth_func
     depth_write = state.depth_mask if depth_write is None else depth_write
     depth, face, clear, count_tested, count_written = fill_targets(
-        width, height, state, depth_buffer, counts)
+        width, height, state, workers, depth_buffer, counts)
     vert_fixed, edge_bias, bbox, zplane, row_work = setup_triangles(
         np.ascontiguousarray(xy_window), np.ascontiguousarray(depth_window), width, height,
         workers, state.polygon_offset)

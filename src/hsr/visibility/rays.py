@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import HsrError
-from ..parallel import Workers, check_threads, progress_bar, split_range
+from ..parallel import OutputPool, Workers, check_threads, progress_bar, split_range
 from ..scene.mesh import SceneLike, as_scene
 
 __all__ = ["RayScene", "RayHits", "RayError"]
@@ -78,9 +78,12 @@ class RayScene:
     :class:`~hsr.Scene` or a mesh file's path (read with :func:`hsr.load_scene`).
 
     The BVH (binned SAH over world-space triangles, :func:`hsr.algorithms.bvh.build`) is
-    built once here; :meth:`cast`, :meth:`occluded` and :meth:`count` all reuse it. A
-    RayScene holds no state that a query changes, so several threads may query one
-    at once. ``threads``: threads per query (default: numba's thread count).
+    built once here; :meth:`cast`, :meth:`occluded` and :meth:`count` all reuse it.
+    Several threads may query one RayScene at once: a query changes nothing in it but
+    its pool of answers' memory (:class:`hsr.parallel.OutputPool`: the arrays of
+    answers the caller has dropped, reused by later queries, up to
+    :data:`hsr.parallel.OUTPUT_KEEP_BYTES`), which is thread-safe. ``threads``:
+    threads per query (default: numba's thread count).
 
     Raises :class:`~hsr.errors.MeshError` for a scene that cannot be loaded, and
     :class:`~hsr.errors.RenderError` for a bad ``threads``.
@@ -101,6 +104,17 @@ class RayScene:
         self.face_offsets = self.scene.face_offsets()
         lo, hi = self.bvh.bounds
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
+        self._outputs = OutputPool()
+
+    def __getstate__(self):
+        # The pool (a lock and dropped arrays) is not sent along: a copy starts its own.
+        state = self.__dict__.copy()
+        del state["_outputs"]
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._outputs = OutputPool()
 
     @property
     def n_faces(self) -> int:
@@ -119,8 +133,9 @@ class RayScene:
         distances go to the lower face id. Raises :class:`RayError` for bad input."""
         origin, direction, t0, t1 = self._rays(origins, directions, t_min, t_max)
         n = len(origin)
-        hits = RayHits(np.empty(n), np.empty(n, dtype=np.int32), np.empty(n, dtype=np.int32),
-                       np.empty((n, 2)), np.empty((n, 3)))
+        empty = self._outputs.empty
+        hits = RayHits(empty(n), empty(n, np.int32), empty(n, np.int32), empty((n, 2)),
+                       empty((n, 3)))
         self._run(0, origin, direction, t0, t1, (hits.t, hits.face_id, hits.object_id,
                                                     hits.barycentric, hits.normal,
                                                     np.empty(0, np.int32)), progress)
@@ -143,7 +158,7 @@ class RayScene:
 
     def _counted(self, mode, origins, directions, t_min, t_max, progress):
         origins, directions, t0, t1 = self._rays(origins, directions, t_min, t_max)
-        out = np.empty(len(origins), dtype=np.int32)
+        out = self._outputs.empty(len(origins), np.int32)
         self._run(mode, origins, directions, t0, t1,
                   (np.empty(0), np.empty(0, np.int32), np.empty(0, np.int32), np.empty((0, 2)),
                    np.empty((0, 3)), out), progress)
