@@ -296,6 +296,9 @@ class Workspace(Workers):
         self.outputs.clear()
 
     def output(self, shape: int | tuple[int, ...], dtype: DTypeLike = np.float64) -> np.ndarray:
+        """An uninitialised array the render returns, from :attr:`outputs`: memory of
+        an earlier frame's buffers the caller has dropped when there is some of the
+        size."""
         return self.outputs.empty(shape, dtype)
 
     def scratch(self, key: str, rows: int, shape: tuple = (),

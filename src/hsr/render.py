@@ -243,7 +243,11 @@ def render(scene: SceneLike, camera: Camera | None = None, width: int = 640, hei
     workspace's. Without one, each calling thread keeps a workspace of its own for its
     plain calls (scratch up to :data:`hsr.parallel.DEFAULT_KEEP_BYTES` kept;
     :func:`hsr.parallel.release_default_workspace` drops it), so repeated renders are as
-    fast as through a Workspace.
+    fast as through a Workspace. A frame's colour, depth and face ids are the caller's;
+    once it drops every view of them, the workspace keeps their memory (up to
+    :data:`hsr.parallel.OUTPUT_KEEP_BYTES`) for a later frame of the same size
+    (:class:`hsr.parallel.OutputPool`), so a loop of renders does not fault fresh pages in
+    each time.
 
     Raises :class:`~hsr.errors.MeshError` for a scene that is not a valid mesh or scene,
     :class:`~hsr.errors.CameraError` for an invalid camera and
