@@ -263,10 +263,11 @@ class Workspace(Workers):
     tinyrenderer head and the bunny faulted 5,200-5,700 pages (~21 MB) a render and took
     99-168 ms; kept here, 0-2 faults and 72-100 ms. Kept: the z-buffer's set-up records
     and face status, and the thread pool. The frames' own buffers (colour, depth, face
-    ids), which the caller holds, come from an :class:`OutputPool`: once the caller
-    drops a frame, the next render reuses its memory. One render at a time uses a workspace (another
-    thread's render raises :class:`~hsr.errors.RenderError`); it holds its largest
-    buffers until closed or dropped. Plain ``hsr.render`` calls use one of the calling
+    ids), which the caller holds, come from an :class:`OutputPool` (:attr:`outputs`):
+    once the caller drops a frame, a later render reuses its memory. One render at a
+    time uses a workspace (another thread's render raises
+    :class:`~hsr.errors.RenderError`); it holds its largest buffers until closed or
+    dropped. Plain ``hsr.render`` calls use one of the calling
     thread's own (:func:`default_workspace`)."""
 
     def __init__(self, threads: int | None = None) -> None:
