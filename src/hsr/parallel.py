@@ -133,6 +133,11 @@ class OutputPool:
         finally:
             self._lock.release()
 
+    def __reduce__(self):
+        # Pickled (a RayScene sent to another process) as an empty pool of the same cap:
+        # its lock and its blocks stay here.
+        return OutputPool, (self.keep_bytes,)
+
     def held_bytes(self) -> int:
         """Bytes of dropped outputs kept."""
         return self._free_bytes

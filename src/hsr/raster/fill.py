@@ -44,7 +44,8 @@ def fill_targets(width, height, state, workers, depth_buffer=None, counts=False)
         clear = state.clear_depth
     else:
         depth, clear = depth_buffer, np.nan
-        face = np.full((height, width), -1, dtype=np.int32)
+        face = workers.output((height, width), np.int32)
+        face.fill(-1)
     shape = (height, width) if counts else (1, 1)
     return (depth, face, clear, np.zeros(shape, dtype=np.int32),
             np.zeros(shape, dtype=np.int32))

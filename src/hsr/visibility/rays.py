@@ -106,16 +106,6 @@ class RayScene:
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
         self._outputs = OutputPool()
 
-    def __getstate__(self):
-        # The pool (a lock and dropped arrays) is not sent along: a copy starts its own.
-        state = self.__dict__.copy()
-        del state["_outputs"]
-        return state
-
-    def __setstate__(self, state):
-        self.__dict__.update(state)
-        self._outputs = OutputPool()
-
     @property
     def n_faces(self) -> int:
         return self.bvh.n_faces
