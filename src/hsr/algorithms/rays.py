@@ -619,6 +619,21 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     return tests, 0, -1
 
 
+@njit(cache=True, nogil=True)
+def surface_area(tris) -> float:
+    """The summed area of the triangles ``tris`` ((F, 3, 3) corners, float32 or
+    float64), in float64."""
+    total = 0.0
+    for k in range(tris.shape[0]):
+        ax, ay, az = tris[k, 1, 0] - tris[k, 0, 0], tris[k, 1, 1] - tris[k, 0, 1], \
+            tris[k, 1, 2] - tris[k, 0, 2]
+        bx, by, bz = tris[k, 2, 0] - tris[k, 0, 0], tris[k, 2, 1] - tris[k, 0, 1], \
+            tris[k, 2, 2] - tris[k, 0, 2]
+        cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        total += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+    return total
+
+
 def window_ranking(view_proj, depth_range) -> np.ndarray:
     """The ray caster's ranking (``raster[3]`` of :func:`trace_range`) for the rays of
     pixels (NDC x, y in [-1, 1]) from the near plane (t = 0) to the far plane (t = 1):

@@ -28,6 +28,14 @@ __all__ = ["RayScene", "RayHits", "RayError"]
 # Rays per chunk handed to a thread: large enough that a chunk costs far more than its
 # hand-off, small enough that uneven rays (misses cost little) balance between threads.
 CHUNK = 4096
+# Coherent rays walk in packets while the triangles where they land are no more than
+# this many a ray's footprint, as RayScene._faces_per_ray estimates it (measured, a 1M-face
+# terrain filling square views, packets against interleaved: estimates 1.35, 13-16% faster;
+# 2.5, 1% slower to 6% faster; 3.6, 2-8% slower; 5.3, 6-16% slower).
+PACKET_FACES_PER_RAY = 3.0
+# Runs of four rays cast to estimate it: up to 64 (a few hundred microseconds), one per
+# 1024 rays of the query from eight up.
+FOOTPRINT_RUNS = 64
 # Queries this large draw a progress bar on a terminal.
 PROGRESS_RAYS = 4_000_000
 # Most rays one query takes: its outputs (t, ids, uv, normals: 56 bytes a ray) and its
@@ -105,6 +113,7 @@ class RayScene:
         lo, hi = self.bvh.bounds
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
         self._outputs = OutputPool()
+        self._area: float | None = None  # the faces' summed area (_faces_per_ray)
 
     @property
     def n_faces(self) -> int:
@@ -155,27 +164,12 @@ class RayScene:
         return out
 
     def _run(self, mode, origins, directions, t0, t1, outputs, progress):
-        from ..algorithms.rays import trace_packets, trace_range
-
         n = len(origins)
         if n == 0:
             return
         if progress is None:
             progress = n >= PROGRESS_RAYS and sys.stderr.isatty()
-        # Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
-        # close) find in cache what the ray before read, unless the triangles are about
-        # as many as the rays (each ray then meets triangles of its own). With four
-        # rays a triangle or more, they go through the walk in packets of four. Other
-        # rays go through trace_range, eight at a time per thread (interleaved),
-        # which hides cache misses. Measured, 1M camera rays, one thread, ms for
-        # packets / interleaved: the bunny's cast 52 / 68, occluded 45 / 59 (49 walked
-        # one by one with the last occluder tested first, which this path had until
-        # packets tested a node as one vector per ray), count 77 / 111; a 250k-face
-        # terrain's cast 40 / 44, occluded 37 / 39, count 74 / 84; a 1M-face terrain's
-        # (one ray a face) cast 48 / 47, occluded 45 / 41, count 120 / 89. The answers
-        # are the same on every path.
-        coherent = _coherent(origins, directions, self.scene_size)
-        kernel = trace_packets if coherent and 4 * self.bvh.n_faces <= n else trace_range
+        kernel = self._walk(origins, directions, t0, t1)
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             bvh = self.bvh
@@ -195,6 +189,79 @@ class RayScene:
             ray, problem = min(bad)
             raise RayError(_problem(problem, ray, t0, t1))
 
+    def _walk(self, origins, directions, t0, t1):
+        """The walk these rays go through: :func:`hsr.algorithms.rays.trace_packets`
+        or :func:`~hsr.algorithms.rays.trace_range` (the answers are the same on both).
+
+        Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
+        close; :func:`_coherent`) find in cache what the ray before read, and walk in
+        packets of four whose node reads serve four rays, as long as neighbouring rays
+        meet the same triangles: until the triangles where the rays land are about
+        :data:`PACKET_FACES_PER_RAY` ray footprints a triangle or smaller, when each ray
+        meets triangles of its own and the interleaved walk, which overlaps their cache
+        misses, wins. With four rays a triangle or more that holds wherever they land;
+        else it is judged on a sample of the rays (:meth:`_faces_per_ray`). Other rays
+        go through trace_range, eight at a time per thread (interleaved), which hides
+        cache misses. Measured, two threads, 1M rays (min ms of six alternating runs,
+        packets / interleaved, cast, occluded, count): the bunny's camera rays 32 / 39,
+        30 / 31, 42 / 54 (14 rays a face); a 1M-face terrain filling a 1024 x 1024
+        view from above (estimated 1.4 faces a ray) 104 / 122, 96 / 113, 109 / 130;
+        the same at 724 x 724 (2.7) 74 / 77, 58 / 58, 58 / 62, at 600 x 600 (3.5)
+        56 / 52, 50 / 46, 54 / 53, at 512 x 512 (4.9) 40 / 38, 36 / 31, 41 / 37; a
+        250k-face one at 1024 x 1024 (0.35) 80 / 110, 75 / 101, 84 / 117; the 1M-face
+        one framed edge-on (4.2: a strip of the view, many faces a ray where it lands)
+        33 / 29, 30 / 26, 61 / 53. (Until this was judged, coherent rays fewer than
+        four a face all went through trace_range: the filling 1M-face
+        terrain at 1.85x Open3D's cast instead of 1.29x.)"""
+        from ..algorithms.rays import trace_packets, trace_range
+
+        runs = _sample_runs(len(origins))
+        if runs is None or not _coherent(origins, directions, self.scene_size, runs):
+            return trace_range
+        if 4 * self.n_faces <= len(origins):
+            return trace_packets
+        faces = self._faces_per_ray(origins, directions, t0, t1, runs)
+        return trace_packets if faces <= PACKET_FACES_PER_RAY else trace_range
+
+    def _faces_per_ray(self, origins, directions, t0, t1, runs) -> float:
+        """About how many triangles lie in one ray's footprint where the rays land:
+        the sampled ``runs`` of four neighbouring rays are cast, and for each run whose
+        four rays hit, the spacing of its hits squared, over the cosine of the first
+        hit's incidence (an oblique surface stretches the footprint), times the faces
+        per unit of the scene's surface area; the median of the runs. 0 when no run
+        lands whole (rays that miss are cheap on either walk)."""
+        from ..algorithms.rays import NEAREST, surface_area, trace_range
+
+        if self._area is None:  # once per scene, at its first such query (~6 ns a face)
+            self._area = surface_area(self.bvh.corners)
+        if self._area <= 0.0:
+            return 0.0
+        keep = min(FOOTPRINT_RUNS, max(8, len(origins) // 1024))
+        index = runs[::max(1, len(runs) // keep)].ravel()
+        m = len(index)
+        o, d = origins[index], directions[index]
+        lo, hi = (t if len(t) == 1 else t[index] for t in (t0, t1))
+        t, face = np.empty(m), np.empty(m, np.int32)
+        normal = np.empty((m, 3))
+        bvh = self.bvh
+        _, problem, _ = trace_range(
+            0, m, o, d, lo, hi, NEAREST, None, bvh.corners, bvh.leaf_face, bvh.node_box,
+            bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth, self.face_offsets,
+            t, face, np.empty(m, np.int32), np.empty((m, 2)), normal,
+            np.empty(0, np.int32))
+        if problem:  # a bad ray: the query's walk reports it
+            return 0.0
+        whole = (face.reshape(-1, 4) >= 0).all(axis=1)
+        if not whole.any():
+            return 0.0
+        points = (o + t[:, None] * d).reshape(-1, 4, 3)[whole]
+        spacing = np.linalg.norm(points[:, 3] - points[:, 0], axis=1) / 3
+        first = d.reshape(-1, 4, 3)[whole, 0]
+        cosine = np.abs(np.einsum("rc,rc->r", normal.reshape(-1, 4, 3)[whole, 0], first)
+                        ) / np.linalg.norm(first, axis=1)
+        footprint = spacing ** 2 / np.maximum(cosine, 0.1)
+        return float(np.median(footprint)) * self.n_faces / self._area
+
     @staticmethod
     def _rays(origins, directions, t_min, t_max):
         """(origins, directions) as contiguous (N, 3) float64 arrays, t_min and t_max as
@@ -204,15 +271,24 @@ class RayScene:
         return origins, directions, _interval(t_min, n, "t_min"), _interval(t_max, n, "t_max")
 
 
-def _coherent(origins: np.ndarray, directions: np.ndarray, size: float) -> bool:
-    """Whether the rays come in coherent runs (judged on up to 256 runs of four spread
-    over the query): in three of four, the four origins lie within 1/100 of the
-    scene's size of each other and the directions within about 2.5 degrees."""
-    n_runs = len(origins) // 4
+def _sample_runs(n: int) -> np.ndarray | None:
+    """(R, 4) ray indices: up to 256 runs of four neighbouring rays spread over a query
+    of n rays (None below four rays)."""
+    n_runs = n // 4
     if n_runs == 0:
-        return False
+        return None
     first = np.linspace(0, n_runs - 1, min(256, n_runs)).astype(np.int64) * 4
-    index = first[:, None] + np.arange(4)
+    return first[:, None] + np.arange(4)
+
+
+def _coherent(origins: np.ndarray, directions: np.ndarray, size: float,
+              runs: np.ndarray | None = None) -> bool:
+    """Whether the rays come in coherent runs (judged on the ``runs`` of
+    :func:`_sample_runs`): in three of four, the four origins lie within 1/100 of the
+    scene's size of each other and the directions within about 2.5 degrees."""
+    index = _sample_runs(len(origins)) if runs is None else runs
+    if index is None:
+        return False
     o, d = origins[index], directions[index]
     with np.errstate(all="ignore"):  # bad rays (NaN, zero) are refused by the walk
         unit = d / np.linalg.norm(d, axis=2, keepdims=True)
