@@ -4,10 +4,13 @@ same rays, in one run; and ``hsr.visible_vertices`` of the bunny.
     pip install -e ".[bench]"
     python benchmarks/bench_rays.py [MODEL ...] [--rays 1000000] [--repeat 3] [--rounds 3]
 
-MODEL is a mesh file or ``terrain:N`` (default: the bunny and a 1M-face terrain). Two
+MODEL is a mesh file or ``terrain:N`` (default: the bunny and a 1M-face terrain). Three
 ray sets per model: ``random``, origins uniform in the box grown by half its size on
 each side and directions uniform on the sphere; ``primary``, one ray per pixel centre of
-a framed 1000 x 1000 view (from the eye, directions to the far plane). Timed: the plain
+a framed 1000 x 1000 view (from the eye, directions to the far plane; the terrain is
+seen edge-on, a strip across the view); ``filling``, the same for a view along the
+box's shortest axis that the box fills (``bench_raycast.py``'s ``fill`` view: the
+terrain from above, about a triangle a pixel). Timed: the plain
 public calls with their defaults, the inputs prepared outside the timer: hsr
 ``RayScene.cast`` / ``occluded`` / ``count`` (float64 in, every output), Open3D
 ``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
@@ -33,6 +36,7 @@ import sys
 import time
 
 import numpy as np
+from bench_raycast import view_camera
 
 import hsr
 from common import load_model, peak_gb, timings
@@ -46,8 +50,15 @@ def ray_sets(mesh, n, rng):
     origins = rng.uniform(lo - pad, hi + pad, (n, 3))
     directions = rng.normal(size=(n, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return {"random": (origins, directions),
+            "primary": camera_rays(hsr.Camera.frame(mesh.bounds()), n),
+            "filling": camera_rays(view_camera(mesh, "fill"), n)}
+
+
+def camera_rays(cam, n):
+    """One ray per pixel centre of a square view of about n pixels: from the eye, the
+    directions to the far plane."""
     side = int(round(np.sqrt(n)))
-    cam = hsr.Camera.frame(mesh.bounds())
     view_proj = cam.projection_matrix(1.0) @ cam.view_matrix
     inv = np.linalg.inv(view_proj)
     xs = (np.arange(side) + 0.5) / side * 2 - 1
@@ -55,7 +66,7 @@ def ray_sets(mesh, n, rng):
     far = np.c_[gx.ravel(), gy.ravel(), np.ones(side * side), np.ones(side * side)] @ inv.T
     far = far[:, :3] / far[:, 3:]
     eye = np.broadcast_to(np.asarray(cam.eye, dtype=np.float64), far.shape).copy()
-    return {"random": (origins, directions), "primary": (eye, far - eye)}
+    return eye, far - eye
 
 
 def open3d_peer(mesh):
