@@ -147,6 +147,54 @@ def test_camera_rays_walk_in_packets_while_triangles_are_not_much_smaller_than_p
     _check_against_embree(mesh, origins, directions, rays.cast(origins, directions))
 
 
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3000), side=st.integers(2, 90),
+       t_cut=st.booleans())
+def test_camera_queries_answer_the_same_on_either_walk(seed, n, side, t_cut):
+    """Whichever walk RayScene picks for a camera's rays (each forced in turn),
+    ``cast``, ``occluded`` and ``count`` answer the same, bit for bit, on random soups
+    seen from random eyes, with per-ray t_max cutting some rays short; and the nearest
+    hits of a sample equal brute force."""
+    from unittest import mock
+
+    from hsr.algorithms.rays import trace_packets, trace_range
+
+    rng = np.random.default_rng(seed)
+    corners = rng.uniform(-1, 1, (n, 3, 3)) * rng.uniform(0.02, 0.8, (n, 1, 1))
+    corners += rng.uniform(-1, 1, (n, 1, 3))
+    mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    rays = hsr.RayScene(mesh)
+    direction = rng.normal(size=3)
+    eye = 4.0 * direction / np.linalg.norm(direction)
+    up = (0, 1, 0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (1, 0, 0)
+    cam = hsr.Camera(eye=tuple(eye), target=(0, 0, 0), up=up, fov_y=float(rng.uniform(20, 90)),
+                     near=0.1, far=10.0)
+    origins, directions = pixel_rays(cam, side, side)
+    k = len(origins)
+    t_max = (np.where(rng.random(k) < 0.3, rng.uniform(0.2, 0.6, k), np.inf) if t_cut
+             else np.full(k, np.inf))
+    answers = []
+    for kernel in (trace_packets, trace_range):
+        with mock.patch.object(hsr.RayScene, "_walk", lambda *_, k=kernel: k):
+            hits = rays.cast(origins, directions, t_max=t_max)
+            answers.append((hits.t.copy(), hits.face_id.copy(), hits.barycentric.copy(),
+                            rays.occluded(origins, directions, t_max=t_max),
+                            rays.count(origins, directions, t_max=t_max)))
+    for a, b in zip(*answers):
+        np.testing.assert_array_equal(a, b)
+    # Brute force on a sample: a hit or a miss alike (but for a ray through an edge,
+    # which either test may call), and the hit's distance.
+    differ = 0
+    for i in rng.choice(k, min(k, 150), replace=False):
+        t, _, _, _ = brute_force(corners, origins[i:i + 1], directions[i:i + 1], 0.0,
+                                 t_max[i])
+        if np.isfinite(t[0]) != (answers[0][1][i] >= 0):
+            differ += 1
+        elif np.isfinite(t[0]):
+            assert answers[0][0][i] == pytest.approx(t[0], rel=1e-9)
+    assert differ <= 1
+
+
 def test_surface_area_sums_the_triangles_or_samples_them_evenly(bunny):
     """The area behind the walk's footprint estimate: every triangle when the samples
     are as many (float32 and float64 corners alike), and within 3% of the sum from
