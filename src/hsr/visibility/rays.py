@@ -30,8 +30,8 @@ __all__ = ["RayScene", "RayHits", "RayError"]
 CHUNK = 4096
 # Coherent rays walk in packets while the triangles where they land are no more than
 # this many a ray's footprint, as RayScene._faces_per_ray estimates it (measured, a 1M-face
-# terrain filling square views, packets against interleaved: estimates 1.35, 13-16% faster;
-# 2.5, 1% slower to 6% faster; 3.6, 2-8% slower; 5.3, 6-16% slower).
+# terrain filling square views, packets against interleaved: estimates 1.4, 13-16% faster;
+# 2.7, 1% slower to 6% faster; 3.5, 2-8% slower; 4.9, 6-16% slower).
 PACKET_FACES_PER_RAY = 3.0
 # Faces whose mean area, times the faces, stands for the scene's surface area there (the
 # leaf order spreads them over the whole scene; all of them took 6 ms at 1M faces).
@@ -214,8 +214,8 @@ class RayScene:
         250k-face one at 1024 x 1024 (0.35) 80 / 110, 75 / 101, 84 / 117; the 1M-face
         one framed edge-on (4.2: a strip of the view, many faces a ray where it lands)
         33 / 29, 30 / 26, 61 / 53. (Until this was judged, coherent rays fewer than
-        four a face all went through trace_range: the filling 1M-face
-        terrain at 1.85x Open3D's cast instead of 1.29x.)"""
+        four a face all went through trace_range: the filling 1M-face terrain at 1.85x
+        Open3D's cast instead of 1.29x.)"""
         from ..algorithms.rays import trace_packets, trace_range
 
         runs = _sample_runs(len(origins))
@@ -232,8 +232,8 @@ class RayScene:
         four rays hit, the spacing of its hits squared, over the cosine of the first
         hit's incidence (an oblique surface stretches the footprint), times the faces
         per unit of the scene's surface area (sampled, :data:`AREA_SAMPLES`); the
-        median of the runs. 0 when no run
-        lands whole (rays that miss are cheap on either walk)."""
+        median of the runs. 0 when no run lands whole (rays that miss are cheap on
+        either walk)."""
         from ..algorithms.rays import NEAREST, surface_area, trace_range
 
         if self._area is None:  # once per scene, at its first such query
