@@ -120,6 +120,14 @@ class BVH:
         """Nodes of the walked 8-wide tree."""
         return len(self.node_box)
 
+    @property
+    def walked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int, int]:
+        """The arguments the walks of :mod:`hsr.algorithms.rays` take for the tree, in
+        their order: ``(corners, leaf_face, node_box, node_link, root_ref, root_count,
+        wide_depth)``."""
+        return (self.corners, self.leaf_face, self.node_box, self.node_link, self.root_ref,
+                self.root_count, self.wide_depth)
+
 
 def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) -> BVH:
     """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``

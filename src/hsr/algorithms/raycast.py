@@ -146,8 +146,7 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     else:
         walk = (PACKETS if bvh.n_faces <= PACKET_FACES_PER_PIXEL * width * height
                 else INTERLEAVED)
-        nodes = (bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
-                 bvh.root_count, bvh.wide_depth)
+        nodes = bvh.walked
     spans = np.empty((height, 2), dtype=np.int64)
     if bvh is None:
         spans[:, 0], spans[:, 1] = 0, width

@@ -103,6 +103,7 @@ class RayScene:
     def __init__(self, scene: SceneLike | str | os.PathLike,
                  threads: int | None = None) -> None:
         from ..algorithms.bvh import build
+        from ..algorithms.rays import surface_area
         from ..scene.load import load_scene
 
         check_threads(threads)
@@ -116,7 +117,8 @@ class RayScene:
         lo, hi = self.bvh.bounds
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
         self._outputs = OutputPool()
-        self._area: float | None = None  # the faces' summed area (_faces_per_ray)
+        # The faces' summed area, sampled (microseconds): _faces_per_ray's density.
+        self._surface_area = surface_area(self.bvh.corners, AREA_SAMPLES)
 
     @property
     def n_faces(self) -> int:
@@ -175,15 +177,12 @@ class RayScene:
         kernel = self._walk(origins, directions, t0, t1)
         with Workers(self.threads) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
-            bvh = self.bvh
             # Chunks of CHUNK rays or more, about 16 per thread: a chunk's hand-off
             # costs tens of microseconds of Python.
             chunk = max(CHUNK, n // (16 * workers.threads))
             results = workers.run(
                 kernel, split_range(n, max(1, -(-n // chunk))), origins, directions,
-                t0, t1, mode, None, bvh.corners, bvh.leaf_face, bvh.node_box,
-                bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth,
-                self.face_offsets, *outputs,
+                t0, t1, mode, None, *self.bvh.walked, self.face_offsets, *outputs,
                 on_done=(lambda lo, hi: bar.update(hi - lo)) if progress else None)
         # The rays are checked chunk by chunk as they are traced (their data is in cache
         # then); the first bad ray of all is reported, whatever was traced.
@@ -234,11 +233,9 @@ class RayScene:
         per unit of the scene's surface area (sampled, :data:`AREA_SAMPLES`); the
         median of the runs. 0 when no run lands whole (rays that miss are cheap on
         either walk)."""
-        from ..algorithms.rays import NEAREST, surface_area, trace_range
+        from ..algorithms.rays import NEAREST, trace_range
 
-        if self._area is None:  # once per scene, at its first such query
-            self._area = surface_area(self.bvh.corners, AREA_SAMPLES)
-        if self._area <= 0.0:
+        if self._surface_area <= 0.0:
             return 0.0
         keep = min(FOOTPRINT_RUNS, max(8, len(origins) // 1024))
         index = runs[::max(1, len(runs) // keep)].ravel()
@@ -247,12 +244,9 @@ class RayScene:
         lo, hi = (t if len(t) == 1 else t[index] for t in (t0, t1))
         t, face = np.empty(m), np.empty(m, np.int32)
         normal = np.empty((m, 3))
-        bvh = self.bvh
         _, problem, _ = trace_range(
-            0, m, o, d, lo, hi, NEAREST, None, bvh.corners, bvh.leaf_face, bvh.node_box,
-            bvh.node_link, bvh.root_ref, bvh.root_count, bvh.wide_depth, self.face_offsets,
-            t, face, np.empty(m, np.int32), np.empty((m, 2)), normal,
-            np.empty(0, np.int32))
+            0, m, o, d, lo, hi, NEAREST, None, *self.bvh.walked, self.face_offsets, t, face,
+            np.empty(m, np.int32), np.empty((m, 2)), normal, np.empty(0, np.int32))
         if problem:  # a bad ray: the query's walk reports it
             return 0.0
         whole = (face.reshape(-1, 4) >= 0).all(axis=1)
@@ -264,7 +258,7 @@ class RayScene:
         cosine = np.abs(np.einsum("rc,rc->r", normal.reshape(-1, 4, 3)[whole, 0], first)
                         ) / np.linalg.norm(first, axis=1)
         footprint = spacing ** 2 / np.maximum(cosine, 0.1)
-        return float(np.median(footprint)) * self.n_faces / self._area
+        return float(np.median(footprint)) * self.n_faces / self._surface_area
 
     @staticmethod
     def _rays(origins, directions, t_min, t_max):
