@@ -222,6 +222,8 @@ def test_cli_against_a_separately_started_cluster(models, tmp_path, capsys):
     ({"cul": "back"}, hsr.RenderError, "no argument cul"),
     ({"algorithm": "painter", "depth_func": "greater"}, hsr.RenderError, "greater"),
     ({"workspace": None}, hsr.RenderError, "workspace is not a batch render option"),
+    ({"near": 2.0, "far": 1.0}, hsr.CameraError, "greater than near"),
+    ({"near": float("nan")}, hsr.CameraError, "near"),
 ])
 def test_bad_jobs_are_refused_before_any_work(models, tmp_path, kwargs, error, message):
     args = {"views": "orbit:2", "size": SIZE, "outputs": ("color",), "out": tmp_path / "o"}

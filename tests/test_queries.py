@@ -235,6 +235,12 @@ def test_cli_visibility_writes_what_the_library_computes(diablo, models_dir, tmp
     (["--views", "sphere:4", "--size", "0x3", "-o", "{tmp}/x.npz"], "--size"),
     (["--views", "{tmp}/missing.json", "-o", "{tmp}/x.npz"], "missing.json"),
     (["--views", "sphere:4", "-o", "{tmp}/exists.npz"], "exists"),
+    # The planes for camera files are checked with any views (they were ignored unread
+    # with generated ones).
+    (["--views", "sphere:4", "--near", "5", "--far", "1", "-o", "{tmp}/x.npz"],
+     "greater than near"),
+    (["--views", "sphere:4", "--near", "nan", "-o", "{tmp}/x.npz"], "near"),
+    (["--views", "sphere:4", "--near", "0", "-o", "{tmp}/x.npz"], "near must be > 0"),
 ])
 def test_cli_visibility_refuses_bad_input(models_dir, tmp_path, capsys, args, message):
     from hsr.cli import main

@@ -457,6 +457,8 @@ def test_cli_prune_faces_with_interior_cameras(tmp_path, capsys):
     (["--size", "big"], "--size"),
     (["--max-views", "0"], "max_views"),
     (["-o", "out.fbx"], "extension"),
+    (["--near", "-1"], "near must be > 0"),
+    (["--far", "inf"], "far"),
 ])
 def test_cli_prune_errors_are_one_line(args, message, tmp_path, capsys):
     src = tmp_path / "box.obj"

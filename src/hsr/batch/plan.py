@@ -66,8 +66,12 @@ def parse_views(views: Any, models: list, near: float = 0.1, far: float = 100.0)
     ``per-model:FILE`` (a JSON object from each model's path or file name to a
     transforms.json or COLMAP folder, relative to FILE), a list of :class:`hsr.Camera`,
     or a dict from model path to such a list. Raises :class:`BatchError` for anything
-    else, and :class:`~hsr.errors.CameraError` for a bad camera file."""
+    else, and :class:`~hsr.errors.CameraError` for a bad camera file or bad ``near`` /
+    ``far`` (the planes of cameras read from files; checked whatever the views)."""
+    from ..scene.camera import check_perspective_planes
     from ..scene.camera_files import read_colmap, read_transforms
+
+    check_perspective_planes(near, far)
 
     if isinstance(views, dict):
         return ViewSpec("per-model", per_model=_per_model(views, models), text="per-model")

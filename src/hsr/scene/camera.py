@@ -14,7 +14,7 @@ from ..errors import CameraError
 from .mesh import MAX_COORDINATE
 
 __all__ = ["Camera", "look_at_matrix", "perspective_matrix", "orthographic_matrix",
-           "MAX_DEPTH_RATIO", "MAX_COORDINATE"]
+           "check_perspective_planes", "MAX_DEPTH_RATIO", "MAX_COORDINATE"]
 
 # Window depth is stored as float32. For a perspective camera a surface at eye distance e
 # has window depth 1 - near/e (far >> near); beyond e = near * 2**24 that is within half a
@@ -46,6 +46,23 @@ def _vec3(value, what) -> np.ndarray:
         raise CameraError(f"{what} coordinates must be within +-{MAX_COORDINATE:g}, "
                           f"got {v.tolist()}")
     return v
+
+
+def check_perspective_planes(near: float, far: float) -> None:
+    """Raise :class:`CameraError` unless ``near`` and ``far`` are planes a perspective
+    camera can render with: finite, 0 < near < far and far / near <= 2**24 (see
+    :data:`MAX_DEPTH_RATIO`). For the planes given to cameras read from files, checked
+    even when no file is read, so a bad value is never ignored unseen."""
+    near, far = _finite(near, "near"), _finite(far, "far")
+    if not near > 0:
+        raise CameraError(f"near must be > 0 for a perspective camera, got {near}")
+    if not far > near:
+        raise CameraError(f"far ({far}) must be greater than near ({near})")
+    if far / near > MAX_DEPTH_RATIO:
+        raise CameraError(
+            f"far / near = {far / near:.3g} is more than 2**24: float32 window depth "
+            f"rounds every surface farther than near x 2**24 = {near * MAX_DEPTH_RATIO:.3g} "
+            f"to the far plane; raise near or lower far")
 
 
 def _finite(value, what) -> float:
@@ -426,16 +443,7 @@ class Camera:
             if not MIN_FOV_DEGREES <= fov < 180:
                 raise CameraError(f"fov must be in [{MIN_FOV_DEGREES:g}, 180) degrees, "
                                   f"got {self.fov_y}")
-            if not self.near > 0:
-                raise CameraError(f"near must be > 0 for a perspective camera, got {self.near}")
-            if not self.far > self.near:
-                raise CameraError(f"far ({self.far}) must be greater than near ({self.near})")
-            if self.far / self.near > MAX_DEPTH_RATIO:
-                raise CameraError(
-                    f"far / near = {self.far / self.near:.3g} is more than 2**24: float32 "
-                    f"window depth rounds every surface farther than near x 2**24 = "
-                    f"{self.near * MAX_DEPTH_RATIO:.3g} to the far plane; raise near or "
-                    f"lower far")
+            check_perspective_planes(self.near, self.far)
         self._view  # noqa: B018 - raises on eye == target or a bad up
 
     @cached_property
