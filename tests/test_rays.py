@@ -757,19 +757,24 @@ def test_the_lane_keys_sort_like_python_and_round_entries_down():
 
 def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     """The packet walk against the one-ray walk (two traversals that share only the
-    box and triangle tests) on every query, with per-ray intervals, rays parallel to
-    axes (the packet's careful box test) and a last packet of three rays."""
+    box and triangle tests) on every query, with per-ray intervals, rays from the near
+    plane, rays from the eye (packets from one origin, whose box test shares its first
+    step), rays parallel to axes (the packet's careful box test) and a last packet of
+    three rays."""
     from hsr.algorithms.rays import trace_packets, trace_range
 
     rays = hsr.RayScene(bunny)
     bvh = rays.bvh
-    origins, directions = pixel_rays(hsr.Camera.frame(bunny.bounds()), 60, 50)
+    camera = hsr.Camera.frame(bunny.bounds())
+    origins, directions = pixel_rays(camera, 60, 50)
+    eye = np.broadcast_to(np.asarray(camera.eye, dtype=np.float64), origins.shape)
     lo, hi = bunny.bounds()
     grid = np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 24), np.linspace(lo[1], hi[1], 24),
                                 [hi[2] + 1.0]), -1).reshape(-1, 3)
-    origins = np.concatenate([origins, grid])
-    directions = np.concatenate([directions, np.tile([0.0, 0.0, -1.0], (len(grid), 1))])
-    origins, directions = origins[:-1], directions[:-1]  # 3,575 rays
+    directions = np.concatenate([directions, origins + directions - eye,
+                                 np.tile([0.0, 0.0, -1.0], (len(grid), 1))])
+    origins = np.concatenate([origins, eye, grid])
+    origins, directions = origins[:-1], directions[:-1]  # 6,575 rays
     n = len(origins)
     rng = np.random.default_rng(4)
     t_min = rng.uniform(0, 0.3, n) * (rng.random(n) < 0.5)

@@ -40,10 +40,12 @@ from .simd import (
     bit_count,
     box_keys8,
     box_mask8,
+    float_bits,
     leaf_filter4,
     lowest_bit,
     next_float32,
     packet_keys8,
+    packet_keys8_shared,
     prefetch,
     sort_keys8,
 )
@@ -482,6 +484,12 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             best_t[r], best_z[r], best_f[r], best_k[r] = np.inf, np.inf, -1, -1
             best_uv[r, 0] = best_uv[r, 1] = 0.0
             count[r] = 0
+        # Four rays from one origin (a camera's; the same bits, so a signed zero does
+        # not pass for its opposite) share the box test's first step.
+        shared = True
+        for r in range(1, 4):
+            for a in range(3):
+                shared &= float_bits(rays[a, r]) == float_bits(rays[a, 0])
         top = 0
         ref, n = np.int64(root_ref), np.int64(root_count)
         active = np.int64((1 << min(4, hi - first)) - 1)
@@ -492,6 +500,9 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                 if careful:
                     mask = careful_packet_keys8(node_box, ref, rays, bound, active, entries,
                                                 keys)
+                elif shared:
+                    mask = packet_keys8_shared(node_box, ref, rays, bound, active, entries,
+                                               keys)
                 else:
                     mask = packet_keys8(node_box, ref, rays, bound, active, entries, keys)
                 # The entered boxes nearest first (the step of trace_range, on the keys
