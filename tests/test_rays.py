@@ -758,8 +758,8 @@ def test_the_lane_keys_sort_like_python_and_round_entries_down():
 def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     """The packet walk against the one-ray walk (two traversals that share only the
     box and triangle tests) on every query, with per-ray intervals, rays from the near
-    plane, rays from the eye (packets from one origin, whose box test shares its first
-    step), rays parallel to axes (the packet's careful box test) and a last packet of
+    plane, rays from the eye (packets from one origin, whose box and leaf tests share
+    their first steps), rays parallel to axes (the packet's careful box test) and a last packet of
     three rays."""
     from hsr.algorithms.rays import trace_packets, trace_range
 

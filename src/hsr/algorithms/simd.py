@@ -20,8 +20,8 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 __all__ = ["box_keys8", "box_mask8", "packet_keys8", "packet_keys8_shared", "leaf_filter4",
-           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "next_float32", "grow_box",
-           "prefetch"]
+           "leaf_filter4_rays", "sort_keys8", "lowest_bit", "bit_count", "float_bits",
+           "next_float32", "grow_box", "prefetch"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -265,6 +265,67 @@ def packet_keys8_shared(typingctx, box, w, rays, bound, active, out, keys):
     return sig, _packet_keys8(True)
 
 
+def _leaf_offsets(context, builder, tris_type, array, k0_v, n_v, axes, origin):
+    """The corners of triangles ``k0 .. k0 + n - 1`` (n <= 4) on the permuted axes
+    (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates on them
+    (``origin`` okx, oky, okz, scalars): three lists of three ``<4 x double>`` (corner
+    j's x, y, z; a lane per triangle, lanes past n repeat the first triangle). The
+    scalar test's first step (:func:`hsr.algorithms.bvh.sheared_corners`), corners
+    widened to float64."""
+    ary = context.make_array(tris_type)(context, builder, array)
+    strides = cgutils.unpack_tuple(builder, ary.strides, 3)
+    raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+    element = context.get_value_type(tris_type.dtype)
+    last = builder.sub(n_v, _i64(1))
+    rows = []
+    for i in range(4):
+        lane = builder.select(builder.icmp_signed("<=", _i64(i), last), _i64(i), _i64(0))
+        rows.append(builder.mul(builder.add(k0_v, lane), strides[0]))
+
+    def corner(j, axis):
+        """Coordinate ``axis`` of corner j of the four triangles, as float64."""
+        v = ir.Constant(_D4, ir.Undefined)
+        offset = builder.add(builder.mul(_i64(j), strides[1]),
+                             builder.mul(axis, strides[2]))
+        for i in range(4):
+            p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
+                                element.as_pointer())
+            x = builder.load(p)
+            if element != ir.DoubleType():
+                x = builder.fpext(x, ir.DoubleType())
+            v = builder.insert_element(v, x, ir.Constant(_I32, i))
+        return v
+
+    splat = [_splat(builder, x) for x in origin]
+    return [[builder.fsub(corner(j, axes[a]), splat[a]) for j in range(3)] for a in range(3)]
+
+
+def _leaf_hits(builder, offsets, sx, sy, n_v):
+    """Bit i set unless the watertight test rules triangle i out (see
+    :func:`leaf_filter4`), for the ray of shear ``sx``, ``sy`` (scalars) and the
+    corners less its origin ``offsets`` (:func:`_leaf_offsets`); an i64 of four bits."""
+    (dx, dy, zs), shear_x, shear_y = offsets, _splat(builder, sx), _splat(builder, sy)
+    xs = [builder.fsub(dx[j], builder.fmul(shear_x, zs[j])) for j in range(3)]
+    ys = [builder.fsub(dy[j], builder.fmul(shear_y, zs[j])) for j in range(3)]
+    (ax, bx, cx), (ay, by, cy) = xs, ys
+    u = builder.fsub(builder.fmul(cx, by), builder.fmul(cy, bx))
+    v = builder.fsub(builder.fmul(ax, cy), builder.fmul(ay, cx))
+    w = builder.fsub(builder.fmul(bx, ay), builder.fmul(by, ax))
+    det = builder.fadd(builder.fadd(u, v), w)
+    zero = ir.Constant(_D4, [0.0] * 4)
+
+    def any3(op):
+        return builder.or_(builder.or_(builder.fcmp_ordered(op, u, zero),
+                                       builder.fcmp_ordered(op, v, zero)),
+                           builder.fcmp_ordered(op, w, zero))
+
+    miss = builder.or_(builder.and_(any3("<"), any3(">")),
+                       builder.fcmp_ordered("==", det, zero))
+    bits = builder.zext(builder.bitcast(builder.not_(miss), ir.IntType(4)), _I64)
+    # Only the n lanes that hold the leaf's triangles.
+    return builder.and_(bits, builder.sub(builder.shl(_i64(1), n_v), _i64(1)))
+
+
 @intrinsic
 def leaf_filter4(typingctx, tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy):
     """Which of the triangles ``k0 .. k0 + n - 1`` (n <= 4) of ``tris`` ((F, 3, 3),
@@ -284,55 +345,44 @@ def leaf_filter4(typingctx, tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy):
         n_v = context.cast(builder, n_v, sig.args[2], types.intp)
         axes = [context.cast(builder, v, t, types.intp)
                 for v, t in zip((kx, ky, kz), sig.args[6:9])]
-        ary = context.make_array(sig.args[0])(context, builder, array)
-        strides = cgutils.unpack_tuple(builder, ary.strides, 3)
-        raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
-        element = context.get_value_type(sig.args[0].dtype)
-        last = builder.sub(n_v, _i64(1))
-        rows = []
-        for i in range(4):
-            # Lanes past n repeat the first triangle (cleared below).
-            lane = builder.select(builder.icmp_signed("<=", _i64(i), last), _i64(i), _i64(0))
-            rows.append(builder.mul(builder.add(k0_v, lane), strides[0]))
+        offsets = _leaf_offsets(context, builder, sig.args[0], array, k0_v, n_v, axes,
+                                (okx, oky, okz))
+        return _leaf_hits(builder, offsets, sx, sy, n_v)
 
-        def corner(j, axis):
-            """Coordinate ``axis`` of corner j of the four triangles, as float64."""
-            v = ir.Constant(_D4, ir.Undefined)
-            offset = builder.add(builder.mul(_i64(j), strides[1]),
-                                 builder.mul(axis, strides[2]))
-            for i in range(4):
-                p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
-                                    element.as_pointer())
-                x = builder.load(p)
-                if element != ir.DoubleType():
-                    x = builder.fpext(x, ir.DoubleType())
-                v = builder.insert_element(v, x, ir.Constant(_I32, i))
-            return v
+    return sig, codegen
 
-        ox, oy, oz = (_splat(builder, x) for x in (okx, oky, okz))
-        shear_x, shear_y = _splat(builder, sx), _splat(builder, sy)
-        zs = [builder.fsub(corner(j, axes[2]), oz) for j in range(3)]
-        xs = [builder.fsub(builder.fsub(corner(j, axes[0]), ox), builder.fmul(shear_x, zs[j]))
-              for j in range(3)]
-        ys = [builder.fsub(builder.fsub(corner(j, axes[1]), oy), builder.fmul(shear_y, zs[j]))
-              for j in range(3)]
-        (ax, bx, cx), (ay, by, cy) = xs, ys
-        u = builder.fsub(builder.fmul(cx, by), builder.fmul(cy, bx))
-        v = builder.fsub(builder.fmul(ax, cy), builder.fmul(ay, cx))
-        w = builder.fsub(builder.fmul(bx, ay), builder.fmul(by, ax))
-        det = builder.fadd(builder.fadd(u, v), w)
-        zero = ir.Constant(_D4, [0.0] * 4)
 
-        def any3(op):
-            return builder.or_(builder.or_(builder.fcmp_ordered(op, u, zero),
-                                           builder.fcmp_ordered(op, v, zero)),
-                               builder.fcmp_ordered(op, w, zero))
+@intrinsic
+def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
+    """:func:`leaf_filter4` for the four rays of a packet that share their origin and
+    their permuted axes (a camera's rays mostly do), so that what their tests share, the
+    corners read on those axes less the origin, is done once: ``frame`` (11, 4) float64
+    as :func:`hsr.algorithms.rays.trace_packets` keeps it (rows sx, sy, then okx, oky,
+    okz; a column per ray, the origin read from ray 0's), ``axes`` (3, 4) int64 (kx,
+    ky, kz of ray 0). Returns the four rays' bits of :func:`leaf_filter4`, ray r's at
+    bits 4 r .. 4 r + 3; each the same bits, as the same arithmetic."""
+    if frame.layout != "C" or axes.layout != "C":
+        return None  # read as raw rows: a typing error, not a wrong answer
+    sig = types.int64(tris, k0, n, frame, axes)
 
-        miss = builder.or_(builder.and_(any3("<"), any3(">")),
-                           builder.fcmp_ordered("==", det, zero))
-        bits = builder.zext(builder.bitcast(builder.not_(miss), ir.IntType(4)), _I64)
-        # Only the n lanes that hold the leaf's triangles.
-        return builder.and_(bits, builder.sub(builder.shl(_i64(1), n_v), _i64(1)))
+    def codegen(context, builder, sig, args):
+        array, k0_v, n_v, frame_v, axes_v = args
+        k0_v = context.cast(builder, k0_v, sig.args[1], types.intp)
+        n_v = context.cast(builder, n_v, sig.args[2], types.intp)
+        values = context.make_array(sig.args[3])(context, builder, frame_v).data
+        ints = context.make_array(sig.args[4])(context, builder, axes_v).data
+
+        def load(pointer, at):
+            return builder.load(builder.gep(pointer, [_i64(at)]))
+
+        axes = [load(ints, 4 * a) for a in range(3)]
+        offsets = _leaf_offsets(context, builder, sig.args[0], array, k0_v, n_v, axes,
+                                [load(values, 4 * (3 + a)) for a in range(3)])
+        bits = _i64(0)
+        for r in range(4):
+            hits = _leaf_hits(builder, offsets, load(values, r), load(values, 4 + r), n_v)
+            bits = builder.or_(bits, builder.shl(hits, _i64(4 * r)))
+        return bits
 
     return sig, codegen
 
