@@ -255,7 +255,7 @@ def packet_keys8_shared(typingctx, box, w, rays, bound, active, out, keys):
     """:func:`packet_keys8` for four rays from one origin (a camera's): the bounds less
     the origin are computed once for the four rays (the origin read from ray 0; the
     caller checks that the four are equal). The same arithmetic, so the same entries bit
-    for bit, with 6 of the 24 subtractions (two threads, 1M rays, ms min of three
+    for bit, with 6 of the 24 subtractions (one thread, 1M rays, ms min of three
     alternating runs of the packet walk: the 1M-face terrain's filling rays 179.5-183.3
     -> 175.3-176.8, the bunny's 87.6-88.0 -> 84.1-85.5, its framed view 50.8-51.2 ->
     48.1-48.7)."""
