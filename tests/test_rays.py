@@ -759,8 +759,8 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     """The packet walk against the one-ray walk (two traversals that share only the
     box and triangle tests) on every query, with per-ray intervals, rays from the near
     plane, rays from the eye (packets from one origin, whose box and leaf tests share
-    their first steps), rays parallel to axes (the packet's careful box test) and a last packet of
-    three rays."""
+    their first steps), rays parallel to axes (the packet's careful box test) and a
+    last packet of three rays."""
     from hsr.algorithms.rays import trace_packets, trace_range
 
     rays = hsr.RayScene(bunny)

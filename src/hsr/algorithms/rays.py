@@ -661,13 +661,7 @@ def surface_area(tris, samples) -> float:
     step = max(1, n // max(1, samples))
     total, counted = 0.0, 0
     for k in range(0, n, step):
-        ax = np.float64(tris[k, 1, 0]) - tris[k, 0, 0]
-        ay = np.float64(tris[k, 1, 1]) - tris[k, 0, 1]
-        az = np.float64(tris[k, 1, 2]) - tris[k, 0, 2]
-        bx = np.float64(tris[k, 2, 0]) - tris[k, 0, 0]
-        by = np.float64(tris[k, 2, 1]) - tris[k, 0, 1]
-        bz = np.float64(tris[k, 2, 2]) - tris[k, 0, 2]
-        cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        cx, cy, cz = face_normal(tris, k)  # (B - A) x (C - A), twice the area
         total += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
         counted += 1
     return total * n / counted if counted else 0.0
