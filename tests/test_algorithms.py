@@ -75,6 +75,32 @@ def test_near_plane_crossing(algorithm):
     assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), ortho=st.booleans(),
+       accel=st.sampled_from(["bvh", "none"]))
+def test_ray_caster_clips_at_the_near_plane_as_the_reference(seed, ortho, accel):
+    """Triangles all about the near plane, many cut by it: the ray caster's rays (from
+    the eye for a perspective camera, the near plane a fraction near / far along them)
+    keep exactly the hits the reference's rays from the near plane keep. (Checked to
+    fail with that fraction 1.5 times too large, or 0.)"""
+    rng = np.random.default_rng(seed)
+    near = float(rng.uniform(0.05, 2.0))
+    cam = hsr.Camera(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0, 1, 0),
+                     fov_y=float(rng.uniform(30, 100)), near=near,
+                     far=near * float(rng.uniform(4.0, 50.0)),
+                     ortho_height=2.0 * near if ortho else None)
+    n = int(rng.integers(5, 40))
+    centres = np.c_[rng.uniform(-0.6, 0.6, (n, 2)) * near, -near * rng.uniform(0.3, 2.5, n)]
+    corners = centres[:, None, :] + rng.uniform(-0.6, 0.6, (n, 3, 3)) * near
+    scene = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
+    width, height = 40, 32
+    frame = hsr.render(scene, cam, width, height, algorithm="raycast",
+                       options={"accel": accel})
+    ref_face, ref_depth = reference_render(scene, cam, width, height)
+    amb = ambiguous_pixels(scene, cam, width, height)
+    assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
+
+
 def test_scanline_equals_zbuffer_bit_for_bit_on_coplanar_ties():
     mesh, cam = coplanar_soup(200)
     for func in ("less", "lequal"):
@@ -253,10 +279,14 @@ def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ort
         assert reach == reach  # the reach is what the ray caster's usual views use
     rays = np.empty((6, width))
     inverse = np.linalg.inv(view_proj)
-    ts = np.concatenate([rng.uniform(0, 1, 200), rng.uniform(0, 1, 50) ** 8, [0.0, 1.0]])
+    # Perspective rays run from the eye, the near plane at t = near / far.
+    t_near = 0.0 if ortho else near / cam.far
+    ts = t_near + (1.0 - t_near) * np.concatenate([rng.uniform(0, 1, 200),
+                                                   rng.uniform(0, 1, 50) ** 8, [0.0, 1.0]])
+    eye = np.asarray(cam.eye, dtype=np.float64)
     for _ in range(20):
         r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
-        _row_rays(inverse, width, height, r, c, c + 1, rays)
+        _row_rays(inverse, width, height, r, c, c + 1, eye, not ortho, rays)
         misses, bounds = _bound_misses(rank, rays[:3, 0].copy(), rays[3:, 0].copy(), ts)
         assert (misses < 0).all(), (ts[misses >= 0][:3], misses[misses >= 0][:3])
         if reach == reach:

@@ -669,7 +669,8 @@ def surface_area(tris, samples) -> float:
 
 def window_ranking(view_proj, depth_range) -> np.ndarray:
     """The ray caster's ranking (``raster[3]`` of :func:`trace_range`) for the rays of
-    pixels (NDC x, y in [-1, 1]) from the near plane (t = 0) to the far plane (t = 1):
+    pixels (NDC x, y in [-1, 1]) to the far plane (t = 1), from the near plane (t = 0)
+    or from the eye (the near plane at t = near / far; :func:`tie_reach` holds for both):
     rows 2 and 3 of ``view_proj`` (the ray's clip z and w), the scale and offset that
     take NDC depth to window depth for glDepthRange ``depth_range`` (near, far), and
     the rays' tie reach (:func:`tie_reach`)."""
@@ -705,7 +706,10 @@ def tie_reach(view_proj, depth_scale) -> float:
     ``D / scale * max(l0, l1) / min(l0, l1)`` (``a |l1 - l0|`` is at most half of that,
     far below 1/2 for any reach kept). The ratio l1 / l0 is a ratio of affine
     functions of (x, y) (1 / l is row 3 of the inverse of ``view_proj`` times the NDC
-    point), so its largest value either way is at a corner of the image."""
+    point), so its largest value either way is at a corner of the image. A perspective
+    ray from the eye instead (the ray caster's) reaches the near plane at t0 = near /
+    far, and the point at t above lies at t0 + (1 - t0) t on it: the same depth step
+    spans less of it, and the reach holds."""
     if not depth_scale > 0.0:
         return np.nan
     try:
