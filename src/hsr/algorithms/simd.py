@@ -21,7 +21,7 @@ from numba.extending import intrinsic
 
 __all__ = ["box_keys8", "box_mask8", "packet_keys8", "packet_keys8_shared", "leaf_filter4",
            "leaf_filter4_rays", "sort_keys8", "lowest_bit", "bit_count", "float_bits",
-           "next_float32", "grow_box", "prefetch"]
+           "next_float32", "grow_box", "prefetch", "borrowed"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -555,3 +555,23 @@ def prefetch(typingctx, array, row, offset):
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+@intrinsic
+def borrowed(typingctx, array):
+    """``array`` as a view that holds no reference: the same data, shape and strides
+    with a null memory record, as :func:`numba.carray` makes (Numba's reference counts
+    skip a null record). For the walks' loops, over arrays their caller keeps alive:
+    Numba counts a reference each time an array is handed to an inlined helper (the
+    triangle test takes the corners), and where the helper's branches keep the count
+    from being pruned that is two atomic instructions in the loop, each waiting for the
+    memory reads in flight."""
+    if not isinstance(array, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        view = context.make_array(signature.args[0])(context, builder, args[0])
+        view.meminfo = cgutils.get_null_value(view.meminfo.type)
+        view.parent = cgutils.get_null_value(view.parent.type)
+        return view._getvalue()
+    return array(array), codegen
