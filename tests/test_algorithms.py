@@ -3,6 +3,7 @@ on the shared models. An algorithm registered later joins these tests by name.""
 
 import itertools
 import os
+import platform
 
 import numpy as np
 import pytest
@@ -291,6 +292,22 @@ def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ort
         assert (misses < 0).all(), (ts[misses >= 0][:3], misses[misses >= 0][:3])
         if reach == reach:
             assert (bounds - ts <= 1.01 * REACH_MAX).all()
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"),
+                    reason="reads x86 assembly")
+@pytest.mark.parametrize("from_eye", [True, False])
+def test_ray_caster_makes_its_rays_in_vector_lanes(from_eye):
+    """The ray caster's rays are made a row at a time by a loop LLVM turns into vector
+    code (packed divisions, ``divpd``); a branch inside the loop once left it scalar.
+    Compiled afresh here (cached code cannot be inspected)."""
+    from hsr.algorithms.raycast import _row_rays
+
+    fresh = njit(error_model="numpy")(_row_rays.py_func)
+    rays = np.empty((6, 64))
+    fresh(np.eye(4), 64, 64, 3, 0, 64, np.zeros(3), from_eye, rays)
+    asm = "\n".join(fresh.inspect_asm().values())
+    assert "divpd" in asm
 
 
 @settings(max_examples=60, deadline=None)
