@@ -77,28 +77,44 @@ def test_near_plane_crossing(algorithm):
 
 
 @settings(max_examples=30, deadline=None)
-@given(seed=st.integers(0, 2 ** 32 - 1), ortho=st.booleans(),
+@given(seed=st.integers(0, 2 ** 32 - 1), kind=st.sampled_from(["look_at", "ortho", "opencv"]),
        accel=st.sampled_from(["bvh", "none"]))
-def test_ray_caster_clips_at_the_near_plane_as_the_reference(seed, ortho, accel):
+def test_ray_caster_clips_at_the_near_plane_as_the_reference(seed, kind, accel):
     """Triangles all about the near plane, many cut by it: the ray caster's rays (from
     the eye for a perspective camera, the near plane a fraction near / far along them)
-    keep exactly the hits the reference's rays from the near plane keep. (Checked to
+    keep exactly the hits the reference's rays from the near plane keep; for a camera
+    looking down -Z from the origin, an orthographic one, and an OpenCV camera (K, R, t)
+    rotated anyhow, off-centre, its eye up to 100 units from the origin. (Checked to
     fail with that fraction 1.5 times too large, or 0.)"""
     rng = np.random.default_rng(seed)
     near = float(rng.uniform(0.05, 2.0))
-    cam = hsr.Camera(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0, 1, 0),
-                     fov_y=float(rng.uniform(30, 100)), near=near,
-                     far=near * float(rng.uniform(4.0, 50.0)),
-                     ortho_height=2.0 * near if ortho else None)
+    far = near * float(rng.uniform(4.0, 50.0))
+    width, height = 40, 32
+    # Camera space: x right, y up, looking down -z (OpenGL's eye space).
     n = int(rng.integers(5, 40))
     centres = np.c_[rng.uniform(-0.6, 0.6, (n, 2)) * near, -near * rng.uniform(0.3, 2.5, n)]
     corners = centres[:, None, :] + rng.uniform(-0.6, 0.6, (n, 3, 3)) * near
+    if kind == "opencv":
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        rot = q * np.sign(np.linalg.det(q))  # world -> OpenCV camera (x right, y down, z on)
+        eye = rng.uniform(-100, 100, 3)
+        focal = float(rng.uniform(20, 60))
+        k = np.array([[focal, 0, width / 2 + rng.uniform(-5, 5)],
+                      [0, focal * rng.uniform(0.8, 1.2), height / 2 + rng.uniform(-5, 5)],
+                      [0, 0, 1]])
+        cam = hsr.Camera.from_opencv(k, rot, -rot @ eye, width, height, near=near, far=far)
+        flip = np.array([1.0, -1.0, -1.0])  # OpenGL eye space -> OpenCV camera space
+        corners = (corners * flip) @ rot + eye
+    else:
+        cam = hsr.Camera(eye=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0, 1, 0),
+                         fov_y=float(rng.uniform(30, 100)), near=near, far=far,
+                         ortho_height=2.0 * near if kind == "ortho" else None)
     scene = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    width, height = 40, 32
     frame = hsr.render(scene, cam, width, height, algorithm="raycast",
                        options={"accel": accel})
     ref_face, ref_depth = reference_render(scene, cam, width, height)
     amb = ambiguous_pixels(scene, cam, width, height)
+    assert (frame.face_id >= 0).any() or (ref_face < 0).all()
     assert compare(frame.face_id, frame.depth, ref_face, ref_depth, amb)[:2] == (0, 0)
 
 
