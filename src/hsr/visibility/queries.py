@@ -22,6 +22,7 @@ import sys
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike
 
 from ..scene.camera import Camera
@@ -252,25 +253,40 @@ def frame_columns(frame, camera, quality: bool) -> tuple:
         return faces, counts
     normals = frame.normals.reshape(-1, 3)[shown].astype(np.float64)
     distance = frame.distance.ravel()[shown].astype(np.float64)
-    towards_eye = -_pixel_rays(camera, width, height)[shown]
-    cosine = np.einsum("ij,ij->i", normals, towards_eye)
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    cosine = _towards_eye_cosine(np.linalg.inv(view_proj), width, height,
+                                 np.flatnonzero(shown), normals)
     return (faces, counts, np.bincount(inverse, cosine, len(faces)),
             np.bincount(inverse, distance, len(faces)))
 
 
-def _pixel_rays(camera, width, height) -> np.ndarray:
-    """(H * W, 3) unit world directions of the rays through the pixel centres."""
-    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
-    inv = np.linalg.inv(view_proj)
-    x_ndc = (np.arange(width) + 0.5) * 2.0 / width - 1.0
-    y_ndc = 1.0 - (np.arange(height) + 0.5) * 2.0 / height
-    xx, yy = np.meshgrid(x_ndc, y_ndc)
-    ends = []
-    for z in (-1.0, 1.0):
-        h = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, z), np.ones(xx.size)], 1) @ inv.T
-        ends.append(h[:, :3] / h[:, 3:])
-    d = ends[1] - ends[0]
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+# error_model "numpy": IEEE division without Numba's zero test (a pixel's w is never 0
+# between the near and far planes).
+@njit(cache=True, nogil=True, error_model="numpy")
+def _towards_eye_cosine(inv_view_proj, width, height, pixels, normals):
+    """Per covered pixel (``pixels``: flat indices, row 0 the top), the cosine between its
+    normal and the unit direction back along its ray: the pixel centre un-projected at
+    the near and far planes (NDC z = -1 and 1), far minus near, normalised and turned
+    around. (In NumPy, rays for every pixel of the image, it took 41 ms of a 512 x 512
+    view's 78 with quality terms, the render 6.)"""
+    m = inv_view_proj
+    out = np.empty(len(pixels))
+    for k in range(len(pixels)):
+        r, c = divmod(pixels[k], width)
+        x = (c + 0.5) * 2.0 / width - 1.0
+        y = 1.0 - (r + 0.5) * 2.0 / height
+        # The two homogeneous points share all but their z term (m[:, 2] times -1 or 1).
+        bx = m[0, 0] * x + m[0, 1] * y + m[0, 3]
+        by = m[1, 0] * x + m[1, 1] * y + m[1, 3]
+        bz = m[2, 0] * x + m[2, 1] * y + m[2, 3]
+        bw = m[3, 0] * x + m[3, 1] * y + m[3, 3]
+        wn, wf = bw - m[3, 2], bw + m[3, 2]
+        dx = (bx + m[0, 2]) / wf - (bx - m[0, 2]) / wn
+        dy = (by + m[1, 2]) / wf - (by - m[1, 2]) / wn
+        dz = (bz + m[2, 2]) / wf - (bz - m[2, 2]) / wn
+        length = np.sqrt(dx * dx + dy * dy + dz * dz)
+        out[k] = -(normals[k, 0] * dx + normals[k, 1] * dy + normals[k, 2] * dz) / length
+    return out
 
 
 def _columns(scene, cameras, width, height, options, quality, client, progress) -> list:
