@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from ..parallel import Workers
-from ..scene.mesh import Scene, SceneLike, as_scene
+from ..scene.mesh import Scene, SceneLike, as_scene, corner_cross
 from .simd import (
     SLACK,
     SLACK_ABS,
@@ -231,12 +231,7 @@ def _flag_area(lo, hi, positions, faces, with_area):
     """Whether faces ``lo .. hi - 1`` span a non-zero area (the cross product of two
     edges is not the zero vector): the others cannot be hit."""
     for f in range(lo, hi):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = (positions[b, 0] - positions[a, 0], positions[b, 1] - positions[a, 1],
-                         positions[b, 2] - positions[a, 2])
-        e2x, e2y, e2z = (positions[c, 0] - positions[a, 0], positions[c, 1] - positions[a, 1],
-                         positions[c, 2] - positions[a, 2])
-        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        nx, ny, nz = corner_cross(positions, faces[f, 0], faces[f, 1], faces[f, 2])
         with_area[f] = nx * nx + ny * ny + nz * nz > 0.0
 
 
