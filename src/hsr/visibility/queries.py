@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from ..algorithms.raycast import _row_rays
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene
 from .count import VisibilityError, cameras_for, check_size
@@ -260,30 +261,23 @@ def frame_columns(frame, camera, quality: bool) -> tuple:
             np.bincount(inverse, distance, len(faces)))
 
 
-# error_model "numpy": IEEE division without Numba's zero test (a pixel's w is never 0
-# between the near and far planes).
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True)
 def _towards_eye_cosine(inv_view_proj, width, height, pixels, normals):
     """Per covered pixel (``pixels``: flat indices, row 0 the top), the cosine between its
-    normal and the unit direction back along its ray: the pixel centre un-projected at
-    the near and far planes (NDC z = -1 and 1), far minus near, normalised and turned
-    around. (In NumPy, rays for every pixel of the image, it took 41 ms of a 512 x 512
-    view's 78 with quality terms, the render 6.)"""
-    m = inv_view_proj
+    normal and the unit direction back along its ray: the ray caster's pixel ray
+    (:func:`hsr.algorithms.raycast._row_rays`, near plane to far plane), made a row at a
+    time, normalised and turned around. (In NumPy, rays for every pixel of the image,
+    it took 41 ms of a 512 x 512 view's 78 with quality terms, the render 6.)"""
+    rays = np.empty((6, width))
+    no_eye = np.zeros(3)
     out = np.empty(len(pixels))
+    row = -1
     for k in range(len(pixels)):
         r, c = divmod(pixels[k], width)
-        x = (c + 0.5) * 2.0 / width - 1.0
-        y = 1.0 - (r + 0.5) * 2.0 / height
-        # The two homogeneous points share all but their z term (m[:, 2] times -1 or 1).
-        bx = m[0, 0] * x + m[0, 1] * y + m[0, 3]
-        by = m[1, 0] * x + m[1, 1] * y + m[1, 3]
-        bz = m[2, 0] * x + m[2, 1] * y + m[2, 3]
-        bw = m[3, 0] * x + m[3, 1] * y + m[3, 3]
-        wn, wf = bw - m[3, 2], bw + m[3, 2]
-        dx = (bx + m[0, 2]) / wf - (bx - m[0, 2]) / wn
-        dy = (by + m[1, 2]) / wf - (by - m[1, 2]) / wn
-        dz = (bz + m[2, 2]) / wf - (bz - m[2, 2]) / wn
+        if r != row:  # the pixels come in row order (np.flatnonzero): each row once
+            _row_rays(inv_view_proj, width, height, r, 0, width, no_eye, False, rays)
+            row = r
+        dx, dy, dz = rays[3, c], rays[4, c], rays[5, c]
         length = np.sqrt(dx * dx + dy * dy + dz * dz)
         out[k] = -(normals[k, 0] * dx + normals[k, 1] * dy + normals[k, 2] * dz) / length
     return out
