@@ -849,19 +849,27 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
             assert 20 < np.count_nonzero(counts) < 130  # hits and misses both tested
 
 
-def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(bunny):
+@pytest.mark.parametrize("model", ["bunny", "terrain"])
+def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(model, request):
     """trace_range answers a ray that enters none of the root's boxes as it reads it,
     without a slot: in a long chunk where runs of such rays (pointing away from the
-    bunny, or towards it but stopped short by t_max) sit between rays that walk, every
+    model, or towards it but stopped short by t_max) sit between rays that walk, every
     output of every ray is written (outputs start as garbage) and equals the packet
     walk's, which has no such shortcut; the rays stopped short answer as misses, and
-    the nearest hits of a sample equal brute force."""
-    from hsr.algorithms.rays import trace_packets, trace_range
+    the nearest hits of a sample equal brute force. The bunny is walked a ray at a time,
+    a 120k-face terrain (above INTERLEAVE_BYTES) eight rays in turn."""
+    from hsr.algorithms.rays import INTERLEAVE_BYTES, trace_packets, trace_range
 
-    rays = hsr.RayScene(bunny)
+    if model == "bunny":
+        mesh = request.getfixturevalue("bunny")
+    else:
+        mesh = hsr.scenes.terrain_mesh(120_000)
+    rays = hsr.RayScene(mesh)
     bvh = rays.bvh
+    walked_bytes = bvh.corners.nbytes + bvh.node_box.nbytes
+    assert (walked_bytes > INTERLEAVE_BYTES) == (model == "terrain")
     rng = np.random.default_rng(21)
-    lo, hi = np.array(bunny.bounds())
+    lo, hi = np.array(mesh.bounds())
     center, size = (lo + hi) / 2, np.linalg.norm(hi - lo)
     n = 3001
     away = rng.normal(size=(n, 3))
@@ -893,7 +901,7 @@ def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(bun
     assert (uv[missed] == 0).all() and (normal[missed] == 0).all()
     assert 0.2 < (face[kind == 2] >= 0).mean() < 1.0  # some walk to a hit, some do not
     sample = rng.choice(np.flatnonzero(kind == 2), 40, replace=False)
-    want_t, want_f, _, _ = brute_force(bunny.positions[bunny.faces], origins[sample],
+    want_t, want_f, _, _ = brute_force(mesh.positions[mesh.faces], origins[sample],
                                        directions[sample])
     np.testing.assert_array_equal(face[sample], want_f)
     np.testing.assert_allclose(t[sample][want_f >= 0], want_t[want_f >= 0], rtol=1e-9)
