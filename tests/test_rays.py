@@ -798,21 +798,29 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
         assert (answers[0][0 if mode == 0 else 0] != 7).all()  # every ray written
 
 
-def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
-    """trace_range walks SLOTS rays in turn, switching at leaves and at wide nodes past
-    HOT_NODES (the bunny's tree has more): every ray of a long chunk (slots refilled
-    thousands of times, a last round part-full) gets, in all three queries, exactly
-    what it gets walked alone (a range of one ray), with
-    random and axis-parallel rays (the careful box test) mixed and per-ray intervals;
-    a sample's any-hit answers equal brute force."""
-    from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
+@pytest.mark.parametrize("model", ["terrain", "bunny"])
+def test_interleaved_walks_answer_each_ray_as_if_walked_alone(model, request):
+    """trace_range walks SLOTS rays in turn in a scene above INTERLEAVE_BYTES (a
+    120k-face terrain), switching at leaves and at wide nodes past HOT_NODES (its tree
+    has more): every ray of a long chunk (slots refilled thousands of times, a last
+    round part-full) gets, in all three queries, exactly what it gets walked alone (a
+    range of one ray), with random and axis-parallel rays (the careful box test) mixed
+    and per-ray intervals; a sample's any-hit answers equal brute force. The bunny, below
+    INTERLEAVE_BYTES, walks each ray to its end: the same holds."""
+    from hsr.algorithms.rays import HOT_NODES, INTERLEAVE_BYTES, SLOTS, trace_range
 
-    rays = hsr.RayScene(bunny)
+    if model == "bunny":
+        mesh = request.getfixturevalue("bunny")
+    else:
+        mesh = hsr.scenes.terrain_mesh(120_000)
+    rays = hsr.RayScene(mesh)
     bvh = rays.bvh
     assert bvh.n_wide_nodes > HOT_NODES
+    walked_bytes = bvh.corners.nbytes + bvh.node_box.nbytes
+    assert (walked_bytes > INTERLEAVE_BYTES) == (model == "terrain")
     rng = np.random.default_rng(12)
-    origins, directions = random_rays(bunny.bounds(), 2500, rng)
-    lo, hi = bunny.bounds()
+    origins, directions = random_rays(mesh.bounds(), 2500, rng)
+    lo, hi = mesh.bounds()
     grid = np.column_stack([rng.uniform(lo[0], hi[0], 300), rng.uniform(lo[1], hi[1], 300),
                             np.full(300, hi[2] + 1.0)])
     origins = np.concatenate([origins, grid])
@@ -826,8 +834,9 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     sample = rng.choice(n, 150, replace=False)
 
     def walk(mode, rows):
-        out = (np.full(n, 7.0), np.full(n, 7, np.int32), np.full(n, 7, np.int32),
-               np.full((n, 2), 7.0), np.full((n, 3), 7.0), np.full(n, 7, np.int32))
+        # Garbage no answer can be (a terrain's ray may cross it seven times).
+        out = (np.full(n, -7.0), np.full(n, -7, np.int32), np.full(n, -7, np.int32),
+               np.full((n, 2), -7.0), np.full((n, 3), -7.0), np.full(n, -7, np.int32))
         for r_lo, r_hi in rows:
             trace_range(r_lo, r_hi, origins, directions, t_min, t_max, mode, None,
                         bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link,
@@ -838,11 +847,11 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(bunny):
     for mode in (0, 1, 2):
         together = walk(mode, [(0, n)])
         alone = walk(mode, [(i, i + 1) for i in range(n)])
-        assert (together[0] != 7).all()  # every ray written
+        assert (together[0] != -7).all()  # every ray written
         for a, b in zip(together, alone):
             np.testing.assert_array_equal(a, b)
         if mode == 1:
-            counts = [brute_force(bunny.positions[bunny.faces], origins[i:i + 1],
+            counts = [brute_force(mesh.positions[mesh.faces], origins[i:i + 1],
                                   directions[i:i + 1], t_min[i], t_max[i])[3][0]
                       for i in sample]
             np.testing.assert_array_equal(together[0][sample], np.array(counts) > 0)
