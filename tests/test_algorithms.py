@@ -218,6 +218,34 @@ def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, 
                         assert tied.any() == (func == "lequal")
 
 
+def test_bvh_ray_caster_switching_walk_ranks_hits_as_the_naive_loop():
+    """A scene above INTERLEAVE_BYTES (a 60k-face terrain, half its faces repeated and
+    half of those reversed: 120k faces) walks its rays eight in turn, switching between
+    them (a grazing view: rays cross leaves they do not hit first), with the render
+    state's ranking carried across each switch: the same hits as
+    the naive loop under culling, both depth functions and both windings (the repeated
+    faces tie exactly; submission order decides)."""
+    from hsr.algorithms.rays import INTERLEAVE_BYTES
+
+    mesh = scenes.terrain_mesh(60_000)
+    n = len(mesh.faces)
+    scene = hsr.Mesh(mesh.positions, np.concatenate(
+        [mesh.faces, mesh.faces[::2], mesh.faces[1::2, ::-1]]))
+    bvh = hsr.RayScene(scene).bvh  # the tree the ray caster builds
+    assert bvh.corners.nbytes + bvh.node_box.nbytes > INTERLEAVE_BYTES
+    # Grazing: rays cross boxes and leaves they do not hit before the ones they do.
+    cam = hsr.Camera.frame(mesh.bounds(), direction=(1.0, 0.12, 0.3))
+    for cull in ("none", "back"):
+        for func in ("less", "lequal"):
+            for front in ("ccw", "cw"):
+                state = hsr.RenderState(cull=cull, depth_func=func, front_face=front)
+                naive, fast = _naive_and_bvh(scene, cam, 16, 12, state)
+                assert fast.stats["ray_walk"] == "interleaved"
+                _assert_same_hits(naive, fast)
+                if cull == "none":
+                    assert (fast.face_id >= n).any() == (func == "lequal")
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 60),
        cull=st.sampled_from(["none", "back", "front", "front_and_back"]),
