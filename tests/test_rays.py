@@ -68,6 +68,23 @@ def bunny(models_dir):
     return hsr.load(os.path.join(models_dir, "stanford-bunny.obj"))
 
 
+@pytest.fixture(params=["bunny", "terrain"])
+def walk_model(request):
+    """(mesh, RayScene) on either side of INTERLEAVE_BYTES: the bunny, whose walks go a
+    ray at a time to their end, and a 120k-face terrain, whose walks switch between
+    eight rays in turn (checked here, so each test runs both walks)."""
+    from hsr.algorithms.rays import INTERLEAVE_BYTES
+
+    if request.param == "bunny":
+        mesh = request.getfixturevalue("bunny")
+    else:
+        mesh = hsr.scenes.terrain_mesh(120_000)
+    rays = hsr.RayScene(mesh)
+    walked_bytes = rays.bvh.corners.nbytes + rays.bvh.node_box.nbytes
+    assert (walked_bytes > INTERLEAVE_BYTES) == (request.param == "terrain")
+    return mesh, rays
+
+
 def pixel_rays(camera, width, height):
     """(origins, directions) of a camera's pixel-centre rays, row by row, written here
     from the matrices: from the near plane to the far plane."""
@@ -798,8 +815,7 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
         assert (answers[0][0 if mode == 0 else 0] != 7).all()  # every ray written
 
 
-@pytest.mark.parametrize("model", ["terrain", "bunny"])
-def test_interleaved_walks_answer_each_ray_as_if_walked_alone(model, request):
+def test_interleaved_walks_answer_each_ray_as_if_walked_alone(walk_model):
     """trace_range walks SLOTS rays in turn in a scene above INTERLEAVE_BYTES (a
     120k-face terrain), switching at leaves and at wide nodes past HOT_NODES (its tree
     has more): every ray of a long chunk (slots refilled thousands of times, a last
@@ -807,17 +823,11 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(model, request):
     range of one ray), with random and axis-parallel rays (the careful box test) mixed
     and per-ray intervals; a sample's any-hit answers equal brute force. The bunny, below
     INTERLEAVE_BYTES, walks each ray to its end: the same holds."""
-    from hsr.algorithms.rays import HOT_NODES, INTERLEAVE_BYTES, SLOTS, trace_range
+    from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
 
-    if model == "bunny":
-        mesh = request.getfixturevalue("bunny")
-    else:
-        mesh = hsr.scenes.terrain_mesh(120_000)
-    rays = hsr.RayScene(mesh)
+    mesh, rays = walk_model
     bvh = rays.bvh
     assert bvh.n_wide_nodes > HOT_NODES
-    walked_bytes = bvh.corners.nbytes + bvh.node_box.nbytes
-    assert (walked_bytes > INTERLEAVE_BYTES) == (model == "terrain")
     rng = np.random.default_rng(12)
     origins, directions = random_rays(mesh.bounds(), 2500, rng)
     lo, hi = mesh.bounds()
@@ -858,8 +868,7 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(model, request):
             assert 20 < np.count_nonzero(counts) < 130  # hits and misses both tested
 
 
-@pytest.mark.parametrize("model", ["bunny", "terrain"])
-def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(model, request):
+def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(walk_model):
     """trace_range answers a ray that enters none of the root's boxes as it reads it,
     without a slot: in a long chunk where runs of such rays (pointing away from the
     model, or towards it but stopped short by t_max) sit between rays that walk, every
@@ -867,16 +876,10 @@ def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(mod
     walk's, which has no such shortcut; the rays stopped short answer as misses, and
     the nearest hits of a sample equal brute force. The bunny is walked a ray at a time,
     a 120k-face terrain (above INTERLEAVE_BYTES) eight rays in turn."""
-    from hsr.algorithms.rays import INTERLEAVE_BYTES, trace_packets, trace_range
+    from hsr.algorithms.rays import trace_packets, trace_range
 
-    if model == "bunny":
-        mesh = request.getfixturevalue("bunny")
-    else:
-        mesh = hsr.scenes.terrain_mesh(120_000)
-    rays = hsr.RayScene(mesh)
+    mesh, rays = walk_model
     bvh = rays.bvh
-    walked_bytes = bvh.corners.nbytes + bvh.node_box.nbytes
-    assert (walked_bytes > INTERLEAVE_BYTES) == (model == "terrain")
     rng = np.random.default_rng(21)
     lo, hi = np.array(mesh.bounds())
     center, size = (lo + hi) / 2, np.linalg.norm(hi - lo)
