@@ -241,7 +241,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     while True:
         for s in range(SLOTS):
             i = slot_i[s, _I_RAY]
-            root_mask = -1  # the root's mask when this slot's ray was just tested there
+            # The root's mask when this slot's ray was just tested there and entered (a
+            # ray answered before it at the intake leaves 0 here, which starts no walk).
+            root_mask = -1
             if i < 0:  # a free slot takes the next ray, if there is one
                 while next_ray < hi:
                     i = next_ray
@@ -274,7 +276,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     # alternating runs averaged, cast 52.0 -> 51.4, occluded (four) 45.0
                     # -> 44.5; the terrain's random cast (three) 70.9 -> 69.1.
                     if root_count != 0 or careful:
-                        root_mask = -1  # (not the mask of a ray answered before it)
                         break
                     if mode == NEAREST:
                         root_mask = box_keys8(node_box, root_ref, ox, oy, oz, inv_dx, inv_dy,
@@ -314,7 +315,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             done = False
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
-                    if root_mask >= 0:
+                    if root_mask > 0:
                         mask = root_mask  # (and keys hold its entries)
                         root_mask = -1
                     elif careful:
