@@ -117,6 +117,31 @@ def test_camera_rays_go_in_packets_and_agree_with_embree(bunny):
     _check_against_embree(bunny, origins, directions, rays.cast(origins, directions))
 
 
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(4, 6000), share=st.floats(0.0, 1.0), near_edge=st.integers(-2, 2),
+       seed=st.integers(0, 2 ** 32 - 1))
+def test_coherence_is_three_of_four_sampled_runs_whatever_their_order(n, share, near_edge,
+                                                                     seed):
+    """_coherent judges the sampled runs in two groups and may stop after the first:
+    its answer is still "at least three of four sampled runs are coherent", checked
+    here with the incoherent runs put anywhere among the sampled ones (first, last,
+    mixed) and their number on and around the quarter (an off-by-one at the stop
+    fails it)."""
+    from hsr.visibility.rays import _sample_runs
+
+    runs = _sample_runs(n)
+    m = len(runs)
+    quarter = m // 4
+    k = min(m, max(0, quarter + near_edge if seed % 2 else round(share * m)))
+    rng = np.random.default_rng(seed)
+    placement = [np.arange(m), np.arange(m)[::-1], rng.permutation(m)][seed % 3]
+    origins = np.zeros((n, 3))
+    directions = np.tile([0.0, 0.0, -1.0], (n, 1))
+    for r in placement[:k]:  # an incoherent run: its last three rays turn 90 degrees
+        directions[runs[r, 1:]] = [1.0, 0.0, 0.0]
+    assert _coherent(origins, directions, 1.0) == (4 * (m - k) >= 3 * m)
+
+
 def _looking_down(mesh):
     """A camera above a terrain whose view the terrain fills (as bench_raycast's
     ``fill`` view)."""
@@ -450,6 +475,39 @@ def test_concurrent_queries_on_one_scene(bunny):
         together = list(pool.map(lambda od: rays.cast(*od).face_id, batches))
     for a, b in zip(alone, together):
         np.testing.assert_array_equal(a, b)
+
+
+def test_queries_keep_their_threads_and_leave_a_renders_workspace_alone(bunny):
+    """Queries run on the calling thread's kept threads (hsr.parallel.default_workspace),
+    not on a pool started and stopped per call: no new pool thread after the first
+    call. A query for another thread count leaves the workspace a render kept (with its
+    scratch) as it is."""
+    import threading
+
+    from hsr import parallel
+
+    parallel.release_default_workspace()
+    rays = hsr.RayScene(bunny, threads=2)
+    origins, directions = random_rays(bunny.bounds(), 40_000, np.random.default_rng(3))
+
+    first = rays.cast(origins, directions).face_id
+    # Every thread started from here on runs this hook first (threading.setprofile).
+    started = set()
+    threading.setprofile(lambda *_: started.add(threading.current_thread().name))
+    try:
+        for _ in range(3):
+            np.testing.assert_array_equal(rays.cast(origins, directions).face_id, first)
+            rays.occluded(origins, directions)
+    finally:
+        threading.setprofile(None)
+    assert not started
+    hsr.render(bunny, hsr.Camera.frame(bunny.bounds()), 64, 48, threads=2)
+    kept = parallel._THREAD_DEFAULTS.workspace
+    scratch = kept.kept_bytes()
+    assert scratch > 0
+    hsr.RayScene(bunny, threads=3).cast(origins[:9000], directions[:9000])
+    assert parallel._THREAD_DEFAULTS.workspace is kept and kept.kept_bytes() == scratch
+    parallel.release_default_workspace()
 
 
 def test_a_scene_of_instances_numbers_faces_and_objects_globally():

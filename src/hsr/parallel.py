@@ -343,15 +343,23 @@ _THREAD_DEFAULTS = threading.local()
 
 
 @contextmanager
-def default_workspace(threads: int | None):
+def default_workspace(threads: int | None, replace: bool = True):
     """The calling thread's own :class:`Workspace` for ``threads`` (made on first use),
     held for one render: what ``hsr.render`` uses when it is given no workspace, so plain
     calls keep their scratch from one to the next as a Workspace does (the reason is in
     :class:`Workspace`'s notes). Per thread, so no two renders share one; a render
     nested in another on the same thread (or given ``threads`` other than the kept
     one's) gets fresh threads and scratch. Scratch over :data:`DEFAULT_KEEP_BYTES` is
-    dropped after the render; :func:`release_default_workspace` drops all of it."""
+    dropped after the render; :func:`release_default_workspace` drops all of it.
+
+    ``replace=False`` (callers that use only the threads, as ``RayScene``'s queries):
+    a kept workspace made for other ``threads`` is left as it is, with its scratch, and
+    this call gets fresh threads, instead of the kept one being closed and made anew."""
     kept = getattr(_THREAD_DEFAULTS, "workspace", None)
+    if kept is not None and kept.requested != threads and not replace:
+        with Workers(threads) as workers:
+            yield workers
+        return
     if kept is None or kept.requested != threads:
         if kept is not None and not kept.busy:
             kept.close()
