@@ -156,7 +156,8 @@ def test_frames_drawn_in_a_dropped_frames_memory_equal_the_reference(algorithm):
     del first
     _dropped()
     # The blocks the first frame (and any buffers the algorithm dropped) gave back.
-    held = {block.ctypes.data for block in parallel._THREAD_DEFAULTS.workspace.outputs._free}
+    held = {block.ctypes.data
+            for block, _ in parallel._THREAD_DEFAULTS.workspace.outputs._free}
     corner = _corner()
     frame = hsr.render(corner, CAMERA, W, H, algorithm=algorithm, background=(9, 8, 7))
     # Drawn in recycled memory (else this test would not test recycling).

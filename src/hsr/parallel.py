@@ -26,13 +26,33 @@ __all__ = ["Workers", "Workspace", "OutputPool", "split_range", "progress_bar",
            "OUTPUT_KEEP_BYTES"]
 
 
+class _NoBar:
+    """What :func:`progress_bar` gives when no bar is drawn: the calls a bar takes, doing
+    nothing."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
 def progress_bar(enabled: bool, total: int, desc: str, unit: str = "view"):
     """A tqdm bar over ``total`` items, drawn only when ``enabled`` (on a terminal, not
-    when piped), cleared when done."""
+    when piped), cleared when done. Not enabled, a bar that does nothing, without
+    tqdm: even disabled, a tqdm bar's making took 8 us, and several times that in a
+    call that starts with its code out of cache (a ray query after a large one)."""
+    if not enabled:
+        return _NoBar()
     from tqdm import tqdm
 
-    return tqdm(total=total, unit=unit, desc=desc, disable=not enabled, leave=False,
-                dynamic_ncols=True)
+    return tqdm(total=total, unit=unit, desc=desc, leave=False, dynamic_ncols=True)
 
 
 def split_range(n: int, parts: int) -> np.ndarray:
@@ -66,17 +86,18 @@ class _Lease:
     view of it keeps it too. When the last of them is gone, the block goes back to its
     pool."""
 
-    __slots__ = ("block", "pool", "__array_interface__")
+    __slots__ = ("block", "address", "pool", "__array_interface__")
 
-    def __init__(self, block: np.ndarray, shape: tuple, dtype: np.dtype, pool) -> None:
-        self.block, self.pool = block, pool
+    def __init__(self, block: np.ndarray, address: int, shape: tuple, dtype: np.dtype,
+                 pool) -> None:
+        self.block, self.address, self.pool = block, address, pool
         self.__array_interface__ = {"shape": shape, "typestr": dtype.str, "version": 3,
-                                    "data": (block.ctypes.data, False)}
+                                    "data": (address, False)}
 
     def __del__(self):
         pool = self.pool()
         if pool is not None:
-            pool.give_back(self.block)
+            pool.give_back(self.block, self.address)
 
 
 class OutputPool:
@@ -94,9 +115,13 @@ class OutputPool:
 
     def __init__(self, keep_bytes: int = OUTPUT_KEEP_BYTES) -> None:
         self.keep_bytes = int(keep_bytes)
-        self._free: list[np.ndarray] = []  # oldest first
+        # (block, its address), oldest first: the address is read once per block (its
+        # ctypes attribute, Python code of NumPy's, was most of an array's lease in a
+        # call that starts with its code out of cache).
+        self._free: list[tuple[np.ndarray, int]] = []
         self._free_bytes = 0
         self._lock = threading.Lock()
+        self._self = weakref.ref(self)
 
     def empty(self, shape: int | tuple[int, ...], dtype: DTypeLike = np.float64) -> np.ndarray:
         """An uninitialised array of ``shape`` and ``dtype``, in a kept block when one of
@@ -107,18 +132,19 @@ class OutputPool:
         nbytes = math.prod(dims) * dtype.itemsize
         if nbytes == 0 or nbytes > self.keep_bytes or dtype.hasobject:
             return np.empty(dims, dtype=dtype)
-        block = None
+        kept = None
         with self._lock:
             for k in range(len(self._free) - 1, -1, -1):
-                if self._free[k].nbytes == nbytes:
-                    block = self._free.pop(k)
+                if self._free[k][0].nbytes == nbytes:
+                    kept = self._free.pop(k)
                     self._free_bytes -= nbytes
                     break
-        if block is None:
+        if kept is None:
             block = np.empty(nbytes, dtype=np.uint8)
-        return np.asarray(_Lease(block, dims, dtype, weakref.ref(self)))
+            kept = block, block.ctypes.data
+        return np.asarray(_Lease(*kept, dims, dtype, self._self))
 
-    def give_back(self, block: np.ndarray) -> None:
+    def give_back(self, block: np.ndarray, address: int) -> None:
         """Keep ``block`` (its arrays are all gone) for a later :meth:`empty`."""
         # Called from _Lease.__del__, on whichever thread dropped the last array, maybe
         # inside empty() on this one (a garbage collection there): never wait for the
@@ -126,10 +152,10 @@ class OutputPool:
         if not self._lock.acquire(blocking=False):
             return
         try:
-            self._free.append(block)
+            self._free.append((block, address))
             self._free_bytes += block.nbytes
             while self._free_bytes > self.keep_bytes:
-                self._free_bytes -= self._free.pop(0).nbytes
+                self._free_bytes -= self._free.pop(0)[0].nbytes
         finally:
             self._lock.release()
 

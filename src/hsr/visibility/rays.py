@@ -225,12 +225,11 @@ class RayScene:
         Open3D's cast instead of 1.29x.)"""
         from ..algorithms.rays import trace_packets, trace_range
 
-        runs = _sample_runs(len(origins))
-        if runs is None or not _coherent(origins, directions, self.scene_size, runs):
+        if not _coherent(origins, directions, self.scene_size):
             return trace_range
         if 4 * self.n_faces <= len(origins):
             return trace_packets
-        faces = self._faces_per_ray(origins, directions, t0, t1, runs)
+        faces = self._faces_per_ray(origins, directions, t0, t1, _sample_runs(len(origins)))
         return trace_packets if faces <= PACKET_FACES_PER_RAY else trace_range
 
     def _faces_per_ray(self, origins, directions, t0, t1, runs) -> float:
@@ -280,41 +279,47 @@ class RayScene:
 def _sample_runs(n: int) -> np.ndarray | None:
     """(R, 4) ray indices: up to 256 runs of four neighbouring rays spread over a query
     of n rays (None below four rays)."""
+    runs = _runs_of(n)
+    return runs if len(runs) else None
+
+
+@njit(cache=True, nogil=True)
+def _runs_of(n):
+    """The runs of :func:`_sample_runs` ((0, 4) below four rays), in integer steps: a
+    call starts with its code out of cache after a large query, and np.linspace's many
+    small NumPy calls took 90 us there."""
     n_runs = n // 4
-    if n_runs == 0:
-        return None
-    # Integer steps, not np.linspace: a call starts with its code out of cache after a
-    # large query, and linspace's many small NumPy calls took 90 us there.
     m = min(256, n_runs)
-    first = np.arange(m, dtype=np.int64) * (n_runs - 1) // max(1, m - 1) * 4
-    return first[:, None] + np.arange(4)
+    runs = np.empty((m, 4), dtype=np.int64)
+    for k in range(m):
+        first = k * (n_runs - 1) // max(1, m - 1) * 4
+        for j in range(4):
+            runs[k, j] = first + j
+    return runs
 
 
-def _coherent(origins: np.ndarray, directions: np.ndarray, size: float,
-              runs: np.ndarray | None = None) -> bool:
-    """Whether the rays come in coherent runs (judged on the ``runs`` of
+def _coherent(origins: np.ndarray, directions: np.ndarray, size: float) -> bool:
+    """Whether the rays come in coherent runs (judged on the runs of
     :func:`_sample_runs`): in three of four, the four origins lie within 1/100 of the
     scene's size of each other and the directions within about 2.5 degrees."""
-    index = _sample_runs(len(origins)) if runs is None else runs
-    if index is None:
-        return False
-    n_runs = len(index)
-    allowed = n_runs - -(-3 * n_runs // 4)  # incoherent runs at most (a quarter)
-    return _incoherent_runs(origins, directions, index, 1e-2 * size, allowed) <= allowed
+    return _coherent_runs(origins, directions, 1e-2 * size)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _incoherent_runs(origins, directions, runs, reach, allowed):
-    """How many of the ``runs`` (R, 4) of rays are incoherent (:func:`_coherent`),
-    counting stopped once past ``allowed``: the answer is no by then. Random rays stop
-    after a quarter of the runs, whose rays lie spread over the query and mostly out of
-    cache when a call starts. (The choice of walk for the bunny's 1M random rays, timed
-    right after a 25 ms cast of them, min of 20: 0.34 ms as NumPy over all 256 runs,
-    0.24 as NumPy stopping after a quarter; with this kernel, 0.01 of it, 0.08 in all.)
-    A NaN or zero direction makes its run incoherent (its comparisons are false; the
-    walk refuses the ray)."""
+def _coherent_runs(origins, directions, reach):
+    """:func:`_coherent`, in one call: the runs judged one by one, stopping once more
+    than a quarter are incoherent (the answer is no by then). Random rays stop after a
+    quarter of the runs, whose rays lie spread over the query and mostly out of cache
+    when a call starts. (The choice of walk for the bunny's 1M random rays, timed right
+    after a 25 ms cast of them, min of 20: 0.34 ms as NumPy over all 256 runs, 0.24 as
+    NumPy stopping after a quarter, 0.08 with a kernel for the runs' test.) A NaN or
+    zero direction makes its run incoherent (its comparisons are false; the walk
+    refuses the ray)."""
+    runs = _runs_of(origins.shape[0])
+    m = runs.shape[0]
+    allowed = m - (3 * m + 3) // 4  # incoherent runs at most (a quarter)
     bad = 0
-    for r in range(runs.shape[0]):
+    for r in range(m):
         first = runs[r, 0]
         ax, ay, az = directions[first, 0], directions[first, 1], directions[first, 2]
         a_len = np.sqrt(ax * ax + ay * ay + az * az)
@@ -332,8 +337,8 @@ def _incoherent_runs(origins, directions, runs, reach, allowed):
         if not close:
             bad += 1
             if bad > allowed:
-                break
-    return bad
+                return False
+    return m > 0
 
 
 def _problem(problem: int, k: int, t0: np.ndarray, t1: np.ndarray) -> str:
@@ -355,8 +360,7 @@ def _real(values, what: str) -> np.ndarray:
         array = np.asarray(values)
     except (TypeError, ValueError) as exc:
         raise RayError(f"{what} must be an array of numbers ({exc})") from None
-    if array.dtype == np.bool_ or not (np.issubdtype(array.dtype, np.floating)
-                                       or np.issubdtype(array.dtype, np.integer)):
+    if array.dtype.kind not in "fiu":  # (bool is "b", complex "c", objects "O")
         raise RayError(f"{what} must be real numbers, got dtype {array.dtype}")
     return array
 
