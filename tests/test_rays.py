@@ -789,22 +789,25 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
 
 def test_the_lane_keys_sort_like_python_and_round_entries_down():
     """hsr.algorithms.simd.box_keys8's keys sorted by sort_keys8 (a vector sorting
-    network on the entries' bits) against Python's sort of (entry rounded down to eight
-    units in the last place, lane) pairs, the rounding done here on NumPy's view of the
-    bits: equal entries, zeros, +inf (missed lanes), tiny and huge values; each key's
-    lane is in its three low bits and its entry, read back, lies at most seven units in
-    the last place below the true one (never above it: the walk's pruning compares it
-    with the bound)."""
+    network on the entries' bits; min_key8 gives the first) against Python's sort of
+    (entry rounded down to eight units in the last place, lane) pairs, the rounding done
+    here on NumPy's view of the bits: equal entries, zeros, +inf (missed lanes), tiny
+    and huge values; each key's lane is in its three low bits and its entry, read back,
+    lies at most seven units in the last place below the true one (never above it: the
+    walk's pruning compares it with the bound)."""
     from numba import njit
 
-    from hsr.algorithms.simd import float_bits, sort_keys8
+    from hsr.algorithms.simd import float_bits, min_key8, sort_keys8
 
     @njit
     def keys(e):
         out = np.empty(8, dtype=np.int64)
         for lane in range(8):
             out[lane] = float_bits(e[lane]) & ~7 | lane
+        least = min_key8(out)  # (the walk takes its next box from it before sorting)
         sort_keys8(out)
+        if least != out[0]:
+            out[:] = -1
         return out
 
     @njit

@@ -45,6 +45,7 @@ from .simd import (
     leaf_filter4,
     leaf_filter4_rays,
     lowest_bit,
+    min_key8,
     next_float32,
     packet_keys8,
     packet_keys8_shared,
@@ -358,11 +359,15 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         else:
                             # The entered lanes' keys nearest first in keys[0 .. m].
                             m = bit_count(mask) - 1  # the entered lanes pushed
+                            # The walk goes on into the nearest (lane) as soon as it
+                            # is known, the others ordered for the stack meanwhile.
                             if m == 1:  # two: one comparison
                                 near = keys[lowest_bit(mask)]
                                 far = keys[lowest_bit(mask & (mask - 1))]
-                                keys[0], keys[1] = min(near, far), max(near, far)
+                                keys[1] = max(near, far)
+                                lane = min(near, far) & 7
                             else:
+                                lane = min_key8(keys) & 7
                                 # sort_keys8: a sorting network without branches. The
                                 # entered lanes lead (a missed lane sorts last, at +inf).
                                 sort_keys8(keys)
@@ -371,7 +376,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                 stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
                                 stack_t[top] = keys[j]
                                 top += 1
-                            lane = keys[0] & 7
                         ref, n = (np.int64(node_link[ref, REF + lane]),
                                   np.int64(node_link[ref, COUNT_AT + lane]))
                         if interleave and (n != 0 or ref >= HOT_NODES):

@@ -20,7 +20,7 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 __all__ = ["box_keys8", "box_mask8", "packet_keys8", "packet_keys8_shared", "leaf_filter4",
-           "leaf_filter4_rays", "sort_keys8", "lowest_bit", "bit_count", "float_bits",
+           "leaf_filter4_rays", "min_key8", "sort_keys8", "lowest_bit", "bit_count", "float_bits",
            "next_float32", "grow_box", "prefetch", "borrowed"]
 
 _I32 = ir.IntType(32)
@@ -391,6 +391,32 @@ def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
 _ROUNDS8 = ([(0, 1), (2, 3), (4, 5), (6, 7)], [(0, 2), (1, 3), (4, 6), (5, 7)],
             [(1, 2), (5, 6)], [(0, 4), (1, 5), (2, 6), (3, 7)], [(2, 4), (3, 5)],
             [(1, 2), (3, 4), (5, 6)])
+
+
+@intrinsic
+def min_key8(typingctx, keys):
+    """The least of the eight int64 ``keys`` (8 contiguous; :func:`sort_keys8`'s keys):
+    the nearest entered lane's, in three rounds of vector min with shuffles. The
+    ordered walk takes its next box from it while the sorting network orders the rest
+    for the stack: six rounds fewer between a node's box test and the next node's
+    read. One thread, the bunny's 1M random rays, cast, ms mean of eight alternating
+    runs' minimums: 50.7 -> 49.6 (lower in seven of eight); the 1M-face terrain's,
+    68.5-69.7 -> 67.3-69.3."""
+    sig = types.int64(keys)
+
+    def codegen(context, builder, sig, args):
+        pointer = builder.bitcast(context.make_array(sig.args[0])(context, builder,
+                                                                  args[0]).data,
+                                  _L8.as_pointer())
+        v = builder.load(pointer, align=8)
+        for partner in ([4, 5, 6, 7, 0, 1, 2, 3], [2, 3, 0, 1, 6, 7, 4, 5],
+                        [1, 0, 3, 2, 5, 4, 7, 6]):
+            other = builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
+                                           ir.Constant(ir.VectorType(_I32, 8), partner))
+            v = builder.select(builder.icmp_signed("<", v, other), v, other)
+        return builder.extract_element(v, ir.Constant(_I32, 0))
+
+    return sig, codegen
 
 
 @intrinsic
