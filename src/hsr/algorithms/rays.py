@@ -603,16 +603,19 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     if m == 0:
                         lane = lowest_bit(boxes) >> 2
                     else:
+                        # The nearest known first (min_key8, see trace_range).
                         if m == 1:  # two: one comparison
                             near = keys[lowest_bit(boxes) >> 2]
                             far = keys[lowest_bit(boxes & (boxes - 1)) >> 2]
-                            keys[0], keys[1] = min(near, far), max(near, far)
+                            keys[1] = max(near, far)
+                            lane = min(near, far) & 7
                         else:
+                            lane = min_key8(keys) & 7
                             sort_keys8(keys)
                         for j in range(m, 0, -1):
-                            lane = keys[j] & 7
-                            stack_ref[top] = node_link[ref, REF + lane]
-                            stack_count[top] = node_link[ref, COUNT_AT + lane]
+                            pushed = keys[j] & 7
+                            stack_ref[top] = node_link[ref, REF + pushed]
+                            stack_count[top] = node_link[ref, COUNT_AT + pushed]
                             # A box pushed is often walked next by another of the
                             # packet's rays: its memory is fetched now, while the nearest
                             # is walked (one thread, ms min of 4 alternating runs: a 1M
@@ -622,11 +625,12 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
                                 _fetch_box(node_box, tris, leaf_face, stack_ref[top],
                                            stack_count[top], mode == NEAREST)
-                            stack_rays[top] = (mask >> (4 * lane)) & 15
-                            stack_t[top, 0], stack_t[top, 1] = entries[0, lane], entries[1, lane]
-                            stack_t[top, 2], stack_t[top, 3] = entries[2, lane], entries[3, lane]
+                            stack_rays[top] = (mask >> (4 * pushed)) & 15
+                            stack_t[top, 0] = entries[0, pushed]
+                            stack_t[top, 1] = entries[1, pushed]
+                            stack_t[top, 2] = entries[2, pushed]
+                            stack_t[top, 3] = entries[3, pushed]
                             top += 1
-                        lane = keys[0] & 7
                     active = (mask >> (4 * lane)) & 15
                     ref, n = (np.int64(node_link[ref, REF + lane]),
                               np.int64(node_link[ref, COUNT_AT + lane]))
