@@ -179,10 +179,10 @@ class RayScene:
         # The calling thread's kept threads (hsr.render's, default_workspace), not a
         # pool started and stopped per call: the pool thread exiting after a call took
         # the GIL from the next one's Python set-up. Two threads, the bunny's 1M random
-        # rays, cast, ms min of 25 calls averaged over ten alternating processes: 26.8
-        # -> 26.2, lower in eight of ten (Open3D's ratio moved less: its calls, which
-        # alternate with these in the benchmark, had been slowed by the exiting thread
-        # too).
+        # rays, cast, ms min of 25 calls averaged over ten alternating processes, threads
+        # kept per process in a first trial: 26.8 -> 26.2, lower in eight of ten
+        # (Open3D's ratio moved less: its calls, which alternate with these in the
+        # benchmark, had been slowed by the exiting thread too).
         with default_workspace(self.threads, replace=False) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             # Chunks of CHUNK rays or more, about 16 per thread: a chunk's hand-off
