@@ -132,7 +132,7 @@ class OutputPool:
         nbytes = math.prod(dims) * dtype.itemsize
         if nbytes == 0 or nbytes > self.keep_bytes or dtype.hasobject:
             return np.empty(dims, dtype=dtype)
-        kept = None
+        kept: tuple[np.ndarray, int] | None = None
         with self._lock:
             for k in range(len(self._free) - 1, -1, -1):
                 if self._free[k][0].nbytes == nbytes:
@@ -140,9 +140,10 @@ class OutputPool:
                     self._free_bytes -= nbytes
                     break
         if kept is None:
-            block = np.empty(nbytes, dtype=np.uint8)
-            kept = block, block.ctypes.data
-        return np.asarray(_Lease(*kept, dims, dtype, self._self))
+            fresh = np.empty(nbytes, dtype=np.uint8)
+            kept = fresh, int(fresh.ctypes.data)
+        block, address = kept
+        return np.asarray(_Lease(block, address, dims, dtype, self._self))
 
     def give_back(self, block: np.ndarray, address: int) -> None:
         """Keep ``block`` (its arrays are all gone) for a later :meth:`empty`."""

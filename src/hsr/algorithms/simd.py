@@ -393,6 +393,18 @@ _ROUNDS8 = ([(0, 1), (2, 3), (4, 5), (6, 7)], [(0, 2), (1, 3), (4, 6), (5, 7)],
             [(1, 2), (3, 4), (5, 6)])
 
 
+def _keys_pointer(context, builder, array_type, array):
+    """The eight int64 keys of ``array`` (contiguous) as one ``<8 x i64>`` pointer."""
+    return builder.bitcast(context.make_array(array_type)(context, builder, array).data,
+                           _L8.as_pointer())
+
+
+def _permuted(builder, v, lanes):
+    """``v`` (``<8 x i64>``) with its lanes in the order ``lanes``."""
+    return builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
+                                  ir.Constant(ir.VectorType(_I32, 8), lanes))
+
+
 @intrinsic
 def min_key8(typingctx, keys):
     """The least of the eight int64 ``keys`` (8 contiguous; :func:`sort_keys8`'s keys):
@@ -405,14 +417,10 @@ def min_key8(typingctx, keys):
     sig = types.int64(keys)
 
     def codegen(context, builder, sig, args):
-        pointer = builder.bitcast(context.make_array(sig.args[0])(context, builder,
-                                                                  args[0]).data,
-                                  _L8.as_pointer())
-        v = builder.load(pointer, align=8)
+        v = builder.load(_keys_pointer(context, builder, sig.args[0], args[0]), align=8)
         for partner in ([4, 5, 6, 7, 0, 1, 2, 3], [2, 3, 0, 1, 6, 7, 4, 5],
                         [1, 0, 3, 2, 5, 4, 7, 6]):
-            other = builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
-                                           ir.Constant(ir.VectorType(_I32, 8), partner))
+            other = _permuted(builder, v, partner)
             v = builder.select(builder.icmp_signed("<", v, other), v, other)
         return builder.extract_element(v, ir.Constant(_I32, 0))
 
@@ -439,17 +447,14 @@ def sort_keys8(typingctx, keys):
     sig = types.void(keys)
 
     def codegen(context, builder, sig, args):
-        pointer = builder.bitcast(context.make_array(sig.args[0])(context, builder,
-                                                                  args[0]).data,
-                                  _L8.as_pointer())
+        pointer = _keys_pointer(context, builder, sig.args[0], args[0])
         v = builder.load(pointer, align=8)
         for pairs in _ROUNDS8:
             partner, take = list(range(8)), list(range(8))
             for i, j in pairs:
                 partner[i], partner[j] = j, i
                 take[j] = 8 + j  # the higher of the pair; i keeps the lower
-            other = builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
-                                           ir.Constant(ir.VectorType(_I32, 8), partner))
+            other = _permuted(builder, v, partner)
             below = builder.icmp_signed("<", v, other)
             low = builder.select(below, v, other)
             high = builder.select(below, other, v)
