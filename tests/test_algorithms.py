@@ -305,7 +305,7 @@ def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ort
     where it is small enough, else solving at each hit), perspective and orthographic,
     and depth ranges wide and narrow. Where the reach is used the bound stays within
     REACH_MAX of the hit (it prunes)."""
-    from hsr.algorithms.raycast import _row_rays
+    from hsr.algorithms.raycast import row_rays
     from hsr.algorithms.rays import REACH_MAX, window_ranking
 
     rng = np.random.default_rng(seed)
@@ -331,7 +331,7 @@ def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ort
     eye = np.asarray(cam.eye, dtype=np.float64)
     for _ in range(20):
         r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
-        _row_rays(inverse, width, height, r, c, c + 1, eye, not ortho, rays)
+        row_rays(inverse, width, height, r, c, c + 1, eye, not ortho, rays)
         misses, bounds = _bound_misses(rank, rays[:3, 0].copy(), rays[3:, 0].copy(), ts)
         assert (misses < 0).all(), (ts[misses >= 0][:3], misses[misses >= 0][:3])
         if reach == reach:
@@ -345,9 +345,9 @@ def test_ray_caster_makes_its_rays_in_vector_lanes(from_eye):
     """The ray caster's rays are made a row at a time by a loop LLVM turns into vector
     code (packed divisions, ``divpd``); a branch inside the loop once left it scalar.
     Compiled afresh here (cached code cannot be inspected)."""
-    from hsr.algorithms.raycast import _row_rays
+    from hsr.algorithms.raycast import row_rays
 
-    fresh = njit(error_model="numpy")(_row_rays.py_func)
+    fresh = njit(error_model="numpy")(row_rays.py_func)
     rays = np.empty((6, 64))
     fresh(np.eye(4), 64, 64, 3, 0, 64, np.zeros(3), from_eye, rays)
     asm = "\n".join(fresh.inspect_asm().values())

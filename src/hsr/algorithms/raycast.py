@@ -272,7 +272,7 @@ def _cover_box(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, view_proj, width, height, spa
 # error_model "numpy": IEEE division without Numba's zero test, which kept the loop
 # from being vectorized.
 @njit(cache=True, nogil=True, error_model="numpy")
-def _row_rays(inv_view_proj, width, height, r, c_lo, c_hi, eye, from_eye, rays):
+def row_rays(inv_view_proj, width, height, r, c_lo, c_hi, eye, from_eye, rays):
     """The rays of row ``r``'s pixel centres (row 0 is the top), columns ``c_lo`` ..
     ``c_hi - 1``, into ``rays[:, :c_hi - c_lo]`` (``rays`` (6, width)):
     origins x, y, z and directions x, y, z, a row of each. The far point: the centre
@@ -342,7 +342,7 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
         i = 0
         for r in range(b_lo, b_hi):
             c_lo, c_hi = spans[r, 0], spans[r, 1]
-            _row_rays(inv_view_proj, width, height, r, c_lo, c_hi, eye, not ortho, row)
+            row_rays(inv_view_proj, width, height, r, c_lo, c_hi, eye, not ortho, row)
             for j in range(c_hi - c_lo):
                 origins[i, 0], origins[i, 1], origins[i, 2] = row[0, j], row[1, j], row[2, j]
                 directions[i, 0], directions[i, 1] = row[3, j], row[4, j]

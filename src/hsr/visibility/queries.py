@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
-from ..algorithms.raycast import _row_rays
+from ..algorithms.raycast import row_rays
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene
 from .count import VisibilityError, cameras_for, check_size
@@ -265,7 +265,7 @@ def frame_columns(frame, camera, quality: bool) -> tuple:
 def _towards_eye_cosine(inv_view_proj, width, height, pixels, normals):
     """Per covered pixel (``pixels``: flat indices, row 0 the top), the cosine between its
     normal and the unit direction back along its ray: the ray caster's pixel ray
-    (:func:`hsr.algorithms.raycast._row_rays`, near plane to far plane), made a row at a
+    (:func:`hsr.algorithms.raycast.row_rays`, near plane to far plane), made a row at a
     time, normalised and turned around. (In NumPy, rays for every pixel of the image,
     it took 41 ms of a 512 x 512 view's 78 with quality terms, the render 6.)"""
     rays = np.empty((6, width))
@@ -275,7 +275,7 @@ def _towards_eye_cosine(inv_view_proj, width, height, pixels, normals):
     for k in range(len(pixels)):
         r, c = divmod(pixels[k], width)
         if r != row:  # the pixels come in row order (np.flatnonzero): each row once
-            _row_rays(inv_view_proj, width, height, r, 0, width, no_eye, False, rays)
+            row_rays(inv_view_proj, width, height, r, 0, width, no_eye, False, rays)
             row = r
         dx, dy, dz = rays[3, c], rays[4, c], rays[5, c]
         length = np.sqrt(dx * dx + dy * dy + dz * dz)
