@@ -383,17 +383,14 @@ def default_workspace(threads: int | None, replace: bool = True):
     a kept workspace made for other ``threads`` is left as it is, with its scratch, and
     this call gets fresh threads, instead of the kept one being closed and made anew."""
     kept = getattr(_THREAD_DEFAULTS, "workspace", None)
-    if kept is not None and kept.requested != threads and not replace:
-        with Workers(threads) as workers:
-            yield workers
-        return
-    if kept is None or kept.requested != threads:
+    other = kept is not None and kept.requested != threads  # made for other threads
+    if kept is None or (other and replace):
         if kept is not None and not kept.busy:
             kept.close()
         kept = Workspace(threads)
         kept.requested = threads
         _THREAD_DEFAULTS.workspace = kept
-    if kept.busy:  # nested: this thread's workspace is in use further up the stack
+    elif other or kept.busy:  # left as it is, or in use further up this thread's stack
         with Workers(threads) as workers:
             yield workers
         return

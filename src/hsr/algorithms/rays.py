@@ -357,10 +357,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                 stack_count[top] = node_link[ref, COUNT_AT + other]
                                 top += 1
                         else:
-                            # The entered lanes' keys nearest first in keys[0 .. m].
+                            # The walk goes on into the nearest entered lane as soon
+                            # as it is known; the others' keys are ordered for the
+                            # stack meanwhile, nearest first in keys[1 .. m].
                             m = bit_count(mask) - 1  # the entered lanes pushed
-                            # The walk goes on into the nearest (lane) as soon as it
-                            # is known, the others ordered for the stack meanwhile.
                             if m == 1:  # two: one comparison
                                 near = keys[lowest_bit(mask)]
                                 far = keys[lowest_bit(mask & (mask - 1))]

@@ -276,18 +276,12 @@ class RayScene:
         return origins, directions, _interval(t_min, n, "t_min"), _interval(t_max, n, "t_max")
 
 
-def _sample_runs(n: int) -> np.ndarray | None:
-    """(R, 4) ray indices: up to 256 runs of four neighbouring rays spread over a query
-    of n rays (None below four rays)."""
-    runs = _runs_of(n)
-    return runs if len(runs) else None
-
-
 @njit(cache=True, nogil=True)
-def _runs_of(n):
-    """The runs of :func:`_sample_runs` ((0, 4) below four rays), in integer steps: a
-    call starts with its code out of cache after a large query, and np.linspace's many
-    small NumPy calls took 90 us there."""
+def _sample_runs(n):
+    """(R, 4) ray indices: up to 256 runs of four neighbouring rays spread over a query
+    of n rays ((0, 4) below four rays), in integer steps: a call starts with its code
+    out of cache after a large query, and np.linspace's many small NumPy calls took 90
+    us there."""
     n_runs = n // 4
     m = min(256, n_runs)
     runs = np.empty((m, 4), dtype=np.int64)
@@ -298,24 +292,21 @@ def _runs_of(n):
     return runs
 
 
-def _coherent(origins: np.ndarray, directions: np.ndarray, size: float) -> bool:
+@njit(cache=True, nogil=True, error_model="numpy")
+def _coherent(origins, directions, size):
     """Whether the rays come in coherent runs (judged on the runs of
     :func:`_sample_runs`): in three of four, the four origins lie within 1/100 of the
-    scene's size of each other and the directions within about 2.5 degrees."""
-    return _coherent_runs(origins, directions, 1e-2 * size)
+    scene's ``size`` of each other and the directions within about 2.5 degrees.
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _coherent_runs(origins, directions, reach):
-    """:func:`_coherent`, in one call: the runs judged one by one, stopping once more
-    than a quarter are incoherent (the answer is no by then). Random rays stop after a
-    quarter of the runs, whose rays lie spread over the query and mostly out of cache
-    when a call starts. (The choice of walk for the bunny's 1M random rays, timed right
-    after a 25 ms cast of them, min of 20: 0.34 ms as NumPy over all 256 runs, 0.24 as
-    NumPy stopping after a quarter, 0.08 with a kernel for the runs' test.) A NaN or
-    zero direction makes its run incoherent (its comparisons are false; the walk
-    refuses the ray)."""
-    runs = _runs_of(origins.shape[0])
+    The runs are judged one by one, stopping once more than a quarter are incoherent
+    (the answer is no by then). Random rays stop after a quarter of the runs, whose rays
+    lie spread over the query and mostly out of cache when a call starts. (The choice
+    of walk for the bunny's 1M random rays, timed right after a 25 ms cast of them, min
+    of 20: 0.34 ms as NumPy over all 256 runs, 0.24 as NumPy stopping after a quarter,
+    0.08 with a kernel for the runs' test.) A NaN or zero direction makes its run
+    incoherent (its comparisons are false; the walk refuses the ray)."""
+    reach = 1e-2 * size
+    runs = _sample_runs(origins.shape[0])
     m = runs.shape[0]
     allowed = m - (3 * m + 3) // 4  # incoherent runs at most (a quarter)
     bad = 0
