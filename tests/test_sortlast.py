@@ -204,14 +204,18 @@ def test_bad_part_counts_are_refused(tmp_path, parts):
 
 def test_bad_outputs_are_refused(tmp_path):
     (tmp_path / "taken.zarr").mkdir()
-    with pytest.raises(PartitionError, match="exists"):
+    (tmp_path / "taken.zarr" / "mine.txt").write_text("a user's file")
+    with pytest.raises(PartitionError, match="holds other files"):
         hsr.partition(hsr.scenes.cube(), 2, tmp_path / "taken.zarr")
     with pytest.raises(PartitionError, match="does not exist"):
         hsr.partition(hsr.scenes.cube(), 2, tmp_path / "no" / "s.zarr")
-    with pytest.raises(PartitionError, match="not a partitioned scene"):
+    with pytest.raises(PartitionError, match="not a store hsr wrote"):
         hsr.partition(hsr.scenes.cube(), 2, tmp_path / "taken.zarr", overwrite=True)
     with pytest.raises(PartitionError, match="not a partitioned scene"):
         open_partitioned(tmp_path / "taken.zarr")
+    assert (tmp_path / "taken.zarr" / "mine.txt").read_text() == "a user's file"
+    (tmp_path / "empty.zarr").mkdir()  # an empty folder is a place to write
+    assert hsr.partition(hsr.scenes.cube(), 2, tmp_path / "empty.zarr").parts == 2
 
 
 @pytest.mark.parametrize("options,match", [
@@ -710,14 +714,17 @@ def test_a_damaged_store_is_refused_in_one_line(tmp_path):
         del group["positions"]
 
     for name, change, match in (("range.zarr", out_of_range, "outside"),
-                                ("order.zarr", unsorted, "ascend"),
-                                ("missing.zarr", removed, "needs the arrays")):
-        store = open_partitioned(damaged(name, change_part=change))
+                                ("order.zarr", unsorted, "part 1, array face_id: face ids "
+                                 "must ascend"),
+                                ("missing.zarr", removed, "part 1, array positions")):
         with pytest.raises(PartitionError, match=match):
-            render_partitioned(store, cams, 32, 24)
+            render_partitioned(damaged(name, change_part=change), cams, 32, 24)
     shutil.rmtree(tmp_path / "good.zarr" / "part_0002")
     with pytest.raises(PartitionError, match="part 2"):
-        render_partitioned(open_partitioned(tmp_path / "good.zarr"), cams, 32, 24)
+        render_partitioned(open_partitioned(tmp_path / "good.zarr", check_parts=False),
+                           cams, 32, 24)
+    with pytest.raises(PartitionError, match="part 2"):
+        open_partitioned(tmp_path / "good.zarr")
 
 
 def test_batch_of_a_store_to_zarr_and_resumed(tie_stores, tmp_path, monkeypatch):

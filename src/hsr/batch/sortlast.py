@@ -254,7 +254,7 @@ def _on_dask(client, store, groups, width, height, outputs, options, func,
 
 def _load(path: str, p: int) -> tuple:
     """On a worker: part ``p`` read once, kept as long as its future lives."""
-    store = open_partitioned(path)
+    store = open_partitioned(path, check_parts=False)  # checked where the job started
     scene, face_id = store.part(p)
     return p, scene, face_id
 

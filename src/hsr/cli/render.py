@@ -70,6 +70,7 @@ def run(args) -> int:
         if path:
             check_output(path, kinds)
     scene, camera, width, height, state, background, options = setup(args)
+    _plan_outputs(args, scene)
     if args.lines and not args.svg:
         raise CliError("--lines writes an SVG: give --svg FILE")
     if args.hidden_layer and not args.lines:
@@ -116,6 +117,23 @@ def run(args) -> int:
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
               + _algorithm_summary(s))
     return 0
+
+
+def _plan_outputs(args, scene) -> None:
+    """Every output (each numbered one of an orbit) checked against the inputs and the
+    other outputs before anything is rendered."""
+    from .setup import input_plan
+
+    plan = input_plan(args, scene)
+    flags = (("-o", args.output), ("--depth-out", args.depth_out), ("--normals-out",
+             args.normals_out), ("--ids-out", args.ids_out), ("--svg", args.svg),
+             ("--error-map", args.error_map))
+    suffixes = ([f"_{k:03d}" for k in range(args.orbit)]
+                if args.orbit is not None and 1 <= args.orbit <= 100_000 else [""])
+    for flag, path in flags:
+        if path:
+            for suffix in suffixes:
+                plan.add(flag, _numbered(path, suffix))
 
 
 def _numbered(path, suffix):

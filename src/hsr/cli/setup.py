@@ -24,6 +24,33 @@ def auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
     return near, far
 
 
+def camera_file(spec: str) -> tuple:
+    """``(path, index)`` of --camera FILE[:INDEX]."""
+    path, index = spec, 0
+    if ":" in path and path.rsplit(":", 1)[1].isdigit():
+        path, index = path.rsplit(":", 1)[0], int(path.rsplit(":", 1)[1])
+    return path, index
+
+
+def input_plan(args, scene, *files):
+    """The :class:`~hsr.scene.outputs.OutputPlan` of a command's inputs: the MODEL files
+    and every file the scene was read from (.mtl, textures, buffers), the --camera file,
+    and ``files`` (``(what, path)`` pairs: camera files of --views, a points file)."""
+    from ..scene.outputs import OutputPlan
+
+    plan = OutputPlan()
+    for path in getattr(args, "models", None) or [getattr(args, "model", None)]:
+        if path is not None:
+            plan.add_input("a MODEL", path)
+    for path in scene.sources() if hasattr(scene, "sources") else ():
+        plan.add_input("a file the model is read from", path)
+    if getattr(args, "camera", None):
+        plan.add_input("the --camera file", camera_file(args.camera)[0])
+    for what, path in files:
+        plan.add_input(what, path)
+    return plan
+
+
 def camera_from_file(args):
     """(camera, (w, h)) from --camera FILE[:INDEX], else (None, None)."""
     if not args.camera:
@@ -34,9 +61,7 @@ def camera_from_file(args):
                        ("ortho", "ortho")):
         if getattr(args, dest) is not None:
             raise CliError(f"--camera sets the camera: it does not combine with --{flag}")
-    path, index = args.camera, 0
-    if ":" in path and path.rsplit(":", 1)[1].isdigit():
-        path, index = path.rsplit(":", 1)[0], int(path.rsplit(":", 1)[1])
+    path, index = camera_file(args.camera)
     near = args.near if args.near is not None else 0.1
     far = args.far if args.far is not None else 100.0
     import os

@@ -157,8 +157,10 @@ def write_report(path, scene, camera, title: str, **kwargs) -> None:
     :func:`build_report` raises (:class:`~hsr.errors.RenderError` under 32x32, errors of
     :func:`hsr.render`)."""
     page = build_report(scene, camera, title, **kwargs)
+    from ..scene.outputs import staged
+
     try:
-        with open(path, "w", encoding="utf-8") as fh:
+        with staged(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
             fh.write(page)
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None

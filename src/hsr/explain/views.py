@@ -55,16 +55,18 @@ class Explanation:
 
         from ..errors import OutputError
         from ..scene.files import check_output
+        from ..scene.outputs import staged
 
         check_output(path)
         try:
-            if str(path).lower().endswith(".gif"):
-                frames = self.frames or [self.image]
-                images = [Image.fromarray(f) for f in frames]
-                images[0].save(path, save_all=True, append_images=images[1:], duration=120,
-                               loop=0)
-            else:
-                Image.fromarray(self.image).save(path)
+            with staged(path) as tmp:
+                if str(path).lower().endswith(".gif"):
+                    frames = self.frames or [self.image]
+                    images = [Image.fromarray(f) for f in frames]
+                    images[0].save(tmp, save_all=True, append_images=images[1:],
+                                   duration=120, loop=0)
+                else:
+                    Image.fromarray(self.image).save(tmp)
         except (OSError, ValueError) as exc:
             raise OutputError(f"cannot write {path}: {exc}") from None
 

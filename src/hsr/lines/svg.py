@@ -13,6 +13,7 @@ import os
 import numpy as np
 
 from ..errors import OutputError
+from ..scene.outputs import staged
 
 __all__ = ["write_polygons_svg", "write_svg"]
 
@@ -23,7 +24,7 @@ def write_svg(path, parts: list) -> None:
     if not os.path.isdir(folder):
         raise OutputError(f"cannot write {path}: directory {folder} does not exist")
     try:
-        with open(path, "w", encoding="utf-8") as fh:
+        with staged(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
             fh.write("\n".join(parts) + "\n")
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None

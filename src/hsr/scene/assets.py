@@ -52,6 +52,7 @@ class FolderResolver:
         self.label = label
         self.max_bytes = max_bytes
         self._read: dict[str, bytes] = {}
+        self.paths: list[str] = []  # the files read, in order: inputs no output replaces
 
     def path_of(self, uri) -> str:
         """The real path inside the folder that the relative ``uri`` names, or a
@@ -85,6 +86,7 @@ class FolderResolver:
                 data = read_regular(path, "file", self.max_bytes)
             except MeshError as exc:
                 raise MeshError(f"{self.label}: names {uri!r}: {exc}") from None
+            self.paths.append(path)
         self._read[uri] = data
         return data
 

@@ -9,6 +9,7 @@ import stat
 import numpy as np
 
 from ..errors import MeshError, OutputError
+from .outputs import staged
 
 __all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG_SCALES",
            "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES", "MAX_MTL_BYTES"]
@@ -90,7 +91,8 @@ def save_image(color: np.ndarray, path) -> None:
 
     path = check_output(path)
     try:
-        Image.fromarray(np.ascontiguousarray(color)).save(path)
+        with staged(path) as tmp:
+            Image.fromarray(np.ascontiguousarray(color)).save(tmp)
     except (ValueError, KeyError) as exc:  # Pillow: unknown extension
         raise OutputError(f"cannot write {path}: {exc}") from None
     except OSError as exc:
@@ -108,15 +110,16 @@ def _save_buffer(path, array: np.ndarray, what: str, write_png) -> None:
     failed write, is an :class:`OutputError`."""
     path = _check_dir(path)
     lower = path.lower()
+    if not lower.endswith((".npy", ".exr", ".png")):
+        raise OutputError(f"cannot write {what} to {path}: use .npy, .exr or .png")
     try:
-        if lower.endswith(".npy"):
-            np.save(path, array.astype(np.float32))
-        elif lower.endswith(".exr"):
-            write_exr(path, array)
-        elif lower.endswith(".png"):
-            write_png(path)
-        else:
-            raise OutputError(f"cannot write {what} to {path}: use .npy, .exr or .png")
+        with staged(path) as tmp:
+            if lower.endswith(".npy"):
+                np.save(tmp, array.astype(np.float32))
+            elif lower.endswith(".exr"):
+                write_exr(tmp, array)
+            else:
+                write_png(tmp)
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None
 
@@ -185,6 +188,7 @@ def save_ids(face_id: np.ndarray, path) -> None:
     if not path.lower().endswith(".npy"):
         raise OutputError(f"cannot write ids to {path}: use .npy")
     try:
-        np.save(path, face_id.astype(np.int32))
+        with staged(path) as tmp:
+            np.save(tmp, face_id.astype(np.int32))
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None

@@ -51,10 +51,10 @@ def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES)
     path = os.fspath(source)
     if path.lower().endswith(".obj"):
         return read_obj(path, max_bytes=max_bytes)
-    loaded, header = _read_with_trimesh(path, max_bytes)
+    loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _single(_file_scene(loaded, header, path), path)
-    return from_trimesh(loaded, os.path.basename(path))
+        return _single(_file_scene(loaded, header, path, read), path)
+    return _with_sources(from_trimesh(loaded, os.path.basename(path)), read)
 
 
 def load_scene(source: str | os.PathLike | SceneLike,
@@ -82,17 +82,27 @@ def load_scene(source: str | os.PathLike | SceneLike,
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):
         return Scene([load(source, max_bytes)])
     path = os.fspath(source)
-    loaded, header = _read_with_trimesh(path, max_bytes)
+    loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _file_scene(loaded, header, path)
-    return Scene([from_trimesh(loaded, os.path.basename(path))])
+        return _file_scene(loaded, header, path, read)
+    return Scene([_with_sources(from_trimesh(loaded, os.path.basename(path)), read)])
 
 
-def _file_scene(loaded, header, path: str) -> Scene:
-    """:func:`_scene_from_trimesh` of a file's trimesh scene; trimesh's scene graph fails
-    in its own ways on files its loader let through, each a :class:`MeshError` here."""
+def _with_sources(mesh: Mesh, read: tuple) -> Mesh:
+    """``mesh`` with the files it was read from (:attr:`Mesh.sources`) recorded."""
+    mesh.sources = tuple(read)
+    return mesh
+
+
+def _file_scene(loaded, header, path: str, read: tuple = ()) -> Scene:
+    """:func:`_scene_from_trimesh` of a file's trimesh scene, each mesh recording the
+    files ``read`` for it; trimesh's scene graph fails in its own ways on files its
+    loader let through, each a :class:`MeshError` here."""
     try:
-        return _scene_from_trimesh(loaded, header, os.path.basename(path))
+        scene = _scene_from_trimesh(loaded, header, os.path.basename(path))
+        for inst in scene.instances:
+            inst.mesh.sources = tuple(read)
+        return scene
     except HsrError:
         raise
     except Exception as exc:  # noqa: BLE001 - third-party code on untrusted data
@@ -113,11 +123,12 @@ def _single(scene: Scene, what: str) -> Mesh:
     normals = (None if mesh.corner_normals is None
                else mesh.corner_normals @ normal_matrix(inst.model).T)  # shading normalises
     return Mesh(positions, mesh.faces, mesh.corner_uv, normals, mesh.face_colors, mesh.texture,
-                mesh.name, mesh.corner_colors)
+                mesh.name, mesh.corner_colors, mesh.sources)
 
 
 def _read_with_trimesh(path: str, max_bytes: int):
-    """(trimesh object, glTF JSON header or None) of a file."""
+    """(trimesh object, glTF JSON header or None, the files read: the model and what it
+    names) of a file."""
     import trimesh  # imported lazily: it is slow to import and OBJ does not need it
 
     check_regular(path, "mesh file", max_bytes)
@@ -143,7 +154,7 @@ def _read_with_trimesh(path: str, max_bytes: int):
         raise MeshError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     if not is_trimesh_scene(loaded) and type(loaded).__name__ != "Trimesh":
         raise MeshError(f"{path}: no triangles found ({type(loaded).__name__})")
-    return loaded, header
+    return loaded, header, (os.path.abspath(path), *resolver.paths)
 
 
 def _gltf_header(data: bytes, path: str) -> dict:

@@ -8,6 +8,7 @@ ties are decided by submission order): nothing here reorders faces. Reading file
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any, TypeAlias
@@ -42,6 +43,8 @@ class Mesh:
         colours), interpolated across the face; multiplies ``face_colors`` and the texture.
     texture : path or (H, W, 3|4) uint8 array or None, the diffuse texture.
     name : a label used in messages.
+    sources : the files the mesh was read from (the model, its .mtl, buffers and
+        textures), which no hsr output may replace; empty for a mesh made in memory.
 
     Raises :class:`~hsr.errors.MeshError` for arrays of the wrong shape or type, indices
     outside the vertices, NaN, infinite or huge (> 1e100) coordinates used by a face, no faces.
@@ -60,11 +63,13 @@ class Mesh:
     texture: object = None
     name: str = "mesh"
     corner_colors: np.ndarray | None = None
+    sources: tuple = ()
 
     def __post_init__(self):
         self.positions, self.faces, extent = _validate_arrays(self.positions, self.faces,
                                                               self.name)
         self._extent = ((self.positions,), extent)
+        self.sources = tuple(os.fspath(p) for p in self.sources)
         n_faces = len(self.faces)
         self.corner_uv = _validate_corner(self.corner_uv, (n_faces, 3, 2), "corner_uv", self.name)
         self.corner_normals = _validate_corner(
@@ -335,6 +340,16 @@ class Scene:
     @property
     def n_faces(self) -> int:
         return sum(inst.mesh.n_faces for inst in self.instances)
+
+    def sources(self) -> list:
+        """The files the scene was read from (every mesh's :attr:`Mesh.sources` and
+        texture paths), in first-use order: the inputs no output may replace."""
+        found: dict = {}
+        for inst in self.instances:
+            texture = inst.mesh.texture
+            paths = inst.mesh.sources + ((texture,) if isinstance(texture, str) else ())
+            found.update(dict.fromkeys(os.path.abspath(p) for p in paths))
+        return list(found)
 
     def face_offsets(self) -> np.ndarray:
         """(n_instances + 1,) start of each instance's faces in the global face list."""

@@ -215,9 +215,11 @@ def _build(path, name, s: _Scanned) -> Mesh:
         if mat not in materials:
             materials.append(mat)
         poly_mat[first_face:] = materials.index(mat)
-    face_colors, texture = _read_materials(path, s.mtllibs, materials, poly_mat[tri_poly])
+    face_colors, texture, named = _read_materials(path, s.mtllibs, materials,
+                                                  poly_mat[tri_poly])
     return Mesh(positions, faces, corner_uv=corner_uv, corner_normals=corner_normals,
-                face_colors=face_colors, texture=texture, name=name)
+                face_colors=face_colors, texture=texture, name=name,
+                sources=(os.path.abspath(path), *named))
 
 
 def fan_corners(counts: np.ndarray) -> tuple:
@@ -322,13 +324,17 @@ def _check_magnitude(refs: np.ndarray) -> np.ndarray:
 
 
 def _read_materials(obj_path, mtllibs, materials, face_mat):
-    """Kd colours per face and the first map_Kd texture path from the OBJ's .mtl files.
+    """Kd colours per face, the first map_Kd texture path from the OBJ's .mtl files and
+    the files they name that exist (the .mtl files, every map_ texture: inputs that no
+    output may replace).
     A missing .mtl is not an error (many OBJ files name one they do not ship); one that
     exists but cannot be read, or a ``Kd`` that is not three finite numbers, is. Finite
     ``Kd`` values outside [0, 1] are clamped to it (OpenGL clamps colours the same way)."""
-    if not mtllibs or not materials:
-        return None, None
     base = os.path.dirname(obj_path)
+    named = [os.path.abspath(os.path.join(base, lib)) for lib in mtllibs
+             if os.path.lexists(os.path.join(base, lib))]
+    if not mtllibs or not materials:
+        return None, None, named
     kd: dict[str, tuple] = {}
     texture = None
     for lib in mtllibs:
@@ -353,12 +359,14 @@ def _read_materials(obj_path, mtllibs, materials, face_mat):
                     raise MeshError(f"{lib}:{lineno}: Kd must be three finite numbers, "
                                     f"got {' '.join(parts[1:4])!r}")
                 kd[current] = rgb
-            elif parts[0] == "map_Kd" and texture is None and len(parts) > 1:
+            elif parts[0].startswith("map_") and len(parts) > 1:
                 candidate = os.path.join(base, parts[-1])
                 if os.path.exists(candidate):
-                    texture = candidate
+                    named.append(os.path.abspath(candidate))
+                    if parts[0] == "map_Kd" and texture is None:
+                        texture = candidate
     if not kd:
-        return None, texture
+        return None, texture, named
     table = np.array([kd.get(m, (0.8, 0.8, 0.8)) for m in materials] + [(0.8, 0.8, 0.8)])
     colors = np.round(np.clip(table[face_mat], 0, 1) * 255).astype(np.uint8)
-    return colors, texture
+    return colors, texture, named

@@ -20,7 +20,7 @@ import tempfile
 
 import numpy as np
 
-from ..errors import MeshError, require_extra
+from ..errors import MeshError, OutputError, require_extra
 from ..parallel import progress_bar
 from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
@@ -35,11 +35,15 @@ from .partitioned import (
     is_partitioned,
     open_partitioned,
 )
+from .outputs import check_store_target, same_file
 from .ply import PlyLayout, face_chunks, is_binary_ply, read_layout, read_positions
 
 __all__ = ["partition", "partition_streamed", "morton_order", "morton_codes", "MAX_PARTS"]
 
 MAX_PARTS = 65536
+# Every chunk written, those equal to the fill value too, so that a reader can refuse a
+# missing chunk as a loss (see hsr.scene.partitioned).
+_EVERY_CHUNK = {"write_empty_chunks": True}
 
 
 def morton_order(centroids: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -84,7 +88,10 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
     does not, :class:`~hsr.errors.MeshError` for a model that does not load and
     :class:`~hsr.errors.MissingExtraError` without Zarr."""
     require_extra("hsr partition", "zarr")
-    out = _check_out(out, overwrite)
+    if not isinstance(scene, (str, os.PathLike)):
+        scene = as_scene(scene)
+    out = _check_out(out, overwrite, [scene] if isinstance(scene, (str, os.PathLike))
+                     else scene.sources())
     if stream not in (None, True, False):
         raise PartitionError(f"stream must be True, False or None, got {stream!r}")
     if isinstance(scene, (str, os.PathLike)):
@@ -94,6 +101,7 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
         if stream:
             return partition_streamed(path, parts, out, overwrite, progress=progress)
         scene = load_scene(path)
+        _check_out(out, overwrite, getattr(scene, "sources", list)())
     elif stream:
         raise PartitionError("stream=True reads a file: give its path")
     scene = as_scene(scene)
@@ -105,14 +113,23 @@ def partition(scene: SceneLike, parts: int, out: str | os.PathLike,
     return _write_store(out, write)
 
 
-def _check_out(out: str | os.PathLike, overwrite: bool) -> str:
+def _check_out(out: str | os.PathLike, overwrite: bool, inputs=()) -> str:
+    """``out`` where a store may be written (:func:`hsr.scene.outputs.check_store_target`:
+    nothing, an empty folder, or with ``overwrite`` a partitioned scene), holding none of
+    the ``inputs`` (the model files) and being none of them."""
     out = os.fspath(out)
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
         raise PartitionError(f"cannot write {out}: folder {folder} does not exist")
-    if os.path.lexists(out) and not overwrite:
-        raise PartitionError(f"{out} exists; choose another name or replace it "
-                             f"(overwrite=True; hsr partition --force)")
+    for path in inputs:
+        real, inside = os.path.realpath(path), os.path.realpath(out)
+        if same_file(path, out) or os.path.commonpath([real, inside]) == inside:
+            raise PartitionError(f"--out {out} would replace the model {path}, an input: "
+                                 f"write the store elsewhere")
+    try:
+        check_store_target(out, overwrite, is_partitioned, "--out", "partitioned scene")
+    except OutputError as exc:
+        raise PartitionError(str(exc)) from None
     return out
 
 
@@ -153,7 +170,7 @@ def _add_part(root, meta: dict, p: int, arrays: dict) -> None:
     box = arrays.pop("box")  # the world box of the part's face corners
     group = root.create_group(f"part_{p:04d}")
     for name, array in arrays.items():
-        group.create_array(name, data=array, chunks=_chunks(array))
+        group.create_array(name, data=array, chunks=_chunks(array), config=_EVERY_CHUNK)
     meta["part_faces"].append(int(len(arrays["face_id"])))
     meta["part_bounds"].append(box)
 
@@ -177,7 +194,7 @@ def _write_in_memory(scene: Scene, parts: int, root) -> dict:
         if isinstance(instances[k]["texture"], dict):  # an image given as an array
             image = np.ascontiguousarray(inst.mesh.texture)
             root.create_array(instances[k]["texture"]["array"], data=image,
-                              chunks=image.shape)
+                              chunks=image.shape, config=_EVERY_CHUNK)
     for p in range(parts):
         face_id = np.sort(order[cuts[p]:cuts[p + 1]])
         arrays = _part_arrays(scene, offsets, face_id)
@@ -200,7 +217,7 @@ def partition_streamed(path: str | os.PathLike, parts: int, out: str | os.PathLi
     :mod:`hsr.scene.ply`, :mod:`hsr.scene.obj_stream`, :mod:`hsr.scene.gltf_stream`) and
     :class:`PartitionError` as :func:`partition` does."""
     require_extra("hsr partition", "zarr")
-    out = _check_out(out, overwrite)
+    out = _check_out(out, overwrite, [path])
     path = os.fspath(path)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise PartitionError(f"chunk must be a positive integer, got {chunk!r}")
@@ -332,13 +349,13 @@ def _chunks(array: np.ndarray) -> tuple:
 
 
 def _remove(path: str) -> None:
-    if os.path.isdir(path) and not os.path.islink(path):
-        if not is_partitioned(path):
-            raise PartitionError(f"{path} exists and is not a partitioned scene; not "
-                                 f"overwriting it")
+    """Remove the partitioned scene at ``path`` (checked by :func:`_check_out`; checked
+    again here, as the folder may have changed since)."""
+    if os.path.isdir(path) and not os.path.islink(path) and (is_partitioned(path)
+                                                            or not os.listdir(path)):
         shutil.rmtree(path)
     else:
-        os.remove(path)
+        raise PartitionError(f"{path} is not a partitioned scene; not replacing it")
 
 
 def _texture_ref(texture, k: int):

@@ -19,22 +19,49 @@ Layout of ``STORE`` (a folder)::
                               per-face attributes, where any instance has them
     texture_0003              an instance's texture given as an array (a texture given as
                               a path is named in the metadata)
+
+A store is read from disk, where it may be damaged or made by hand, so it is checked
+before it is trusted (:func:`open_partitioned`, :meth:`PartitionedScene.part`): every
+entry of the folder a regular file or folder (no links, FIFOs or devices), every
+metadata file capped and parsed, every array's declared shape, dtype, chunk grid,
+chunk-key encoding and codecs the ones hsr writes and every chunk file present (hsr
+writes every chunk, so a missing one is a loss, never read as the fill value), the
+sizes capped before anything is read, and the face ids of the parts disjoint and
+covering 0..n_faces - 1. Each refusal is a :class:`PartitionError` naming the store, the
+part and the array.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
+import stat
+import warnings
 
 import numpy as np
 
-from ..errors import HsrError
+from ..errors import HsrError, MeshError
+from .files import read_regular
+from .images import MAX_TEXTURE_PIXELS
 from .mesh import Instance, Mesh, Scene, instance_of
 
 __all__ = ["PartitionError", "PartitionedScene", "open_partitioned", "is_partitioned"]
 
 KIND = "hsr-partitioned-scene"
-VERSION = 1
+# Version 2 writes every chunk (version 1 let Zarr skip chunks equal to the fill value, so
+# a lost chunk could not be told from a skipped one).
+VERSION = 2
+# What hsr reads of a store: its metadata files, its faces (a part's arrays are read
+# whole, about 100 bytes a face), and the folder entries it walks.
+MAX_METADATA_BYTES = 64 << 20
+MAX_ARRAY_METADATA_BYTES = 1 << 20
+MAX_STORE_FACES = 1 << 36
+MAX_PART_FACES = 1 << 27
+MAX_STORE_ENTRIES = 1 << 22
+# The codecs hsr's writer uses (Zarr's defaults: bytes, then zstd); a store declaring
+# others (sharding, transposes, ...) was not written by hsr.
+_CODECS = ("zstd", "gzip", "blosc", "crc32c")
 
 
 class PartitionError(HsrError):
@@ -42,32 +69,128 @@ class PartitionError(HsrError):
 
 
 def is_partitioned(path: str | os.PathLike) -> bool:
-    """True when ``path`` is a folder holding a partitioned scene's ``zarr.json``."""
+    """True when ``path`` is a folder (not a link) holding a partitioned scene's
+    ``zarr.json`` (a regular file, read within its cap: never a FIFO or a device)."""
     try:
-        with open(os.path.join(os.fspath(path), "zarr.json")) as f:
-            attrs = json.load(f).get("attributes", {})
-        return attrs.get("hsr", {}).get("kind") == KIND
-    except (OSError, ValueError, AttributeError):
+        return _root_attributes(os.fspath(path)).get("kind") == KIND
+    except (HsrError, AttributeError):
         return False
 
 
-def open_partitioned(path: str | os.PathLike) -> PartitionedScene:
-    """The partitioned scene at ``path``, reading only its metadata (parts load on
-    :meth:`PartitionedScene.part`). Raises :class:`PartitionError` for a path that is not
-    one."""
+def _root_attributes(path: str) -> dict:
+    """``attributes["hsr"]`` of the store folder ``path``'s ``zarr.json`` (or a
+    :class:`PartitionError`)."""
+    if os.path.islink(path) or not os.path.isdir(path):
+        raise PartitionError(f"{path} is not a partitioned scene (not a folder)")
+    data = read_regular(os.path.join(path, "zarr.json"), "store metadata file",
+                        MAX_METADATA_BYTES, PartitionError)
+    try:
+        meta = json.loads(data)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise PartitionError(f"{path}: zarr.json is not JSON ({exc})") from None
+    attrs = meta.get("attributes") if isinstance(meta, dict) else None
+    hsr_attrs = attrs.get("hsr") if isinstance(attrs, dict) else None
+    if not isinstance(hsr_attrs, dict):
+        raise PartitionError(f"{path} is not a partitioned scene (hsr partition writes "
+                             f"them)")
+    return hsr_attrs
+
+
+def open_partitioned(path: str | os.PathLike, check_parts: bool = True) -> PartitionedScene:
+    """The partitioned scene at ``path``, checked (see the module: its folder and
+    metadata; with ``check_parts``, every part's array layout and chunk files and the
+    parts' face ids, reading those arrays alone) but with no part loaded (parts load on
+    :meth:`PartitionedScene.part`, which checks that part again: a worker that reads
+    one part opens the store with ``check_parts=False``). Raises
+    :class:`PartitionError` for a path that is not one, or a damaged one."""
     path = os.fspath(path)
     if not is_partitioned(path):
         raise PartitionError(f"{path} is not a partitioned scene (hsr partition writes "
                              f"them)")
-    with open(os.path.join(path, "zarr.json")) as f:
-        meta = json.load(f)["attributes"]["hsr"]
+    meta = _root_attributes(path)
     if meta.get("version") != VERSION:
         raise PartitionError(f"{path}: partitioned scene version {meta.get('version')!r}, "
-                             f"this hsr reads version {VERSION}")
+                             f"this hsr reads version {VERSION} (partition the model again)")
     problem = _metadata_problem(meta)
     if problem:
         raise PartitionError(f"{path}: damaged partitioned scene: {problem}")
-    return PartitionedScene(path, meta)
+    _check_entries(path)
+    store = PartitionedScene(path, meta)
+    for k, inst in enumerate(store.instances):
+        if isinstance(inst["texture"], dict):
+            store._layout(None, inst["texture"]["array"])
+    if check_parts:
+        for p in range(store.parts):
+            store._layouts(p)
+        store._check_face_ids()
+    return store
+
+
+def _check_entries(path: str) -> None:
+    """Every entry under the store folder is a folder or a regular file: no links (which
+    could lead out of the store), FIFOs, devices or sockets (which could block or never
+    end); at most :data:`MAX_STORE_ENTRIES`."""
+    count, stack = 0, [path]
+    while stack:
+        folder = stack.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError as exc:
+            raise PartitionError(f"{path}: cannot list {folder}: {exc.strerror}") from None
+        for entry in entries:
+            count += 1
+            if count > MAX_STORE_ENTRIES:
+                raise PartitionError(f"{path}: more than {MAX_STORE_ENTRIES:,} files; hsr "
+                                     f"reads stores up to that")
+            mode = entry.stat(follow_symlinks=False).st_mode
+            if stat.S_ISDIR(mode):
+                stack.append(entry.path)
+            elif not stat.S_ISREG(mode):
+                raise PartitionError(f"{path}: {os.path.relpath(entry.path, path)} is not a "
+                                     f"regular file or folder (a link, FIFO, device or "
+                                     f"socket); hsr reads only regular files in a store")
+
+
+def _array_problem(meta, shape, dtype, texture: bool = False) -> str | None:
+    """What is wrong with an array's ``zarr.json`` (see :meth:`PartitionedScene._layout`),
+    or None."""
+    if not isinstance(meta, dict) or meta.get("zarr_format") != 3 \
+            or meta.get("node_type") != "array":
+        return "zarr.json is not a Zarr v3 array's"
+    got = meta.get("shape")
+    if not isinstance(got, list) or not all(isinstance(n, int) and not isinstance(n, bool)
+                                            and n >= 0 for n in got):
+        return f"its shape must be whole numbers, got {got!r}"[:200]
+    if texture:
+        if len(got) != 3 or got[2] not in (3, 4) or got[0] * got[1] > MAX_TEXTURE_PIXELS \
+                or meta.get("data_type") != "uint8":
+            return (f"a texture must be (H, W, 3 or 4) uint8 of at most "
+                    f"{MAX_TEXTURE_PIXELS:,} pixels, got {got} {meta.get('data_type')!r}")
+    elif shape is None:
+        if len(got) != 2 or got[1] != 3:
+            return f"shape must be (N, 3), got {got}"
+    elif tuple(got) != tuple(shape):
+        return f"shape must be {list(shape)} (from the metadata), got {got}"
+    if dtype is not None and meta.get("data_type") != dtype:
+        return f"dtype must be {dtype}, got {meta.get('data_type')!r}"[:200]
+    grid = meta.get("chunk_grid")
+    chunks = (grid.get("configuration") or {}).get("chunk_shape") \
+        if isinstance(grid, dict) and grid.get("name") == "regular" else None
+    if not isinstance(chunks, list) or len(chunks) != len(got) or not all(
+            isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in chunks):
+        return "its chunk grid must be regular, a positive chunk size per axis"
+    keys = meta.get("chunk_key_encoding")
+    if keys != {"name": "default", "configuration": {"separator": "/"}}:
+        return "its chunk keys must be Zarr's default ('c/i/j', separator '/')"
+    codecs = meta.get("codecs")
+    if not isinstance(codecs, list) or not codecs or not all(isinstance(c, dict)
+                                                             for c in codecs) \
+            or codecs[0].get("name") != "bytes" \
+            or any(c.get("name") not in _CODECS for c in codecs[1:]) \
+            or meta.get("storage_transformers") not in (None, []):
+        return (f"its codecs must be bytes then any of {', '.join(_CODECS)} (what hsr "
+                f"writes)")
+    return None
 
 
 def _metadata_problem(meta: dict) -> str | None:
@@ -79,10 +202,16 @@ def _metadata_problem(meta: dict) -> str | None:
     parts, n_faces, instances = meta.get("parts"), meta.get("n_faces"), meta.get("instances")
     if not count(parts, 1) or not count(n_faces, 1):
         return "parts and n_faces must be positive integers"
+    if n_faces > MAX_STORE_FACES or parts > 65536:
+        return (f"n_faces {n_faces:,} or parts {parts:,} over what hsr reads "
+                f"({MAX_STORE_FACES:,} faces, 65,536 parts)")
     sizes, boxes = meta.get("part_faces"), meta.get("part_bounds")
     if not (isinstance(sizes, list) and len(sizes) == parts and all(map(count, sizes))
             and sum(sizes) == n_faces):
         return "part_faces must be one face count per part, adding up to n_faces"
+    if max(sizes) > MAX_PART_FACES:
+        return (f"a part of {max(sizes):,} faces; hsr reads parts of up to "
+                f"{MAX_PART_FACES:,} faces")
     if not isinstance(boxes, list) or len(boxes) != parts:
         return "part_bounds must be one box per part"
     try:
@@ -97,6 +226,8 @@ def _metadata_problem(meta: dict) -> str | None:
     for inst in instances:
         if not isinstance(inst, dict):
             return "an instance is not an object"
+        if not isinstance(inst.get("name"), str) or not isinstance(inst.get("mesh_name"), str):
+            return "an instance needs a name and a mesh_name (strings)"
         try:
             model = np.asarray(inst.get("model"), dtype=np.float64)
             opacity = float(inst.get("opacity", "nan"))
@@ -105,11 +236,15 @@ def _metadata_problem(meta: dict) -> str | None:
         if model.shape != (16,) or not np.isfinite(model).all() or not 0 <= opacity <= 1:
             return "an instance's model must be 16 finite numbers, its opacity in 0..1"
         attributes = inst.get("attributes")
-        if not isinstance(attributes, list) or not set(attributes) <= set(FACE_ATTRIBUTES):
+        if not isinstance(attributes, list) or not all(isinstance(a, str) for a in attributes) \
+                or len(set(attributes)) != len(attributes) \
+                or not set(attributes) <= set(FACE_ATTRIBUTES):
             return f"an instance's attributes must be among {', '.join(FACE_ATTRIBUTES)}"
         texture = inst.get("texture")
         if texture is not None and not isinstance(texture, str) and not (
-                isinstance(texture, dict) and isinstance(texture.get("array"), str)):
+                isinstance(texture, dict) and isinstance(texture.get("array"), str)
+                and texture["array"].startswith("texture_")
+                and texture["array"][8:].isdigit()):
             return "an instance's texture must be a path, an array's name or null"
         offsets.append(inst.get("face_offset"))
     if not all(map(count, offsets)) or offsets[0] != 0 or offsets != sorted(offsets) \
@@ -156,10 +291,7 @@ class PartitionedScene:
 
     def _texture(self, ref):
         if isinstance(ref, dict):
-            import zarr
-
-            root = zarr.open_group(self.path, mode="r")
-            return np.asarray(root[ref["array"]][...])
+            return self._read(None, ref["array"])
         return ref
 
     def face_offsets(self) -> np.ndarray:
@@ -217,22 +349,104 @@ class PartitionedScene:
         return Scene(instances)
 
     def _arrays(self, p: int) -> dict:
-        """Every array of part ``p``, read."""
-        import zarr
-
+        """Every array of part ``p``, its layout checked before it is read."""
         if isinstance(p, bool) or not isinstance(p, (int, np.integer)) \
                 or not 0 <= p < self.parts:
             raise PartitionError(f"part must be in 0..{self.parts - 1}, got {p!r}")
-        try:
-            group = zarr.open_group(os.path.join(self.path, f"part_{p:04d}"), mode="r")
-            arrays = {name: np.asarray(array[...]) for name, array in group.arrays()}
-        except Exception as exc:  # noqa: BLE001 - zarr's errors for a damaged folder vary
-            raise PartitionError(f"{self.path}: part {p} cannot be read "
-                                 f"({type(exc).__name__}: {str(exc)[:120]})") from None
+        arrays = {name: self._read(p, name) for name in self._layouts(p)}
         problem = self._part_problem(p, arrays)
         if problem:
             raise PartitionError(f"{self.path}: damaged part {p}: {problem}")
         return arrays
+
+    def _where(self, p, name: str) -> str:
+        return f"{self.path}: " + ("" if p is None else f"part {p}, ") + f"array {name}"
+
+    def _layouts(self, p: int) -> dict:
+        """Array name -> its checked layout, for the arrays part ``p`` must hold: the
+        shapes follow from the metadata (a part of F faces uses at most 3 F vertices)."""
+        n_faces = self.part_faces[p]
+        positions = self._layout(p, "positions", None, "float64")
+        n_vertices = positions["shape"][0]
+        if n_vertices > 3 * n_faces:
+            raise PartitionError(f"{self._where(p, 'positions')}: {n_vertices:,} vertices "
+                                 f"for {n_faces:,} faces (at most 3 a face)")
+        layouts = {"positions": positions}
+        expected = {"faces": (n_faces, 3), "face_id": (n_faces,),
+                    "vertex_start": (len(self.instances) + 1,), "vertex_id": (n_vertices,)}
+        for name, shape in expected.items():
+            layouts[name] = self._layout(p, name, shape, "int64")
+        wanted = {a for inst in self.instances for a in inst["attributes"]}
+        for name in FACE_ATTRIBUTES:
+            if name in wanted:
+                shape, dtype = FACE_ATTRIBUTES[name]
+                layouts[name] = self._layout(p, name, (n_faces,) + shape,
+                                             np.dtype(dtype).name)
+        return layouts
+
+    def _layout(self, p, name: str, shape: tuple | None, dtype: str | None = None) -> dict:
+        """The checked ``zarr.json`` of array ``name`` of part ``p`` (or of the root, for
+        ``p`` None: a texture, (H, W, 3 | 4) uint8): its shape (``shape``, or for None
+        any (N, 3)), dtype, regular chunk grid, default chunk keys with '/', the codecs
+        hsr writes, and every chunk file present."""
+        where = self._where(p, name)
+        folder = os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
+        try:
+            data = read_regular(os.path.join(folder, "zarr.json"), "array metadata file",
+                                MAX_ARRAY_METADATA_BYTES, PartitionError)
+        except PartitionError as exc:
+            raise PartitionError(f"{where}: {exc}") from None
+        try:
+            meta = json.loads(data)
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise PartitionError(f"{where}: zarr.json is not JSON ({exc})") from None
+        problem = _array_problem(meta, shape, dtype, texture=p is None)
+        if problem:
+            raise PartitionError(f"{where}: {problem}")
+        grid = [math.ceil(n / c) for n, c in
+                zip(meta["shape"], meta["chunk_grid"]["configuration"]["chunk_shape"])]
+        if math.prod(grid) > MAX_STORE_ENTRIES:
+            raise PartitionError(f"{where}: more than {MAX_STORE_ENTRIES:,} chunks")
+        for index in np.ndindex(*grid):
+            chunk = os.path.join(folder, "c", *map(str, index))
+            if not os.path.isfile(chunk) or os.path.islink(chunk):
+                raise PartitionError(f"{where}: chunk {'/'.join(map(str, index))} is "
+                                     f"missing (hsr writes every chunk: the store is "
+                                     f"damaged)")
+        return meta
+
+    def _read(self, p, name: str) -> np.ndarray:
+        """Array ``name`` of part ``p`` (or of the root for None), its layout checked
+        first; Zarr's errors and warnings are a :class:`PartitionError` naming it."""
+        import zarr
+
+        folder = os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                return np.asarray(zarr.open_array(folder, mode="r")[...])
+        except Exception as exc:  # noqa: BLE001 - zarr's errors for a damaged chunk vary
+            raise PartitionError(f"{self._where(p, name)} cannot be read "
+                                 f"({type(exc).__name__}: {str(exc)[:120]})") from None
+
+    def _check_face_ids(self) -> None:
+        """The parts' face ids are disjoint and cover 0..n_faces - 1 (each part's ascend
+        strictly within range: checked with the part's other arrays)."""
+        seen = np.zeros(self.n_faces, dtype=bool)
+        for p in range(self.parts):
+            face_id = self._read(p, "face_id")
+            if face_id.shape != (self.part_faces[p],) or (len(face_id) and (
+                    face_id.min() < 0 or face_id.max() >= self.n_faces
+                    or np.any(np.diff(face_id) <= 0))):
+                raise PartitionError(f"{self._where(p, 'face_id')}: face ids must ascend "
+                                     f"strictly within 0..{self.n_faces - 1}")
+            if seen[face_id].any():
+                k = int(face_id[np.argmax(seen[face_id])])
+                raise PartitionError(f"{self._where(p, 'face_id')}: face {k} is in an "
+                                     f"earlier part too (parts must not share faces)")
+            seen[face_id] = True
+        if not seen.all():
+            raise PartitionError(f"{self.path}: face {int(np.argmin(seen))} is in no part")
 
     def _part_problem(self, p: int, arrays: dict) -> str | None:
         """What is wrong with part ``p``'s arrays, or None: every index in range, the

@@ -425,14 +425,23 @@ def write_visibility(scene, cameras, size, what: str, points, out: str, *, quali
 
 
 def _write_table(out, ext, columns, shape, visible, pixels) -> None:
-    from ..errors import OutputError
+    """The table of visible pairs as ``.csv`` or ``.npz``; an ``.npz`` is also the sparse
+    (items x views) matrix of the pairs in SciPy's COO layout (``format``, ``row``,
+    ``col``, ``data``, ``shape``), so ``scipy.sparse.load_npz`` reads it: the pixel
+    counts for faces, 1 for each visible vertex or point."""
+    from ..scene.outputs import staged
 
-    tmp = f"{out}.partial{ext}"
-    try:
+    with staged(out) as tmp:
         if ext == ".npz":
-            arrays = dict(columns, shape=np.asarray(shape))
-            if visible is not None:
-                arrays = {"visible": visible, "shape": np.asarray(shape)}
+            names = list(columns)
+            row, col = columns[names[0]], columns["view"]
+            data = columns["pixels"] if "pixels" in columns else np.ones(len(row), np.uint8)
+            arrays = dict(format=np.asarray("coo"), row=row, col=col, data=data,
+                          shape=np.asarray(shape, dtype=np.int64))
+            if visible is None:
+                arrays.update(columns)
+            else:
+                arrays["visible"] = visible
                 if pixels is not None:
                     arrays["pixels"] = pixels
             np.savez_compressed(tmp, **arrays)
@@ -444,9 +453,3 @@ def _write_table(out, ext, columns, shape, visible, pixels) -> None:
                        for n in names]
             np.savetxt(tmp, table, fmt=formats, delimiter=",", header=",".join(names),
                        comments="")
-        os.replace(tmp, out)
-    except OSError as exc:
-        raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
