@@ -26,6 +26,7 @@ from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
 from .mesh import Scene, SceneLike, as_scene, check_used_positions, instance_of, place_vertices
 from .obj_stream import ObjStream
+from .outputs import check_store_target, same_file
 from .partitioned import (
     FACE_ATTRIBUTES,
     KIND,
@@ -35,7 +36,6 @@ from .partitioned import (
     is_partitioned,
     open_partitioned,
 )
-from .outputs import check_store_target, same_file
 from .ply import PlyLayout, face_chunks, is_binary_ply, read_layout, read_positions
 
 __all__ = ["partition", "partition_streamed", "morton_order", "morton_codes", "MAX_PARTS"]

@@ -41,7 +41,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import HsrError, MeshError
+from ..errors import HsrError
 from .files import read_regular
 from .images import MAX_TEXTURE_PIXELS
 from .mesh import Instance, Mesh, Scene, instance_of
@@ -116,7 +116,7 @@ def open_partitioned(path: str | os.PathLike, check_parts: bool = True) -> Parti
         raise PartitionError(f"{path}: damaged partitioned scene: {problem}")
     _check_entries(path)
     store = PartitionedScene(path, meta)
-    for k, inst in enumerate(store.instances):
+    for inst in store.instances:
         if isinstance(inst["texture"], dict):
             store._layout(None, inst["texture"]["array"])
     if check_parts:
