@@ -59,12 +59,14 @@ class Fog:
     def factor(self, distance: np.ndarray) -> np.ndarray:
         """Blend factor ``f`` in [0, 1] (1 = no fog) for eye-space distances."""
         c = np.asarray(distance, dtype=np.float64)
-        if self.mode == "linear":
-            f = (self.end - c) / (self.end - self.start)
-        elif self.mode == "exp":
-            f = np.exp(-self.density * c)
+        if self.mode == "linear":  # halved, so that end - start cannot overflow
+            f = (self.end / 2 - c / 2) / (self.end / 2 - self.start / 2)
         else:
-            f = np.exp(-(self.density * c) ** 2)
+            # A product past the largest double is +inf, whose exp(-inf) = 0 is the
+            # limit the formula means: no warning for it.
+            with np.errstate(over="ignore"):
+                f = (np.exp(-self.density * c) if self.mode == "exp"
+                     else np.exp(-(self.density * c) ** 2))
         return np.clip(f, 0.0, 1.0)
 
     def apply(self, rgb: np.ndarray, pos_eye: np.ndarray) -> np.ndarray:

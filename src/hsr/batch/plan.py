@@ -194,6 +194,14 @@ def model_stems(models) -> dict:
     return stems
 
 
+def job_targets(out_dir, stem, fmt) -> list:
+    """What a job writes for the model ``stem``: its folder (``OUT/<stem>``: the files,
+    transforms.json), its store for zarr (``OUT/<stem>.zarr``) and the manifest. No input
+    may be or lie inside any of them."""
+    targets = [os.path.join(out_dir, stem), os.path.join(out_dir, "manifest.json")]
+    return targets + ([os.path.join(out_dir, f"{stem}.zarr")] if fmt == "zarr" else [])
+
+
 def output_path(out_dir, stem, output, view) -> str:
     """``OUT/<stem>/<output>/<view:04d><ext>``."""
     return os.path.join(out_dir, stem, output, f"{view:04d}{OUTPUTS[output][0]}")

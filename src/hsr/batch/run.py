@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 
 from ..errors import OutputError
 from ..parallel import progress_bar
-from ..scene.partitioned import is_partitioned
+from ..scene.outputs import check_outside, check_store_target
+from ..scene.partitioned import is_partitioned, store_kind
 from .plan import (
     FORMATS,
     OUTPUT_ARRAYS,
@@ -22,6 +23,7 @@ from .plan import (
     check_outputs,
     check_size,
     group_views,
+    job_targets,
     model_stems,
     output_complete,
     output_path,
@@ -29,7 +31,10 @@ from .plan import (
     probe_options,
 )
 
-__all__ = ["render_views", "BatchResult", "local_cluster"]
+__all__ = ["render_views", "BatchResult", "local_cluster", "STORE_KIND"]
+
+# The kind written into a batch's Zarr store, by which a later run recognises its own.
+STORE_KIND = "hsr-batch-views"
 
 
 @dataclass
@@ -100,7 +105,7 @@ def local_cluster(workers: int | None = None, pixels: int = 0):
 
 def render_views(models, views, size=(512, 512), outputs=("color",), out="batch",
                  client=None, *, format="files", resume=False, workers=None,
-                 progress=None, near=0.1, far=100.0, views_per_task=None,
+                 progress=None, near=0.1, far=100.0, views_per_task=None, force=False,
                  **render_options) -> BatchResult:
     """Render every model from every view, on a Dask cluster, writing the outputs to
     ``out`` (see docs/guide/batch.md for the layout).
@@ -113,6 +118,9 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     local cluster of ``workers`` (default one per core) runs the job and is closed after
     it (see :func:`local_cluster`).
     ``format``: ``files`` or ``zarr``. ``resume``: skip views whose outputs all exist.
+    ``force``: replace a model's Zarr store (``OUT/<stem>.zarr``) that a batch wrote
+    before; a store is never written where another folder or a file is (see
+    :mod:`hsr.scene.outputs`), and no input is, or lies inside, what the job writes.
     ``views_per_task``: views in one task (default: about 4 M pixels, at least four tasks
     per worker thread).
     ``render_options`` go to :func:`hsr.render` (algorithm, cull, shading, light, ...).
@@ -144,6 +152,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     spec = parse_views(views, models, near, far)
     probe_options(render_options)
     out = os.fspath(out)
+    _check_targets(models, views, stems, out, format, force or resume)
     try:
         os.makedirs(out, exist_ok=True)
     except OSError as exc:
@@ -152,10 +161,6 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
         progress = sys.stderr.isatty()
 
     if partitioned:
-        target = os.path.abspath(os.path.join(out, f"{stems[models[0]]}.zarr"))
-        if format == "zarr" and target == os.path.abspath(models[0]):
-            raise BatchError(f"--format zarr would write {target}, the partitioned scene "
-                             f"itself: choose another --out")
         # Without a client: --workers N local processes share the parts, else part
         # after part in this process.
         with _client_for(client, workers, 0, own=workers is not None) as job_client:
@@ -171,6 +176,27 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
                          task_seconds)
     _write_manifest(result, spec, (width, height), outputs, format, render_options)
     return result
+
+
+def _check_targets(models, views, stems, out, fmt, replace) -> None:
+    """Before any work: no input (a model, a camera file) is or lies inside what the job
+    writes, and each Zarr store is written only where nothing, an empty folder or (with
+    ``replace``: --force or --resume) a batch store is."""
+    inputs = list(models)
+    if isinstance(views, (str, os.PathLike)):
+        spec = os.fspath(views)
+        spec = spec[len("per-model:"):] if spec.startswith("per-model:") else spec
+        if os.path.lexists(spec):
+            inputs.append(spec)
+    for model in models:
+        target = os.path.abspath(os.path.join(out, f"{stems[model]}.zarr"))
+        if fmt == "zarr" and is_partitioned(model) and target == os.path.abspath(model):
+            raise BatchError(f"--format zarr would write {target}, the partitioned scene "
+                             f"itself: choose another --out")
+        check_outside(inputs, job_targets(out, stems[model], fmt))
+        if fmt == "zarr":
+            check_store_target(target, replace, lambda p: store_kind(p) == STORE_KIND,
+                               "--out", "batch store")
 
 
 @contextmanager
@@ -402,6 +428,7 @@ def _prepare_zarr(out, stem, count, size, outputs, resume) -> list:
                            chunks=(1, height, width) + extra, dtype=dtype, fill_value=fill)
     group.create_array("done", shape=(n,), chunks=(1,), dtype="uint8", fill_value=0)
     group.attrs["size"] = [width, height]
+    group.attrs["hsr"] = {"kind": STORE_KIND, "version": 1}  # how a later run knows it
     return list(range(n))
 
 
@@ -438,7 +465,7 @@ def _chunk_reads(store: str, array, name: str, view: int) -> bool:
 def _write_manifest(result, spec, size, outputs, fmt, options) -> None:
     from importlib.metadata import PackageNotFoundError, version
 
-    from .tasks import write_atomic
+    from ..scene.outputs import write_atomic
 
     try:
         hsr_version = version("hsr")

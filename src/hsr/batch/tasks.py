@@ -9,13 +9,13 @@ from __future__ import annotations
 import os
 import threading
 import time
-import uuid
 from collections import OrderedDict
 
 import numpy as np
 from distributed import WorkerPlugin
 
-from .plan import OUTPUTS, output_path
+from ..scene.outputs import check_outside, write_atomic
+from .plan import OUTPUTS, job_targets, output_path
 
 __all__ = ["MeshCache", "PLUGIN_NAME", "place_cameras", "render_task", "render_group",
            "write_atomic"]
@@ -116,6 +116,9 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
     start = time.perf_counter()
     try:
         scene = _cache().get(path)
+        # The files the model was read from (.mtl, textures, buffers) stay outside what
+        # this job writes (the model itself was checked where the job started).
+        check_outside(scene.sources(), job_targets(out_dir, stem, fmt))
         # ("these", cameras): just this task's views' cameras, in order.
         cameras = place_cameras(scene, placement, size) if describe else None
         mine = (placement[1] if placement[0] == "these"
@@ -129,20 +132,6 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
         done["cameras"] = cameras
     done["task_ms"] = (time.perf_counter() - start) * 1000.0  # load, cameras, views
     return done
-
-
-def write_atomic(path: str, write) -> None:
-    """``write(file)`` into a temporary file beside ``path`` (its folder must exist), then
-    rename it over ``path`` (atomic on POSIX and Windows within one folder)."""
-    folder = os.path.dirname(path)
-    tmp = os.path.join(folder, f".{os.path.basename(path)}.{uuid.uuid4().hex}.tmp")
-    try:
-        with open(tmp, "wb") as handle:
-            write(handle)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def buffers(frame, outputs):

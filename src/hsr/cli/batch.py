@@ -40,6 +40,8 @@ def add_parser(sub) -> None:
     g.add_argument("--out", default="batch", metavar="DIR", help="output folder")
     g.add_argument("--format", default="files", choices=list(FORMATS),
                    help="one file per view and output, or one Zarr v3 store per model")
+    g.add_argument("--force", action="store_true", help="--format zarr: replace a "
+                   "model's store that an earlier batch wrote (never another folder)")
     g.add_argument("--resume", action="store_true",
                    help="skip views whose outputs all exist (after an interrupted run)")
     add_file_planes(g)
@@ -77,7 +79,7 @@ def run(args) -> int:
     try:
         result = render_views(
             args.models, args.views, size(args.size), args.outputs, args.out, client,
-            format=args.format, resume=args.resume, workers=args.workers,
+            format=args.format, resume=args.resume, force=args.force, workers=args.workers,
             views_per_task=args.views_per_task,
             progress=not args.quiet and sys.stderr.isatty(), near=args.near, far=args.far,
             algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 
 from .options import CliError, add_scene_args, algorithm_names
-from .setup import look, setup
+from .setup import input_plan, look, setup
 
 
 def add_parser(sub) -> None:
@@ -32,6 +32,8 @@ def run(args) -> int:
     if args.montage:
         check_output(args.montage)
     scene, camera, width, height, state, background, options = setup(args)
+    if args.montage:
+        input_plan(args, scene).add("--montage", args.montage)
     known = {k for n in names for k in ALGORITHMS[n].OPTIONS}
     if set(options) - known:
         raise CliError(f"no chosen algorithm has option {', '.join(sorted(set(options) - known))}")

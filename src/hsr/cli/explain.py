@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .options import add_scene_args
-from .setup import setup
+from .setup import input_plan, setup
 
 
 def add_parser(sub) -> None:
@@ -23,6 +23,7 @@ def run(args) -> int:
 
     output = check_output(args.output or f"{args.view}.png")
     scene, camera, width, height, state, _, _ = setup(args)
+    input_plan(args, scene).add("-o", output)
     result = explain(args.view, scene, camera, width, height, state)
     result.save(output)
     if not args.quiet:

@@ -59,15 +59,18 @@ def rgb(text: str, what: str) -> tuple:
 
 
 def size(text: str, option: str = "--size") -> tuple[int, int]:
-    """WxH, each side in 1..MAX_SIZE, checked here so the error names the option (the
+    """WxH (or N for NxN), each side in 1..MAX_SIZE, checked here so the error names the option (the
     size is used for the aspect ratio before any render sees it)."""
     from ..geometry.viewport import MAX_SIZE
 
     parts = text.lower().split("x")
+    if len(parts) == 1:  # N: a square, as the library's size=N
+        parts = parts * 2
     try:
         width, height = (int(p) for p in parts)
     except ValueError:
-        raise CliError(f"{option} must look like 800x600, got {text!r}") from None
+        raise CliError(f"{option} must look like 800x600 (or 96 for 96x96), got "
+                       f"{text!r}") from None
     if not (0 < width <= MAX_SIZE and 0 < height <= MAX_SIZE):
         raise CliError(f"{option} sides must be in 1..{MAX_SIZE}, got {text!r}")
     return width, height

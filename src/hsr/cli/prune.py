@@ -76,6 +76,7 @@ def run(args) -> int:
     from ..scene.write import check_new, planned_files, write_mesh
     from ..visibility.count import cameras_for
     from ..visibility.prune import MAX_VERIFY, decide, split_auto, subset_scene, unsettled, verify
+    from .setup import input_plan, view_inputs
 
     start = time.perf_counter()
     _check_prune_output(args)
@@ -92,8 +93,12 @@ def run(args) -> int:
     store = None
     if isinstance(scene, PartitionedScene):  # counted part by part, cut in memory
         store, scene = scene, scene.assemble()
+    planned = planned_files(scene, args.output)
     if not args.force:  # the .mtl and textures beside an OBJ, known once it is loaded
-        check_new(planned_files(scene, args.output), "--force")
+        check_new(planned, "--force")
+    plan = input_plan(args, store or scene, *view_inputs(args.views))
+    for path in planned:
+        plan.add("-o", path)
     auto, fixed = split_auto(args.views or ["auto"])
     # The cameras once, before any connection: a bad --views fails at once.
     cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from .options import add_scene_args, algorithm_names
-from .setup import setup
+from .setup import input_plan, setup
 
 
 def add_parser(sub) -> None:
@@ -28,6 +28,7 @@ def run(args) -> int:
     names = algorithm_names(args.algorithms)
     check_output(args.output, (".html", ".htm"))
     scene, camera, width, height, state, _, _ = setup(args)
+    input_plan(args, scene).add("-o", args.output)
     title = ("hsr report: " + ", ".join(os.path.basename(m) for m in args.models)
              if args.models else f"hsr report: built-in scene {args.scene}")
     write_report(args.output, scene, camera, title, width=width, height=height, state=state,

@@ -42,13 +42,19 @@ def input_plan(args, scene, *files):
     for path in getattr(args, "models", None) or [getattr(args, "model", None)]:
         if path is not None:
             plan.add_input("a MODEL", path)
-    for path in scene.sources() if hasattr(scene, "sources") else ():
+    for path in scene.sources() if callable(getattr(scene, "sources", None)) else ():
         plan.add_input("a file the model is read from", path)
     if getattr(args, "camera", None):
         plan.add_input("the --camera file", camera_file(args.camera)[0])
     for what, path in files:
         plan.add_input(what, path)
     return plan
+
+
+def view_inputs(specs) -> list:
+    """``(what, path)`` of each --views SPEC that names a camera file or folder."""
+    return [("a --views camera file", spec) for spec in specs or ()
+            if isinstance(spec, str) and os.path.lexists(spec)]
 
 
 def camera_from_file(args):

@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
     p.add_argument("--views", required=True, metavar="SPEC", action="append",
                    help="sphere:N, hemisphere:N, orbit:N[:ELEVATION], a transforms.json or a "
                    "COLMAP folder; repeat to use several")
-    p.add_argument("--size", default="512x512", help="WxH in pixels")
+    p.add_argument("--size", default="512x512", help="WxH in pixels, or N for NxN")
     p.add_argument("--what", default="faces", metavar="faces|vertices|points:FILE.npy",
                    help="faces: pixel counts per face and view; vertices: the scene's "
                    "vertices seen by each view; points:FILE.npy: an (N, 3) array's points")
@@ -51,6 +51,7 @@ def run(args) -> int:
     from ..scene.write import check_new
     from ..visibility import cameras_for
     from ..visibility.queries import write_visibility
+    from .setup import input_plan, view_inputs
 
     width, height = size(args.size)
     check_output(args.out, (".npz", ".csv"))
@@ -60,11 +61,20 @@ def run(args) -> int:
     if what not in ("faces", "vertices", "points") or (what == "points") != bool(points_file):
         raise CliError(f"--what must be faces, vertices or points:FILE.npy, got {args.what!r}")
     if what != "faces":
-        for flag, given in (("--scheduler", args.scheduler), ("--quality", args.quality)):
+        # Vertices and points are answered by rays (hsr.visible_points), which have no
+        # raster algorithm, culling or depth function: refused, never silently ignored.
+        for flag, given in (("--scheduler", args.scheduler), ("--quality", args.quality),
+                            ("--algorithm", args.algorithm != "zbuffer"),
+                            ("--cull", args.cull != "none"),
+                            ("--depth-func", args.depth_func != "less")):
             if given:
-                raise CliError(f"{flag} goes with --what faces")
+                raise CliError(f"{flag} goes with --what faces ({what} are seen by rays, "
+                               f"which take no {flag})")
     points = read_points(points_file) if what == "points" else None
     scene, _ = load_models(args.models, "visibility")
+    plan = input_plan(args, scene, *view_inputs(args.views),
+                      *([("the points file", points_file)] if points_file else []))
+    plan.add("-o", args.out)
     cameras = cameras_for(scene, args.views, width / height, args.near, args.far)
     client = dask_client(args.scheduler, "visibility") if args.scheduler else None
     try:

@@ -21,7 +21,7 @@ import uuid
 from ..errors import OutputError
 
 __all__ = ["OutputPlan", "same_file", "staged", "write_atomic", "check_store_target",
-           "input_files"]
+           "check_outside", "input_files"]
 
 
 def _identity(path: str) -> tuple:
@@ -89,6 +89,18 @@ class OutputPlan:
                                   f"file: give each output its own name")
         self._outputs.append((flag, path, ident))
         return path
+
+
+def check_outside(inputs, targets, what: str = "--out") -> None:
+    """Refuse (:class:`~hsr.errors.OutputError`) when one of the ``inputs`` is one of the
+    ``targets`` or lies inside one of them (folders an output is written into)."""
+    for target in targets:
+        inside = os.path.realpath(target)
+        for path in inputs:
+            real = os.path.realpath(path)
+            if same_file(path, target) or os.path.commonpath([real, inside]) == inside:
+                raise OutputError(f"{what} would write {target}, which holds the input "
+                                  f"{path}: write the output elsewhere")
 
 
 def _same(a: tuple, b: tuple) -> bool:

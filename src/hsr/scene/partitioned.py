@@ -71,10 +71,18 @@ class PartitionError(HsrError):
 def is_partitioned(path: str | os.PathLike) -> bool:
     """True when ``path`` is a folder (not a link) holding a partitioned scene's
     ``zarr.json`` (a regular file, read within its cap: never a FIFO or a device)."""
+    return store_kind(path) == KIND
+
+
+def store_kind(path: str | os.PathLike) -> str | None:
+    """The ``kind`` hsr wrote into the Zarr store folder ``path`` (``attributes["hsr"]``
+    of its ``zarr.json``), or None for anything else: how hsr recognises its own stores
+    (read as :func:`is_partitioned` reads them)."""
     try:
-        return _root_attributes(os.fspath(path)).get("kind") == KIND
-    except (HsrError, AttributeError):
-        return False
+        kind = _root_attributes(os.fspath(path)).get("kind")
+    except HsrError:
+        return None
+    return kind if isinstance(kind, str) else None
 
 
 def _root_attributes(path: str) -> dict:

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import OutputError
 from .files import check_output
 from .mesh import Scene, SceneLike, as_scene, normal_matrix
+from .outputs import staged
 
 __all__ = ["write_mesh", "planned_files", "check_new", "MESH_FORMATS"]
 
@@ -38,12 +39,14 @@ def write_mesh(scene: SceneLike, path: str | os.PathLike, overwrite: bool = Fals
         check_new(planned_files(scene, path))
     ext = os.path.splitext(path)[1].lower()
     try:
-        if ext == ".obj":
-            return _write_obj(scene, path)
-        if ext == ".ply":
-            _trimesh_world(scene).export(path, file_type="ply")
-            return [path]
-        _write_glb(scene, path)
+        with staged(path) as tmp:  # every file written whole, then renamed into place
+            if ext == ".obj":
+                names = [os.path.basename(p) for p in _write_obj(scene, tmp)]
+                return [os.path.join(os.path.dirname(path), n) for n in names]
+            if ext == ".ply":
+                _trimesh_world(scene).export(tmp, file_type="ply")
+            else:
+                _write_glb(scene, tmp)
         return [path]
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc}") from None
