@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from ..errors import OutputError
 from ..parallel import progress_bar
 from ..scene.outputs import check_outside, check_store_target
-from ..scene.partitioned import is_partitioned, store_kind
+from ..scene.partitioned import is_partitioned, open_partitioned, store_kind
 from .plan import (
     FORMATS,
     OUTPUT_ARRAYS,
@@ -136,6 +136,9 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
                                      else models)]
     if not models:
         raise BatchError("no models given")
+    for m in models:  # a folder is a store: opened (and checked) here, or refused here
+        if os.path.isdir(m) and not is_partitioned(m):
+            open_partitioned(m, check_parts=False)
     partitioned = [m for m in models if is_partitioned(m)]
     if partitioned and len(models) > 1:
         raise BatchError(f"a partitioned scene ({partitioned[0]}) renders on its own: give "
@@ -282,7 +285,6 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     one, part after part), the composited frames written on the client as a plain
     model's would be; each view's manifest row names the parts its task group rendered,
     the faces they loaded and their milliseconds."""
-    from ..scene.partitioned import open_partitioned
     from .sortlast import OUTPUTS as COMPOSITED
     from .sortlast import each_partitioned
     from .tasks import _write_files, _write_zarr, buffers, place_cameras

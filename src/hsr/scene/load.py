@@ -75,8 +75,8 @@ def load_scene(source: str | os.PathLike | SceneLike,
 
     Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source) \
-            and is_partitioned(source):
-        return open_partitioned(source)
+            and os.path.lexists(os.path.join(source, "zarr.json")):
+        return open_partitioned(source)  # a store, or the reason it is not one
     if is_trimesh_scene(source):
         return _scene_from_trimesh(source, None, "trimesh scene")
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):

@@ -90,8 +90,11 @@ def _root_attributes(path: str) -> dict:
     :class:`PartitionError`)."""
     if os.path.islink(path) or not os.path.isdir(path):
         raise PartitionError(f"{path} is not a partitioned scene (not a folder)")
-    data = read_regular(os.path.join(path, "zarr.json"), "store metadata file",
-                        MAX_METADATA_BYTES, PartitionError)
+    try:
+        data = read_regular(os.path.join(path, "zarr.json"), "store metadata file",
+                            MAX_METADATA_BYTES, PartitionError)
+    except PartitionError as exc:
+        raise PartitionError(f"{path} is not a partitioned scene: {exc}") from None
     try:
         meta = json.loads(data)
     except (ValueError, UnicodeDecodeError) as exc:
@@ -112,10 +115,10 @@ def open_partitioned(path: str | os.PathLike, check_parts: bool = True) -> Parti
     one part opens the store with ``check_parts=False``). Raises
     :class:`PartitionError` for a path that is not one, or a damaged one."""
     path = os.fspath(path)
-    if not is_partitioned(path):
+    meta = _root_attributes(path)
+    if meta.get("kind") != KIND:
         raise PartitionError(f"{path} is not a partitioned scene (hsr partition writes "
                              f"them)")
-    meta = _root_attributes(path)
     if meta.get("version") != VERSION:
         raise PartitionError(f"{path}: partitioned scene version {meta.get('version')!r}, "
                              f"this hsr reads version {VERSION} (partition the model again)")
@@ -126,7 +129,7 @@ def open_partitioned(path: str | os.PathLike, check_parts: bool = True) -> Parti
     store = PartitionedScene(path, meta)
     for inst in store.instances:
         if isinstance(inst["texture"], dict):
-            store._layout(None, inst["texture"]["array"])
+            store._layout(None, inst["texture"]["array"], None, "uint8")
     if check_parts:
         for p in range(store.parts):
             store._layouts(p)

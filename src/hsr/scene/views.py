@@ -63,10 +63,15 @@ def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
             from None
     if not (math.isfinite(azimuth) and math.isfinite(elevation)):
         raise CameraError(f"view must be finite degrees, got {view!r}")
-    points = model_points(model) if hasattr(model, "bounds") else None
-    # The model's box from the same points (what Mesh/Scene.bounds() gives, without
-    # transforming every face corner a second time).
-    bounds = model if points is None else np.stack([points.min(axis=0), points.max(axis=0)])
+    if getattr(model, "kind", None) == "hsr-partitioned-scene":
+        # A store on disk: framed by the box its metadata keeps (no part is read).
+        points, bounds = None, model.bounds()
+    else:
+        points = model_points(model) if hasattr(model, "bounds") else None
+        # The model's box from the same points (what Mesh/Scene.bounds() gives, without
+        # transforming every face corner a second time).
+        bounds = model if points is None else np.stack([points.min(axis=0),
+                                                        points.max(axis=0)])
     return Camera.frame(bounds, direction(azimuth, elevation), (0.0, 1.0, 0.0), fov_y,
                         margin=MARGIN, aspect=aspect,
                         fit="box" if points is None else "points", points=points)
