@@ -28,7 +28,7 @@ from .files import MAX_MESH_BYTES, check_regular, read_regular
 from .images import MAX_TEXTURE_PIXELS
 from .mesh import Mesh, Scene, SceneLike, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
 from .obj import read_obj
-from .partitioned import PartitionedScene, is_partitioned, open_partitioned
+from .partitioned import PartitionedScene, open_partitioned
 
 __all__ = ["load", "load_scene"]
 
