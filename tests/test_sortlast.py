@@ -828,7 +828,7 @@ def test_a_glb_streaming_cannot_read_is_refused(tmp_path):
         h["bufferViews"][0]["byteLength"] = 10 ** 9
 
     for name, edit, match in (("strips.glb", strips, "not plain triangles"),
-                              ("outside.glb", outside, "past its buffer")):
+                              ("outside.glb", outside, "runs past the end of buffer 0")):
         path = tmp_path / name
         path.write_bytes(rewrite_glb(glb_bytes(scene), edit))
         with pytest.raises(MeshError, match=match):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+import json
 import math
 import os
 import struct
@@ -23,7 +24,8 @@ from ..errors import MeshError
 from .files import read_regular
 from .images import image_size_ok
 
-__all__ = ["FolderResolver", "check_gltf_assets", "check_gltf_nodes", "MAX_NODE_DEPTH"]
+__all__ = ["FolderResolver", "check_gltf_assets", "check_gltf_nodes", "check_gltf_accessors",
+           "check_gltf_primitives", "glb_chunks", "gltf_json", "MAX_NODE_DEPTH"]
 
 # What one buffer or image file named by a model may hold.
 MAX_ASSET_BYTES = 1 << 30
@@ -129,31 +131,51 @@ def data_uri_bytes(uri: str, label: str) -> bytes:
         raise MeshError(f"{label}: a data: URI holds bad base64 ({exc})") from None
 
 
-def _glb_bin_chunk(data: bytes, label: str) -> bytes | None:
-    """The binary chunk of a GLB (glTF 2.0, section 4.4), checked against the lengths the
-    file states, or None when it has none."""
-    if len(data) < 20:
+def glb_chunks(read, size: int, label: str) -> tuple:
+    """``((JSON offset, length), (BIN offset, length) or None)`` of a GLB of ``size``
+    bytes whose bytes ``read(offset, count)`` gives (glTF 2.0, section 4.4: a 12-byte
+    header, then chunks of an 8-byte header and their data; the first is JSON), checked
+    against the lengths the file states. One function for hsr.load (bytes in memory)
+    and the streamed reader (a file), so both refuse a broken file alike."""
+    if size < 20:
         raise MeshError(f"{label}: a GLB needs a 12-byte header and a chunk, got "
-                        f"{len(data)} bytes")
-    _, version, total = struct.unpack_from("<4sII", data, 0)
+                        f"{size} bytes")
+    magic, version, total = struct.unpack("<4sII", read(0, 12))
+    if magic != b"glTF":
+        raise MeshError(f"{label}: not a binary glTF file")
     if version != 2:
         raise MeshError(f"{label}: GLB version {version}; hsr reads glTF 2.0")
-    if total != len(data):
+    if total != size:
         raise MeshError(f"{label}: the GLB header says {total:,} bytes, the file has "
-                        f"{len(data):,}")
-    offset, first = 12, True
-    while offset < len(data):
-        if offset + 8 > len(data):
+                        f"{size:,}")
+    offset, json_span, bin_span = 12, None, None
+    while offset < size:
+        if offset + 8 > size:
             raise MeshError(f"{label}: a GLB chunk header is cut off at byte {offset}")
-        length, kind = struct.unpack_from("<I4s", data, offset)
-        if offset + 8 + length > len(data):
+        length, kind = struct.unpack("<I4s", read(offset, 8))
+        if offset + 8 + length > size:
             raise MeshError(f"{label}: a GLB chunk at byte {offset} claims {length:,} bytes "
                             f"past the end of the file")
-        if not first and kind == b"BIN\x00":
-            return data[offset + 8:offset + 8 + length]
-        first = False
+        if json_span is None:
+            if kind != b"JSON":
+                raise MeshError(f"{label}: not a glTF file (the first GLB chunk is not "
+                                f"JSON)")
+            json_span = (offset + 8, length)
+        elif kind == b"BIN\x00" and bin_span is None:
+            bin_span = (offset + 8, length)
         offset += 8 + length
-    return None
+    return json_span, bin_span
+
+
+def gltf_json(text: bytes, label: str) -> dict:
+    """The glTF JSON object in ``text`` (a .gltf file, or a GLB's JSON chunk)."""
+    try:
+        header = json.loads(text)
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+        raise MeshError(f"{label}: not a glTF file ({exc})"[:300]) from None
+    if not isinstance(header, dict):
+        raise MeshError(f"{label}: not a glTF file (the JSON is not an object)")
+    return header
 
 
 def _index(value, count: int, what: str, label: str) -> int:
@@ -176,25 +198,27 @@ def _list(header: dict, key: str, label: str) -> list:
     return value
 
 
-def check_gltf_assets(header: dict, data: bytes, resolver: FolderResolver,
-                      label: str, max_pixels: int) -> None:
-    """Check what a glTF's ``header`` names before trimesh reads it: every buffer's bytes
-    (the GLB chunk, a data: URI or a file in the folder, through ``resolver``, which keeps
-    them for trimesh) at least as long as it says, every buffer view inside its buffer,
-    and every image a readable picture of at most ``max_pixels``. Raises
-    :class:`MeshError` naming the buffer, view or image."""
+def check_gltf_assets(header: dict, chunk, resolver: FolderResolver, label: str,
+                      max_pixels: int) -> None:
+    """Check what a glTF's ``header`` names before anything reads its data: every
+    buffer's bytes (``chunk``, the GLB's binary chunk: bytes or anything that slices
+    like them, or None; a data: URI; a file in the folder, through ``resolver``, which
+    keeps them for trimesh) at least as long as it says, every buffer view inside its
+    buffer, every accessor inside its view (strides, offsets, counts), every primitive's
+    accessors of the kinds it needs with a triangle count that is whole, and every image
+    a readable picture of at most ``max_pixels``. Raises :class:`MeshError` naming the
+    buffer, view, accessor, mesh or image. hsr.load and the streamed reader both call
+    it."""
     buffers = _list(header, "buffers", label)
     views = _list(header, "bufferViews", label)
     images = _list(header, "images", label)
-    glb = data[:4] == b"glTF"
-    chunk = _glb_bin_chunk(data, label) if glb else None
     stored = []
     for k, buffer in enumerate(buffers):
         what = f"buffer {k}"
         length = _natural(buffer, "byteLength", None, what, label)
         if "uri" in buffer:
             blob = resolver.get(buffer["uri"])
-        elif glb and k == 0 and chunk is not None:
+        elif k == 0 and chunk is not None:
             blob = chunk
         else:
             raise MeshError(f"{label}: {what} has no uri and no GLB binary chunk holds it")
@@ -210,7 +234,15 @@ def check_gltf_assets(header: dict, data: bytes, resolver: FolderResolver,
         if start + length > len(stored[b]):
             raise MeshError(f"{label}: {what} (bytes {start:,}..{start + length:,}) runs past "
                             f"the end of buffer {b} ({len(stored[b]):,} bytes)")
+        if "byteStride" in view:
+            stride = view["byteStride"]
+            if isinstance(stride, bool) or not isinstance(stride, int) \
+                    or not 4 <= stride <= 252 or stride % 4:
+                raise MeshError(f"{label}: {what}.byteStride must be a multiple of 4 in "
+                                f"4..252, got {stride!r}"[:200])
         spans.append((b, start, length))
+    check_gltf_accessors(header, views, label)
+    check_gltf_primitives(header, label)
     for k, image in enumerate(images):
         what = f"image {k}"
         if "bufferView" in image:
@@ -224,6 +256,82 @@ def check_gltf_assets(header: dict, data: bytes, resolver: FolderResolver,
         problem = image_size_ok(blob, max_pixels)
         if problem:
             raise MeshError(f"{label}: {what}: {problem}")
+
+
+# glTF 2.0, section 3.6.2: component types (bytes each) and element types (components).
+COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9,
+                   "MAT4": 16}
+INDEX_COMPONENTS = (5121, 5123, 5125)
+
+
+def check_gltf_accessors(header: dict, views: list, label: str) -> None:
+    """Every accessor a known component and element type, a whole count, and (when it
+    has a buffer view) a whole offset, with its elements (at the view's stride) inside
+    the view."""
+    for k, acc in enumerate(_list(header, "accessors", label)):
+        what = f"accessor {k}"
+        kind, element = acc.get("componentType"), acc.get("type")
+        if isinstance(kind, bool) or not isinstance(kind, int) or kind not in COMPONENT_BYTES \
+                or not isinstance(element, str) or element not in TYPE_COMPONENTS:
+            raise MeshError(f"{label}: {what} has an unknown componentType or type "
+                            f"({acc.get('componentType')!r}, {acc.get('type')!r})"[:200])
+        count = _natural(acc, "count", None, what, label)
+        if count < 1:  # glTF 2.0, section 5.1: count minimum 1
+            raise MeshError(f"{label}: {what}.count must be at least 1, got 0")
+        offset = _natural(acc, "byteOffset", 0, what, label)
+        if "bufferView" not in acc:
+            continue
+        view = views[_index(acc["bufferView"], len(views), f"{what}.bufferView", label)]
+        size = COMPONENT_BYTES[acc["componentType"]] * TYPE_COMPONENTS[acc["type"]]
+        stride = view.get("byteStride", size)
+        if stride < size:
+            raise MeshError(f"{label}: {what}: its view's byteStride {stride} is less than "
+                            f"an element ({size} bytes)")
+        end = offset + stride * (count - 1) + size if count else offset
+        if end > view["byteLength"]:
+            raise MeshError(f"{label}: {what} (bytes {offset:,}..{end:,} of bufferView "
+                            f"{acc['bufferView']}) reaches past its view "
+                            f"({view['byteLength']:,} bytes)")
+
+
+def check_gltf_primitives(header: dict, label: str) -> None:
+    """Every primitive's attributes and indices name accessors; positions are float VEC3,
+    indices unsigned integer scalars; triangles (mode 4, the default) come in whole
+    threes of indices (or of positions without indices)."""
+    accessors = _list(header, "accessors", label)
+    for m, mesh in enumerate(_list(header, "meshes", label)):
+        primitives = mesh.get("primitives", [])
+        if not isinstance(primitives, list) or not all(isinstance(p, dict)
+                                                       for p in primitives):
+            raise MeshError(f"{label}: mesh {m}: primitives must be a list of objects")
+        for p, prim in enumerate(primitives):
+            what = f"mesh {m} primitive {p}"
+            attributes = prim.get("attributes", {})
+            if not isinstance(attributes, dict):
+                raise MeshError(f"{label}: {what}: attributes must be an object")
+            for name, index in attributes.items():
+                _index(index, len(accessors), f"{what}'s {name}", label)
+            mode = prim.get("mode", 4)
+            if isinstance(mode, bool) or not isinstance(mode, int) or not 0 <= mode <= 6:
+                raise MeshError(f"{label}: {what}: mode must be 0..6, got {mode!r}"[:200])
+            position = attributes.get("POSITION")
+            if position is not None and (accessors[position].get("type") != "VEC3"
+                                         or accessors[position].get("componentType") != 5126):
+                raise MeshError(f"{label}: {what}: POSITION must be a float VEC3 accessor")
+            counted = position
+            if "indices" in prim:
+                counted = _index(prim["indices"], len(accessors), f"{what}'s indices",
+                                 label)
+                acc = accessors[counted]
+                if acc.get("type") != "SCALAR" or acc.get("componentType") \
+                        not in INDEX_COMPONENTS:
+                    raise MeshError(f"{label}: {what}: indices must be unsigned integer "
+                                    f"scalars")
+            if mode == 4 and counted is not None and accessors[counted]["count"] % 3:
+                raise MeshError(f"{label}: {what}: {accessors[counted]['count']:,} "
+                                f"{'indices' if 'indices' in prim else 'vertices'} do not "
+                                f"make whole triangles (not a multiple of 3)")
 
 
 def check_gltf_nodes(header: dict, label: str) -> None:

@@ -23,7 +23,10 @@ import struct
 import numpy as np
 
 from ..errors import MeshError
+from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver, glb_chunks, gltf_json
 from .files import MAX_STREAM_BYTES, check_regular
+from .images import MAX_TEXTURE_PIXELS
+from .mesh import check_face_indices
 
 __all__ = ["GlbStream", "is_glb"]
 
@@ -55,6 +58,7 @@ class GlbStream:
             raise MeshError(f"{self.name}: streaming does not read required extensions "
                             f"{header['extensionsRequired']}")
         self.instances = _instances(self.path, header)
+        self.mesh_names = {inst[3]: inst[1] for inst in self.instances}
         self.positions: dict = {}
         self.counts: dict = {}
         for key in {inst[3] for inst in self.instances}:
@@ -81,9 +85,8 @@ class GlbStream:
             else:
                 corners = np.arange(3 * start, 3 * (start + count), dtype=np.int64)
             corners = corners.reshape(-1, 3)
-            if corners.size and corners.max() >= vertices:
-                raise MeshError(f"{self.name}: a face indexes outside the "
-                                f"{vertices:,} vertices of mesh {key[0]}")
+            check_face_indices(corners, vertices, f"{self.name}: {self.mesh_names[key]}",
+                               start)
             yield start, corners
 
     def _read(self, index: int, kind: str, types: tuple, first: int = 0,
@@ -123,24 +126,46 @@ class GlbStream:
 
 
 def _chunks(path: str) -> tuple:
-    """(JSON header, offset of the binary chunk's data, its length) of a GLB."""
+    """(JSON header, offset of the binary chunk's data, its length) of a GLB, checked by
+    the functions hsr.load uses (:func:`~hsr.scene.assets.glb_chunks`,
+    :func:`~hsr.scene.assets.gltf_json`, :func:`~hsr.scene.assets.check_gltf_nodes`,
+    :func:`~hsr.scene.assets.check_gltf_assets`), reading the JSON and what the checks
+    need (images), never the geometry."""
+    size = os.path.getsize(path)
     with open(path, "rb") as f:
-        head = f.read(20)
-        if len(head) < 20 or head[:4] != b"glTF":
-            raise MeshError(f"{path}: not a binary glTF file")
-        length, kind = struct.unpack_from("<I4s", head, 12)
-        if kind != b"JSON" or length > MAX_JSON_BYTES:
+        def read(offset: int, count: int) -> bytes:
+            f.seek(offset)
+            return f.read(count)
+
+        (start, length), bin_span = glb_chunks(read, size, path)
+        if length > MAX_JSON_BYTES:
             raise MeshError(f"{path}: the first GLB chunk is not JSON of at most "
                             f"{MAX_JSON_BYTES:,} bytes")
-        try:
-            header = json.loads(f.read(length))
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise MeshError(f"{path}: not a glTF file ({exc})") from None
-        bin_head = f.read(8)
-        if len(bin_head) < 8 or bin_head[4:] != b"BIN\x00":
-            raise MeshError(f"{path}: no binary chunk to stream")
-        bin_length = struct.unpack_from("<I", bin_head)[0]
-        return header, 20 + length + 8, bin_length
+        header = gltf_json(read(start, length), path)
+    check_gltf_nodes(header, path)
+    chunk = None if bin_span is None else _FileBytes(path, *bin_span)
+    resolver = folder_resolver(os.path.dirname(os.path.abspath(path)), path)
+    check_gltf_assets(header, chunk, resolver, path, MAX_TEXTURE_PIXELS)
+    if bin_span is None:
+        raise MeshError(f"{path}: no binary chunk to stream")
+    return header, bin_span[0], bin_span[1]
+
+
+class _FileBytes:
+    """``length`` bytes of a file from ``offset``, sliced like bytes (read on slicing):
+    a GLB's binary chunk as the asset checks see it, without holding it."""
+
+    def __init__(self, path: str, offset: int, length: int) -> None:
+        self.path, self.offset, self.length = path, offset, length
+
+    def __len__(self) -> int:
+        return self.length
+
+    def __getitem__(self, span: slice) -> bytes:
+        start, stop, _ = span.indices(self.length)
+        with open(self.path, "rb") as f:
+            f.seek(self.offset + start)
+            return f.read(max(0, stop - start))
 
 
 def _item(header: dict, kind: str, index, name: str) -> dict:

@@ -16,14 +16,12 @@ are made unique exactly as trimesh makes them, which is how the two are matched.
 from __future__ import annotations
 
 import io
-import json
 import os
-import struct
 
 import numpy as np
 
 from ..errors import HsrError, MeshError
-from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver
+from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver, glb_chunks, gltf_json
 from .files import MAX_MESH_BYTES, check_regular, read_regular
 from .images import MAX_TEXTURE_PIXELS
 from .mesh import Mesh, Scene, SceneLike, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
@@ -139,9 +137,9 @@ def _read_with_trimesh(path: str, max_bytes: int):
     resolver = folder_resolver(os.path.dirname(os.path.abspath(path)), path)
     if path.lower().endswith(_GLTF_EXTENSIONS):
         data = read_regular(path, "mesh file", max_bytes)
-        header = _gltf_header(data, path)
+        header, chunk = _gltf_header(data, path)
         check_gltf_nodes(header, path)
-        check_gltf_assets(header, data, resolver, path, MAX_TEXTURE_PIXELS)
+        check_gltf_assets(header, chunk, resolver, path, MAX_TEXTURE_PIXELS)
         # trimesh reads the bytes already in memory (a GLB with its textures can be
         # hundreds of MB), and the buffers and images through the resolver, which holds
         # those the checks read.
@@ -157,22 +155,15 @@ def _read_with_trimesh(path: str, max_bytes: int):
     return loaded, header, (os.path.abspath(path), *resolver.paths)
 
 
-def _gltf_header(data: bytes, path: str) -> dict:
-    """The JSON of a .gltf file or of a .glb's first chunk (glTF 2.0, section 4.4)."""
-    try:
-        if data[:4] == b"glTF":
-            length, kind = struct.unpack_from("<I4s", data, 12)
-            if kind != b"JSON":
-                raise ValueError("the first GLB chunk is not JSON")
-            text = data[20:20 + length]
-        else:
-            text = data
-        header = json.loads(text)
-    except (ValueError, struct.error, UnicodeDecodeError) as exc:
-        raise MeshError(f"{path}: not a glTF file ({exc})") from None
-    if not isinstance(header, dict):
-        raise MeshError(f"{path}: not a glTF file (the JSON is not an object)")
-    return header
+def _gltf_header(data: bytes, path: str) -> tuple:
+    """(JSON, the binary chunk or None) of a .gltf file or a .glb (glTF 2.0, section
+    4.4), through the checks the streamed reader shares (:func:`glb_chunks`,
+    :func:`gltf_json`)."""
+    if data[:4] != b"glTF":
+        return gltf_json(data, path), None
+    (start, length), bin_span = glb_chunks(lambda o, n: data[o:o + n], len(data), path)
+    chunk = None if bin_span is None else data[bin_span[0]:bin_span[0] + bin_span[1]]
+    return gltf_json(data[start:start + length], path), chunk
 
 
 def _gltf_node_order(header: dict) -> list | None:

@@ -175,17 +175,22 @@ def _validate_arrays(positions, faces, name):
     faces = faces_in.astype(np.int64)
     if len(positions) == 0:
         raise MeshError(f"{name}: mesh is empty (no vertices)")
-    bad = (faces < 0) | (faces >= len(positions))
-    if bad.any():
-        f = int(np.argwhere(bad)[0][0])
-        raise MeshError(
-            f"{name}: face {f} has vertex index {int(faces[bad][0])} outside "
-            f"0..{len(positions) - 1}"
-        )
+    check_face_indices(faces, len(positions), name)
     used = np.zeros(len(positions), dtype=bool)
     used[faces.ravel()] = True
     extent = check_used_positions(positions, used, name)
     return np.ascontiguousarray(positions), np.ascontiguousarray(faces), extent
+
+
+def check_face_indices(faces: np.ndarray, n_vertices: int, name: str, first: int = 0) -> None:
+    """Raise :class:`~hsr.errors.MeshError` for the first face of (F, 3) ``faces`` (face
+    ``first`` and on: a streamed chunk's) with an index outside 0..n_vertices - 1: one
+    message for the loaded and the streamed readers."""
+    bad = (faces < 0) | (faces >= n_vertices)
+    if bad.any():
+        f = int(np.argwhere(bad)[0][0])
+        raise MeshError(f"{name}: face {first + f} has vertex index {int(faces[bad][0])} "
+                        f"outside 0..{n_vertices - 1}")
 
 
 def check_used_positions(positions: np.ndarray, used: np.ndarray, name: str) -> float:

@@ -74,11 +74,13 @@ def read_obj(path, method: str = "auto", max_bytes: int = MAX_MESH_BYTES) -> Mes
     return _build(path, name, scan_careful(text, name))
 
 
-def _normalise(data: bytes, name: str) -> str:
+def _normalise(data: bytes, name: str, file_start: bool = True) -> str:
     """OBJ text with the grammar's noise removed, identically for both readers: no
-    byte-order mark, ``\\n`` line ends, continuation lines joined, comments dropped,
-    runs of spaces and tabs folded to one space, no space at either end of a line."""
-    if data.startswith(b"\xef\xbb\xbf"):
+    byte-order mark at the start of the file (``file_start``: ``data`` begins the file;
+    a mark anywhere else is text, for the streamed reader's chunks as for the whole
+    file), ``\\n`` line ends, continuation lines joined, comments dropped, runs of
+    spaces and tabs folded to one space, no space at either end of a line."""
+    if file_start and data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     _check_line_lengths(data, name)
     text = data.decode("utf-8", errors="replace")

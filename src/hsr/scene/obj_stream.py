@@ -44,8 +44,8 @@ class ObjStream:
         self.n_faces = 0
         line = 1
         with open(self.faces_file, "wb") as out:
-            for data in _line_chunks(self.path, chunk_bytes, self.name):
-                text = _normalise(data, self.name)
+            for k, data in enumerate(_line_chunks(self.path, chunk_bytes, self.name)):
+                text = _normalise(data, self.name, file_start=k == 0)
                 scanned = scan_careful(text, self.name, first_line=line)
                 line += text.count("\n")
                 positions.append(_numbers(scanned.v, 3, 3, self.name, "vertex"))
@@ -55,11 +55,8 @@ class ObjStream:
                 seen += (len(scanned.v), len(scanned.vt), len(scanned.vn))
         if not self.n_faces:
             raise MeshError(f"{self.name}: mesh is empty (no faces)")
-        what = ("vertex", "texture", "normal")
-        for c in range(3):
-            if highest[c] >= seen[c]:
-                raise MeshError(f"{self.name}: {what[c]} index {int(highest[c]) + 1} "
-                                f"outside 1..{int(seen[c])}")
+        if np.any(highest >= seen):  # a face names an element the file never defines
+            _refuse_first_bad_face(self.path, chunk_bytes, self.name, seen)
         self.positions = np.concatenate(positions)
         self.n_vertices = len(self.positions)
 
@@ -101,6 +98,32 @@ def _line_chunks(path: str, chunk_bytes: int, name: str):
                 continue
             yield data[:cut + 1]
             carry = data[cut + 1:]
+
+
+def _refuse_first_bad_face(path: str, chunk_bytes: int, name: str, totals) -> None:
+    """Raise the :class:`MeshError` :func:`hsr.load` raises for the first face (in file
+    order, vertices before texture coordinates before normals) whose index passes the
+    file's ``totals``: the file is read again, only on this error path, since the totals
+    are known only at its end."""
+    what = ("vertex", "texture", "normal")
+    for c in range(3):
+        line = 1
+        for k, data in enumerate(_line_chunks(path, chunk_bytes, name)):
+            text = _normalise(data, name, file_start=k == 0)
+            scanned = scan_careful(text, name, first_line=line)
+            line += text.count("\n")
+            if not scanned.f:
+                continue
+            counts = np.fromiter((row.count(" ") + 1 for row in scanned.f), dtype=np.int64,
+                                 count=len(scanned.f))
+            corner_face = np.repeat(np.arange(len(counts)), counts)
+            refs = _face_refs(" ".join(scanned.f), name, scanned.f_lines, corner_face)
+            bad = refs[:, c] > totals[c]
+            if bad.any():
+                j = int(np.argmax(bad))
+                raise MeshError(f"{name}:{scanned.f_lines[corner_face[j]]}: {what[c]} index "
+                                f"{int(refs[j, c])} outside 1..{int(totals[c])}")
+    raise MeshError(f"{name}: a face names an element the file does not define")
 
 
 def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.ndarray:

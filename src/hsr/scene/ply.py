@@ -26,6 +26,8 @@ _TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2
           "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
           "float64": "f8"}
 MAX_HEADER_BYTES = 1 << 16
+COUNT_FIELD = "count of the list"
+INDEX_FIELD = "corners of the list"
 
 
 @dataclass(frozen=True)
@@ -47,7 +49,7 @@ class PlyLayout:
         """True when the file holds nothing :func:`hsr.load` would use besides positions
         and faces (vertex normals are not used), so streaming it loses nothing."""
         vertex = set(self.vertex_dtype.names or ()) - {"x", "y", "z", "nx", "ny", "nz"}
-        face = set(self.face_dtype.names or ()) - {"count", self.index_field}
+        face = set(self.face_dtype.names or ()) - {COUNT_FIELD, self.index_field}
         return not vertex and not face
 
 
@@ -76,53 +78,77 @@ def read_layout(path: str | os.PathLike) -> PlyLayout:
     if not header.startswith(b"ply") or end < 0:
         raise MeshError(f"{path}: not a PLY file with a header under 64 KiB")
     lines = header[:end].decode("ascii", "replace").splitlines()
-    fmt = next((ln.split()[1] for ln in lines if ln.startswith("format ")), "")
+    fmt, elements = _parse_header(lines, path)
     if fmt not in ("binary_little_endian", "binary_big_endian"):
         raise MeshError(f"{path}: streaming reads binary PLY, this one is {fmt or 'unknown'}")
     order = "<" if fmt == "binary_little_endian" else ">"
-    elements: list = []
-    for line in lines:
-        words = line.split()
-        if not words or words[0] in ("comment", "obj_info", "format", "ply"):
-            continue
-        if words[0] == "element" and len(words) == 3 and words[2].isdigit():
-            elements.append((words[1], int(words[2]), []))
-        elif words[0] == "property" and elements:
-            elements[-1][2].append(words[1:])
-        else:
-            raise MeshError(f"{path}: PLY header line not understood: {line!r}")
     names = [e[0] for e in elements]
     if names[:2] != ["vertex", "face"]:
         raise MeshError(f"{path}: streaming needs the vertex then the face element first, "
                         f"got {names}")
     (_, n_vertices, vertex_props), (_, n_faces, face_props) = elements[:2]
-    vertex_dtype = np.dtype([(p[-1], order + _type(p[0], path)) for p in vertex_props
-                             if p[0] != "list"])
-    if len(vertex_dtype.names or ()) != len(vertex_props) or not {"x", "y", "z"} <= set(
-            vertex_dtype.names or ()):
+    if any(p[0] == "list" for p in vertex_props) or not {"x", "y", "z"} <= {
+            p[-1] for p in vertex_props}:
         raise MeshError(f"{path}: vertices need fixed-size x, y and z properties")
-    fields, lists = [], 0
+    vertex_dtype = np.dtype([(p[-1], order + _type(p[0], path)) for p in vertex_props])
+    lists = [p for p in face_props if p[0] == "list"]
+    if len(lists) != 1:
+        raise MeshError(f"{path}: faces need exactly one list of vertex indices")
+    # The list's count and corners under names no PLY property can have (names have no
+    # spaces), so a property called "count" cannot collide with them.
+    fields = []
     for p in face_props:
         if p[0] == "list":
-            if len(p) != 4:
-                raise MeshError(f"{path}: PLY list property not understood: {p}")
-            lists += 1
-            index_field = p[3]
-            fields += [("count", order + _type(p[1], path)),
-                       (p[3], order + _type(p[2], path), (3,))]
+            fields += [(COUNT_FIELD, order + _type(p[1], path)),
+                       (INDEX_FIELD, order + _type(p[2], path), (3,))]
         else:
             fields.append((p[-1], order + _type(p[0], path)))
-    if lists != 1:
-        raise MeshError(f"{path}: faces need exactly one list of vertex indices")
     face_dtype = np.dtype(fields)
     vertex_offset = end + len(b"end_header\n")
     face_offset = vertex_offset + n_vertices * vertex_dtype.itemsize
     needed = face_offset + n_faces * face_dtype.itemsize
-    if os.path.getsize(path) < needed:
+    for name, count, props in elements[2:]:
+        if any(p[0] == "list" for p in props):
+            raise MeshError(f"{path}: element {name!r} after the faces has a list; "
+                            f"streaming reads files whose later elements have fixed-size "
+                            f"records (load it without --stream)")
+        needed += count * sum(np.dtype(_type(p[0], path)).itemsize for p in props)
+    size = os.path.getsize(path)
+    if size < needed:
         raise MeshError(f"{path}: the file is shorter than its header says (truncated, or "
                         f"faces that are not all triangles)")
+    if size > needed:
+        raise MeshError(f"{path}: {size - needed:,} bytes after the elements its header "
+                        f"declares (faces past the declared count, or not all "
+                        f"triangles); hsr does not guess which")
     return PlyLayout(path, n_vertices, n_faces, vertex_offset, vertex_dtype, face_offset,
-                     face_dtype, index_field)
+                     face_dtype, INDEX_FIELD)
+
+
+def _parse_header(lines: list, path: str) -> tuple:
+    """``(format, [(element name, count, [property words]), ...])`` of a PLY header's
+    lines (Turk 1994): ``format F V``, ``element NAME COUNT``, ``property TYPE NAME`` or
+    ``property list COUNT_TYPE INDEX_TYPE NAME``; any other line, a property before any
+    element or named twice in one, is a :class:`MeshError` naming the line."""
+    fmt, elements = None, []
+    for line in lines[1:]:
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "format" and len(words) == 3 and fmt is None:
+            fmt = words[1]
+        elif words[0] == "element" and len(words) == 3 and words[2].isdigit():
+            elements.append((words[1], int(words[2]), []))
+        elif words[0] == "property" and elements and (
+                len(words) == 3 or (len(words) == 5 and words[1] == "list")):
+            props = elements[-1][2]
+            if words[-1] in {p[-1] for p in props}:
+                raise MeshError(f"{path}: PLY property {words[-1]!r} appears twice in "
+                                f"element {elements[-1][0]!r}")
+            props.append(words[1:])
+        else:
+            raise MeshError(f"{path}: PLY header line not understood: {line[:80]!r}")
+    return fmt or "", elements
 
 
 def _type(name: str, path: str) -> str:
@@ -156,9 +182,10 @@ def face_chunks(layout: PlyLayout, chunk: int = 1 << 20):
             records = np.fromfile(f, dtype=layout.face_dtype, count=count)
             if len(records) != count:
                 raise MeshError(f"{layout.path}: truncated face data")
-            if np.any(records["count"] != 3):
-                k = start + int(np.argmax(records["count"] != 3))
-                raise MeshError(f"{layout.path}: face {k} has {records['count'][k - start]} "
+            counts = records[COUNT_FIELD]
+            if np.any(counts != 3):
+                k = start + int(np.argmax(counts != 3))
+                raise MeshError(f"{layout.path}: face {k} has {counts[k - start]} "
                                 f"corners; streaming takes triangles only")
             corners = records[layout.index_field].astype(np.int64)
             if corners.size and (corners.min() < 0 or corners.max() >= layout.n_vertices):
