@@ -92,13 +92,12 @@ def run(args) -> int:
 
 
 def read_points(path: str):
-    from ..scene.files import read_regular
+    """The (N, 3) points of a .npy file, checked before they are used (see
+    :func:`hsr.scene.files.read_npy`)."""
+    from ..scene.files import read_npy
 
-    try:
-        import io
+    return read_npy(path, "--what points", MAX_POINTS_BYTES, CliError)
 
-        array = np.load(io.BytesIO(read_regular(path, "points file", 1 << 31, CliError)),
-                        allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
-        raise CliError(f"--what points:{path}: not a .npy array ({exc})") from None
-    return array
+
+# A points file of up to 2 GiB (89 million float64 points).
+MAX_POINTS_BYTES = 1 << 31

@@ -11,7 +11,8 @@ import numpy as np
 from ..errors import MeshError, OutputError
 from .outputs import staged
 
-__all__ = ["check_output", "check_regular", "read_regular", "save_normals", "PNG_SCALES",
+__all__ = ["check_output", "check_regular", "read_regular", "read_npy", "save_normals",
+           "PNG_SCALES",
            "save_image", "save_depth", "save_ids", "MAX_MESH_BYTES", "MAX_MTL_BYTES"]
 
 # Default caps on what one input file may hold: a 10M-triangle OBJ is about 500 MB.
@@ -56,6 +57,34 @@ def read_regular(path, what: str, max_bytes: int, error=MeshError) -> bytes:
     if len(data) > max_bytes:  # grew since the stat
         raise error(f"{path} holds more than the {max_bytes:,} bytes hsr reads for a {what}")
     return data
+
+
+def read_npy(path, what: str, max_bytes: int, error=MeshError) -> np.ndarray:
+    """A ``.npy`` array of real numbers (integers or floats), read only after its header
+    (NumPy's format, version 1 to 3) was checked against the file: a regular file of at
+    most ``max_bytes``, no pickled objects, a dtype of real numbers (complex values
+    would lose their imaginary part), and a shape whose bytes the file holds exactly
+    (a header claiming 10^12 rows is refused before anything is allocated). Raises
+    ``error`` naming ``what`` and the path."""
+    path = os.fspath(path)
+    size = check_regular(path, "array file", max_bytes, error)
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as fh:
+            version = fmt.read_magic(fh)
+            reader = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}
+            shape, fortran, dtype = reader.get(version, fmt.read_array_header_2_0)(fh)
+            start = fh.tell()
+            if dtype.hasobject or dtype.kind not in "iuf":
+                raise ValueError(f"dtype {dtype} is not real numbers")
+            expected = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if expected != size - start:
+                raise ValueError(f"the header's shape {shape} needs {expected:,} bytes of "
+                                 f"data, the file holds {size - start:,}")
+            array = np.fromfile(fh, dtype=dtype, count=int(np.prod(shape, dtype=object)))
+    except (ValueError, OSError, EOFError, SyntaxError, TypeError) as exc:
+        raise error(f"{what}: {path} is not a .npy array hsr reads ({exc})"[:400]) from None
+    return array.reshape(shape, order="F" if fortran else "C")
 
 
 def _check_dir(path) -> str:

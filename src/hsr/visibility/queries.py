@@ -125,9 +125,13 @@ def project_points(camera: Camera, points: ArrayLike, width: int, height: int,
 
 def _points(points) -> np.ndarray:
     try:
-        array = np.asarray(points, dtype=np.float64)
+        given = np.asarray(points)
+        if given.dtype.kind in "cbmMSUV":  # complex (its imaginary part would be lost),
+            raise TypeError(f"dtype {given.dtype}")  # booleans, times, text, records
+        array = np.asarray(given, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise VisibilityError(f"points must be an (N, 3) array of numbers ({exc})") from None
+        raise VisibilityError(f"points must be an (N, 3) array of real numbers "
+                              f"({exc})") from None
     if array.ndim != 2 or array.shape[1] != 3:
         raise VisibilityError(f"points must have shape (N, 3), got {array.shape}")
     if len(array) == 0:
