@@ -237,3 +237,64 @@ def test_fog_of_huge_densities_gives_no_warning(textured, monkeypatch):
         assert code == 0, (fog, err)
     wide = hsr.Fog("linear", start=-1e308, end=1e308)
     assert wide.factor(np.array([0.0]))[0] == pytest.approx(0.5)
+
+
+# --- things people already hold ------------------------------------------------------
+
+def test_a_list_of_paths_and_meshes_is_one_scene(textured, models_dir):
+    """hsr.load_scene([a, b]) and hsr.render([...]) take several models as the command
+    line's MODELs do: the instances in order, face ids global in that order."""
+    cube = hsr.scenes.cube()
+    spot = os.path.join(models_dir, "spot.obj")
+    scene = hsr.load_scene([str(textured / "m.obj"), cube, spot])
+    parts = [hsr.load(textured / "m.obj"), cube, hsr.load(spot)]
+    assert [i.mesh.n_faces for i in scene.instances] == [p.n_faces for p in parts]
+    cam = hsr.views.default(scene, 1.0)
+    together = hsr.render([str(textured / "m.obj"), cube, spot], cam, 48, 48)
+    by_hand = hsr.render(hsr.Scene(parts), cam, 48, 48)
+    assert np.array_equal(together.face_id, by_hand.face_id)
+    assert (together.face_id >= parts[0].n_faces + cube.n_faces).any()  # spot is seen
+    assert hsr.load_scene((cube.positions, cube.faces)).n_faces == cube.n_faces
+    with pytest.raises(hsr.MeshError, match="empty list"):
+        hsr.load_scene([])
+
+
+def test_open3d_and_pyvista_meshes_are_taken_as_they_are(models_dir):
+    """An Open3D TriangleMesh and a PyVista PolyData (quads triangulated by PyVista) are
+    scenes; compared with the same mesh read by hsr.load."""
+    o3d = pytest.importorskip("open3d")
+    pv = pytest.importorskip("pyvista")
+    import sys
+
+    path = os.path.join(models_dir, "spot.obj")
+    mesh = hsr.load(path)
+    tm = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(mesh.positions),
+                                   o3d.utility.Vector3iVector(mesh.faces.astype(np.int32)))
+    tm.vertex_colors = o3d.utility.Vector3dVector(np.full(mesh.positions.shape, 0.5))
+    got = hsr.load_scene(tm).instances[0].mesh
+    assert np.array_equal(got.positions, mesh.positions)
+    assert np.array_equal(got.faces, mesh.faces)
+    assert (got.corner_colors == 128).all()
+    cam = hsr.views.default(mesh, 1.0)
+    assert np.array_equal(hsr.render(tm, cam, 64, 64).face_id,
+                          hsr.render(mesh, cam, 64, 64).face_id)
+    flat = np.column_stack([np.full(mesh.n_faces, 3), mesh.faces]).ravel()
+    poly = pv.PolyData(mesh.positions, flat)
+    assert np.array_equal(hsr.load_scene(poly).instances[0].mesh.faces, mesh.faces)
+    quad = pv.PolyData(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float),
+                       np.array([4, 0, 1, 2, 3]))
+    assert hsr.load_scene(quad).n_faces == 2
+    assert hsr.load_scene([tm, poly]).n_faces == 2 * mesh.n_faces
+    assert "open3d" in sys.modules and "pyvista" in sys.modules  # imported by the test
+
+
+def test_a_scene_of_plain_meshes_imports_neither_open3d_nor_pyvista():
+    import subprocess
+    import sys
+
+    code = ("import sys, hsr; hsr.render(hsr.scenes.cube(), hsr.views.default("
+            "hsr.scenes.cube()), 16, 16); print('open3d' in sys.modules, "
+            "'pyvista' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.stdout.split() == ["False", "False"], out.stderr

@@ -41,6 +41,7 @@ from .parallel import (
     release_default_workspace,
 )
 from .scene.camera import Camera
+from .scene.load import scene_of
 from .scene.mesh import SceneLike, as_scene, instance_of
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
@@ -257,9 +258,9 @@ def render(scene: SceneLike, camera: Camera | None = None, width: int = 640, hei
     t_start = time.perf_counter()
     check_size(width, height)
     check_memory(width, height)
+    scene = scene_of(scene)  # paths and lists of them load here, as one scene
     if camera is None:
         # The first look, as ``hsr render MODEL`` draws it.
-        scene = as_scene(scene)
         camera = first_look(scene, width / height)
         light = "studio" if light is None else light
     if not isinstance(camera, Camera):

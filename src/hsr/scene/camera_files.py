@@ -161,8 +161,10 @@ def write_transforms(path: str | os.PathLike, cameras: list, width: int, height:
         doc = {**intrinsics[0], "frames": frames}
     else:
         doc = {"frames": [{**i, **f} for i, f in zip(intrinsics, frames)]}
+    from .outputs import staged
+
     try:
-        with open(path, "w", encoding="utf-8") as fh:
+        with staged(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=1)
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None

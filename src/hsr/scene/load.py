@@ -24,11 +24,20 @@ from ..errors import HsrError, MeshError
 from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver, glb_chunks, gltf_json
 from .files import MAX_MESH_BYTES, check_regular, read_regular
 from .images import MAX_TEXTURE_PIXELS
-from .mesh import Mesh, Scene, SceneLike, as_mesh, from_trimesh, is_trimesh_scene, normal_matrix
+from .mesh import (
+    Mesh,
+    Scene,
+    SceneLike,
+    as_mesh,
+    as_scene,
+    from_trimesh,
+    is_trimesh_scene,
+    normal_matrix,
+)
 from .obj import read_obj
 from .partitioned import PartitionedScene, open_partitioned
 
-__all__ = ["load", "load_scene"]
+__all__ = ["load", "load_scene", "scene_of"]
 
 _GLTF_EXTENSIONS = (".gltf", ".glb")
 
@@ -68,10 +77,15 @@ def load_scene(source: str | os.PathLike | SceneLike,
     Materials: base-colour textures (embedded or external) and factors, vertex colours and
     face colours (see :func:`hsr.scene.mesh.from_trimesh`).
 
+    A list (or tuple) of any of these is one scene of their instances in order, as the
+    command line's several MODELs are.
+
     A folder written by :func:`hsr.partition` opens as a
     :class:`~hsr.scene.partitioned.PartitionedScene`, reading only its metadata.
 
     Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
+    if isinstance(source, (list, tuple)) and not _is_arrays_pair(source):
+        return _joined(source, max_bytes)
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source) \
             and os.path.lexists(os.path.join(source, "zarr.json")):
         return open_partitioned(source)  # a store, or the reason it is not one
@@ -90,6 +104,38 @@ def _with_sources(mesh: Mesh, read: tuple) -> Mesh:
     """``mesh`` with the files it was read from (:attr:`Mesh.sources`) recorded."""
     mesh.sources = tuple(read)
     return mesh
+
+
+def scene_of(source: str | os.PathLike | SceneLike) -> Scene:
+    """A :class:`Scene` from what :func:`load_scene` takes (a path, a list of paths and
+    meshes, a Scene, a Mesh, a trimesh, Open3D or PyVista mesh, a ``(vertices, faces)``
+    pair); a partitioned scene is refused (see :func:`hsr.scene.mesh.as_scene`)."""
+    if isinstance(source, (str, os.PathLike)) or (
+            isinstance(source, (list, tuple)) and not _is_arrays_pair(source)):
+        source = load_scene(source)
+    return as_scene(source)
+
+
+def _is_arrays_pair(source) -> bool:
+    """True for a ``(vertices, faces)`` pair of arrays (not a list of two models)."""
+    return isinstance(source, tuple) and len(source) == 2 and all(
+        isinstance(a, np.ndarray) or (isinstance(a, list) and a and isinstance(a[0], (list,
+                                                                                    tuple)))
+        for a in source)
+
+
+def _joined(sources, max_bytes: int) -> Scene:
+    """One scene of every item's instances, in order (as the CLI's several MODELs)."""
+    if not sources:
+        raise MeshError("an empty list of models: give at least one path or mesh")
+    scene = Scene()
+    for item in sources:
+        loaded = load_scene(item, max_bytes)
+        if isinstance(loaded, PartitionedScene):
+            raise MeshError(f"{item}: a partitioned scene cannot join other models (hsr "
+                            f"batch renders it on its own)")
+        scene.instances.extend(loaded.instances)
+    return scene
 
 
 def _file_scene(loaded, header, path: str, read: tuple = ()) -> Scene:

@@ -430,17 +430,50 @@ def instance_of(face_offsets: np.ndarray, face_id) -> np.ndarray:
 
 
 def as_mesh(source) -> Mesh:
-    """A Mesh from a Mesh, a trimesh.Trimesh or a ``(vertices, faces)`` pair."""
+    """A Mesh from a Mesh, a trimesh.Trimesh, an Open3D ``TriangleMesh``, a PyVista
+    ``PolyData`` (its polygons triangulated) or a ``(vertices, faces)`` pair; neither
+    Open3D nor PyVista is imported (the object is read through its own methods)."""
     if isinstance(source, Mesh):
         return source
     if isinstance(source, tuple) and len(source) == 2:
         return Mesh(source[0], source[1], name="arrays")
     if type(source).__name__ == "Trimesh":
         return from_trimesh(source, "trimesh")
+    if type(source).__name__ == "TriangleMesh" and hasattr(source, "triangles"):
+        return _from_open3d(source)
+    if type(source).__name__ == "PolyData" and hasattr(source, "is_all_triangles"):
+        return _from_pyvista(source)
     if is_trimesh_scene(source):
         raise MeshError("a trimesh.Scene holds nodes: make an hsr Scene with "
                         "hsr.load_scene(scene) (one instance per node)")
     raise MeshError(f"cannot make a mesh from {type(source).__name__}")
+
+
+def _from_open3d(source) -> Mesh:
+    """An Open3D ``TriangleMesh``: its vertices, triangles (in order) and vertex colours
+    (0..1 floats, as corner colours)."""
+    positions = np.asarray(source.vertices, dtype=np.float64)
+    faces = np.asarray(source.triangles)
+    colors = None
+    if source.has_vertex_colors():
+        rgb = np.asarray(source.vertex_colors, dtype=np.float64)
+        if rgb.shape == positions.shape and np.isfinite(rgb).all() and len(faces) \
+                and faces.min() >= 0 and faces.max() < len(rgb):
+            colors = np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8)[faces]
+    return Mesh(positions, faces, corner_colors=colors, name="open3d")
+
+
+def _from_pyvista(source) -> Mesh:
+    """A PyVista ``PolyData``: its points and polygons, triangulated by PyVista (as a fan
+    from each polygon's first corner) when they are not all triangles; lines and points
+    are not surfaces and are left out."""
+    if not source.is_all_triangles:
+        source = source.triangulate()
+    faces = np.asarray(source.faces)
+    if faces.size % 4:
+        raise MeshError("pyvista: its faces are not all triangles after triangulating")
+    return Mesh(np.asarray(source.points, dtype=np.float64), faces.reshape(-1, 4)[:, 1:],
+                name="pyvista")
 
 
 def is_trimesh_scene(value) -> bool:
@@ -456,7 +489,9 @@ SceneLike: TypeAlias = Any
 
 
 def as_scene(source: SceneLike) -> Scene:
-    """A Scene from a Scene, a Mesh, a trimesh.Trimesh, a (vertices, faces) pair or a list."""
+    """A Scene from a Scene, a Mesh, a trimesh.Trimesh, an Open3D or PyVista mesh (see
+    :func:`as_mesh`), a (vertices, faces) pair or a list of these; paths load through
+    :func:`hsr.load_scene` (and :func:`hsr.scene.load.scene_of`)."""
     if isinstance(source, Scene):
         if len(source) == 0:
             raise MeshError("scene is empty")
