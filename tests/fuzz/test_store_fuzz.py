@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import hsr
-from conftest import run_cli
+from conftest import require, run_cli
 from fuzz.guards import time_limit
 
-pytest.importorskip("zarr")
+require("zarr")
 
 ARRAYS = ("positions", "faces", "face_id", "vertex_start", "vertex_id", "face_colors",
           "corner_uv")

@@ -234,8 +234,8 @@ def test_odd_ply_headers_stream_or_are_refused_in_one_line(tmp_path, lines, tail
 
 
 def _partition(tmp_path, path):
-    from conftest import run_cli
+    from conftest import require, run_cli
 
-    pytest.importorskip("zarr")
+    require("zarr")
     return run_cli(["partition", str(path), "--parts", "1", "--out",
                     str(tmp_path / "s.zarr"), "--stream", "--quiet"])
