@@ -38,6 +38,7 @@ import math
 import os
 import stat
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -85,20 +86,27 @@ def store_kind(path: str | os.PathLike) -> str | None:
     return kind if isinstance(kind, str) else None
 
 
+def _zarr_json(folder: str, cap: int, where: str, unreadable: str):
+    """The parsed ``zarr.json`` of ``folder`` (a regular file of at most ``cap`` bytes);
+    a :class:`PartitionError` starting ``unreadable`` when it cannot be read, ``where``
+    when it is not JSON."""
+    try:
+        data = read_regular(os.path.join(folder, "zarr.json"), "metadata file", cap,
+                            PartitionError)
+    except PartitionError as exc:
+        raise PartitionError(f"{unreadable}: {exc}") from None
+    try:
+        return json.loads(data)
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+        raise PartitionError(f"{where}: zarr.json is not JSON ({exc})") from None
+
+
 def _root_attributes(path: str) -> dict:
     """``attributes["hsr"]`` of the store folder ``path``'s ``zarr.json`` (or a
     :class:`PartitionError`)."""
     if os.path.islink(path) or not os.path.isdir(path):
         raise PartitionError(f"{path} is not a partitioned scene (not a folder)")
-    try:
-        data = read_regular(os.path.join(path, "zarr.json"), "store metadata file",
-                            MAX_METADATA_BYTES, PartitionError)
-    except PartitionError as exc:
-        raise PartitionError(f"{path} is not a partitioned scene: {exc}") from None
-    try:
-        meta = json.loads(data)
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise PartitionError(f"{path}: zarr.json is not JSON ({exc})") from None
+    meta = _zarr_json(path, MAX_METADATA_BYTES, path, f"{path} is not a partitioned scene")
     attrs = meta.get("attributes") if isinstance(meta, dict) else None
     hsr_attrs = attrs.get("hsr") if isinstance(attrs, dict) else None
     if not isinstance(hsr_attrs, dict):
@@ -211,7 +219,8 @@ def _metadata_problem(meta: dict) -> str | None:
         return isinstance(value, int) and not isinstance(value, bool) and value >= low
 
     parts, n_faces, instances = meta.get("parts"), meta.get("n_faces"), meta.get("instances")
-    if not count(parts, 1) or not count(n_faces, 1):
+    if not count(parts, 1) or not count(n_faces, 1) or not isinstance(parts, int) \
+            or not isinstance(n_faces, int):  # (the isinstance tells the type checker)
         return "parts and n_faces must be positive integers"
     if n_faces > MAX_STORE_FACES or parts > 65536:
         return (f"n_faces {n_faces:,} or parts {parts:,} over what hsr reads "
@@ -350,8 +359,8 @@ class PartitionedScene:
             order = np.argsort(np.concatenate(got["ids"]), kind="stable")
             vertex_id, first = np.unique(np.concatenate(got["vertex_id"]), return_index=True)
             faces = np.searchsorted(vertex_id, np.concatenate(got["faces"])[order])
-            attributes = {name: np.concatenate(parts)[order]
-                          for name, parts in got["attributes"].items()}
+            attributes: dict[str, Any] = {name: np.concatenate(parts)[order]
+                                          for name, parts in got["attributes"].items()}
             mesh = Mesh(np.concatenate(got["positions"])[first], faces,
                         name=inst["mesh_name"], texture=self._texture(inst["texture"]),
                         **attributes)
@@ -402,15 +411,7 @@ class PartitionedScene:
         hsr writes, and every chunk file present."""
         where = self._where(p, name)
         folder = os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
-        try:
-            data = read_regular(os.path.join(folder, "zarr.json"), "array metadata file",
-                                MAX_ARRAY_METADATA_BYTES, PartitionError)
-        except PartitionError as exc:
-            raise PartitionError(f"{where}: {exc}") from None
-        try:
-            meta = json.loads(data)
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise PartitionError(f"{where}: zarr.json is not JSON ({exc})") from None
+        meta = _zarr_json(folder, MAX_ARRAY_METADATA_BYTES, where, where)
         problem = _array_problem(meta, shape, dtype, texture=p is None)
         if problem:
             raise PartitionError(f"{where}: {problem}")

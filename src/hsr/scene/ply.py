@@ -130,7 +130,8 @@ def _parse_header(lines: list, path: str) -> tuple:
     lines (Turk 1994): ``format F V``, ``element NAME COUNT``, ``property TYPE NAME`` or
     ``property list COUNT_TYPE INDEX_TYPE NAME``; any other line, a property before any
     element or named twice in one, is a :class:`MeshError` naming the line."""
-    fmt, elements = None, []
+    fmt: str | None = None
+    elements: list[tuple] = []
     for line in lines[1:]:
         words = line.split()
         if not words or words[0] in ("comment", "obj_info"):
