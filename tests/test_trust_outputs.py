@@ -185,6 +185,10 @@ def test_prune_never_writes_a_companion_over_an_input(textured, monkeypatch):
     before = fingerprint(textured)
     refused(["prune", "m.obj", "-o", "look.obj", "--force", "--views", "sphere:4",
              "--size", "16"], "look.mtl is a file the model is read from")
+    mesh = hsr.load("m.obj")  # the library's writer too, even when told to overwrite
+    for target in ("m.obj", "look.obj"):
+        with pytest.raises(hsr.OutputError, match="read from"):
+            hsr.write_mesh(mesh, target, overwrite=True)
     assert fingerprint(textured) == before
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import OutputError
 from .files import check_output
 from .mesh import Scene, SceneLike, as_scene, normal_matrix
-from .outputs import staged
+from .outputs import OutputPlan, staged
 
 __all__ = ["write_mesh", "planned_files", "check_new", "MESH_FORMATS"]
 
@@ -32,11 +32,17 @@ def write_mesh(scene: SceneLike, path: str | os.PathLike, overwrite: bool = Fals
     files written (an OBJ's .mtl and texture too). A file that exists already (the
     model's, or one of an OBJ's .mtl and textures) is replaced only with ``overwrite``.
     Raises :class:`~hsr.errors.OutputError` for another extension, a folder that cannot
-    be written, or a file that exists without ``overwrite``."""
+    be written, a file that exists without ``overwrite``, or (even with it) a file the
+    scene was read from (:attr:`~hsr.Mesh.sources`)."""
     scene = as_scene(scene)
     path = check_output(os.fspath(path), MESH_FORMATS)
+    planned = planned_files(scene, path)
     if not overwrite:
-        check_new(planned_files(scene, path))
+        check_new(planned)
+    # Never over a file the scene was read from, even with overwrite (hsr.scene.outputs).
+    plan = OutputPlan([("a file the scene was read from", p) for p in scene.sources()])
+    for p in planned:
+        plan.add("path", p)
     ext = os.path.splitext(path)[1].lower()
     try:
         with staged(path) as tmp:  # every file written whole, then renamed into place
