@@ -526,7 +526,10 @@ def from_trimesh(tm, name: str) -> Mesh:
             if image is not None:
                 texture = _image_rgb(image, name)
         factor = getattr(material, "baseColorFactor", None)
-        if factor is None:
+        if factor is None and type(material).__name__ != "PBRMaterial":
+            # A glTF material without baseColorFactor means 1 (glTF 2.0, section 3.9.2:
+            # the texture as it is); trimesh's main_color (102 grey) is no default of
+            # the file's. Other materials keep their main (diffuse) colour.
             factor = getattr(material, "main_color", None)
         if factor is not None:
             rgb = np.asarray(factor, dtype=np.float64).reshape(-1)[:3]
