@@ -19,7 +19,7 @@ from .algorithms import ALGORITHMS, bsp, raycast
 from .appearance.fog import Fog
 from .appearance.shading import Look
 from .appearance.viewpoint import best_view, first_look
-from .errors import CameraError, HsrError, MeshError, OutputError, RenderError
+from .errors import CameraError, HsrError, HsrWarning, MeshError, OutputError, RenderError
 from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
 from .lines.raster import HiddenLine
 from .lines.vector import hidden_lines, write_lines_svg
@@ -49,8 +49,8 @@ __version__ = "0.1.0"
 __all__ = [
     "ALGORITHMS", "Camera", "CameraError", "CullMode", "DepthFunc", "Fog", "Frame",
     "FrontFace", "HiddenLine", "HsrError", "Instance", "Look", "Mesh", "MeshError",
-    "OutputError", "PolygonMode", "RenderError", "RenderState", "Scene", "batch", "bsp",
-    "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
+    "OutputError", "HsrWarning", "PolygonMode", "RenderError", "RenderState", "Scene",
+    "batch", "bsp", "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
     "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
     "visible_vertices", "visible_points", "visibility_matrix", "first_look", "best_view",

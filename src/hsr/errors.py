@@ -22,6 +22,11 @@ class OutputError(HsrError):
     """An output file cannot be written (bad extension, missing directory, ...)."""
 
 
+class HsrWarning(UserWarning):
+    """Something hsr drew differently from what a file asks, and says so (a texture the
+    model names that is not there); the command line prints it as one line."""
+
+
 class MissingExtraError(HsrError):
     """An optional dependency that a feature needs is not installed."""
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
+import warnings
 
 from ..errors import HsrError
 from . import batch, compare, explain, partition, prune, render, report, view, visibility
@@ -60,6 +61,17 @@ def main(argv=None) -> int:
     when memory runs out after all."""
     argv = _attach_negative_values(sys.argv[1:] if argv is None else list(argv))
     debug = "--debug" in argv
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        return _main(argv, debug)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """A warning as one line on stderr (``hsr: warning: ...``), not Python's two."""
+    print(f"hsr: warning: {message}", file=sys.stderr)
+
+
+def _main(argv: list, debug: bool) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -22,10 +22,11 @@ from __future__ import annotations
 import functools
 import os
 import re
+import warnings
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import HsrWarning, MeshError
 from .files import MAX_MESH_BYTES, MAX_MTL_BYTES, read_regular
 from .mesh import Mesh
 
@@ -217,8 +218,9 @@ def _build(path, name, s: _Scanned) -> Mesh:
         if mat not in materials:
             materials.append(mat)
         poly_mat[first_face:] = materials.index(mat)
-    face_colors, texture, named = _read_materials(path, s.mtllibs, materials,
-                                                  poly_mat[tri_poly])
+    face_colors, texture, named, uv_map = _read_materials(path, s.mtllibs, materials,
+                                                          poly_mat[tri_poly])
+    corner_uv = _uv_transform(corner_uv, poly_mat[tri_poly], materials, uv_map)
     return Mesh(positions, faces, corner_uv=corner_uv, corner_normals=corner_normals,
                 face_colors=face_colors, texture=texture, name=name,
                 sources=(os.path.abspath(path), *named))
@@ -336,9 +338,9 @@ def _read_materials(obj_path, mtllibs, materials, face_mat):
     named = [os.path.abspath(os.path.join(base, lib)) for lib in mtllibs
              if os.path.lexists(os.path.join(base, lib))]
     if not mtllibs or not materials:
-        return None, None, named
+        return None, None, named, None
     kd: dict[str, tuple] = {}
-    texture = None
+    texture, uv_map = None, None
     for lib in mtllibs:
         mtl_path = os.path.join(base, lib)
         if not os.path.lexists(mtl_path):
@@ -362,13 +364,73 @@ def _read_materials(obj_path, mtllibs, materials, face_mat):
                                     f"got {' '.join(parts[1:4])!r}")
                 kd[current] = rgb
             elif parts[0].startswith("map_") and len(parts) > 1:
-                candidate = os.path.join(base, parts[-1])
-                if os.path.exists(candidate):
+                name, options = map_statement(line.split("#", 1)[0].split(None, 1)[1])
+                candidate = os.path.join(base, name)
+                if name and os.path.isfile(candidate):
                     named.append(os.path.abspath(candidate))
                     if parts[0] == "map_Kd" and texture is None:
-                        texture = candidate
+                        texture, uv_map = candidate, (current, options)
+                elif parts[0] == "map_Kd":
+                    warnings.warn(HsrWarning(f"{lib}:{lineno}: map_Kd names {name!r}, "
+                                             f"which is not a file beside the model; "
+                                             f"drawn without it"), stacklevel=2)
     if not kd:
-        return None, texture, named
+        return None, texture, named, uv_map
     table = np.array([kd.get(m, (0.8, 0.8, 0.8)) for m in materials] + [(0.8, 0.8, 0.8)])
     colors = np.round(np.clip(table[face_mat], 0, 1) * 255).astype(np.uint8)
-    return colors, texture, named
+    return colors, texture, named, uv_map
+
+
+# Options of an MTL texture map statement and how many values each takes (Wavefront's
+# MTL format, "Texture map statements"): -o, -s and -t take one to three numbers.
+_MAP_OPTIONS = {"-blendu": (1, 1), "-blendv": (1, 1), "-boost": (1, 1), "-mm": (2, 2),
+                "-o": (1, 3), "-s": (1, 3), "-t": (1, 3), "-texres": (1, 1),
+                "-clamp": (1, 1), "-bm": (1, 1), "-imfchan": (1, 1), "-type": (1, 1),
+                "-cc": (1, 1)}
+
+
+def map_statement(rest: str) -> tuple:
+    """``(file name, {option: [values]})`` of a ``map_*`` statement's arguments: its
+    options first, then the file name, which is the rest of the line and may hold
+    spaces (``map_Kd -s 2 2 1 fuze uv.jpg`` names ``fuze uv.jpg``)."""
+    tokens = [(m.group(), m.start()) for m in re.finditer(r"\S+", rest)]
+    options: dict = {}
+    k = 0
+    while k < len(tokens) and tokens[k][0] in _MAP_OPTIONS:
+        flag, (low, high) = tokens[k][0], _MAP_OPTIONS[tokens[k][0]]
+        values: list = []
+        k += 1
+        while k < len(tokens) and len(values) < high and (len(values) < low
+                                                          or _is_number(tokens[k][0])):
+            values.append(tokens[k][0])
+            k += 1
+        options[flag] = values
+    name = rest[tokens[k][1]:].strip() if k < len(tokens) else ""
+    return name, options
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _uv_transform(corner_uv, face_material, materials, uv_map):
+    """Texture coordinates with the texture's ``-s`` scale and ``-o`` offset applied to
+    the faces of its material (u' = u s + o, as MTL defines them), or as they are."""
+    if corner_uv is None or uv_map is None:
+        return corner_uv
+    material, options = uv_map
+    try:
+        scale = [float(v) for v in options.get("-s", [])] + [1.0, 1.0]
+        offset = [float(v) for v in options.get("-o", [])] + [0.0, 0.0]
+    except ValueError:
+        return corner_uv
+    if scale[:2] == [1.0, 1.0] and offset[:2] == [0.0, 0.0] or material not in materials:
+        return corner_uv
+    mine = face_material == materials.index(material)
+    out = corner_uv.copy()
+    out[mine] = out[mine] * np.array(scale[:2]) + np.array(offset[:2])
+    return out
