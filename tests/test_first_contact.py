@@ -99,3 +99,66 @@ def test_a_missing_texture_is_one_warning_naming_it(tmp_path):
     assert err.getvalue().strip().splitlines() == [
         "hsr: warning: m.mtl:3: map_Kd names 'gone.png', which is not a file beside the "
         "model; drawn without it"]
+
+
+def _scaled(models_dir, tmp_path, scale):
+    mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
+    scaled = hsr.Mesh(mesh.positions * scale, mesh.faces, name="scaled")
+    path = tmp_path / f"spot_{scale:g}.ply"
+    hsr.write_mesh(scaled, path)
+    return scaled, str(path)
+
+
+def test_camera_files_carry_their_planes_at_any_scale(models_dir, tmp_path):
+    """read_transforms used near 0.1 / far 100 and hsr's own transforms.json stored no
+    planes: a model in millimetres, re-rendered from hsr's camera file, covered 0 pixels
+    with exit 0. Now the file carries them, and a file without them fits the scene."""
+    import json as _json
+
+    for scale in (1e-3, 1e3, 1e5):
+        scene, _ = _scaled(models_dir, tmp_path, scale)
+        cam = hsr.views.default(scene, 64 / 48)
+        want = hsr.render(scene, cam, 64, 48)
+        assert (want.face_id >= 0).sum() > 300
+        path = tmp_path / f"cams_{scale:g}.json"
+        hsr.write_transforms(path, [cam], 64, 48)
+        back = hsr.read_transforms(path)[0][0]
+        assert back.near == cam.near and back.far == cam.far
+        assert np.array_equal(hsr.render(scene, back, 64, 48).face_id >= 0,
+                              want.face_id >= 0)
+        doc = _json.loads(path.read_text())
+        del doc["near"], doc["far"]
+        path.write_text(_json.dumps(doc))
+        fitted = hsr.read_transforms(path, bounds=scene.bounds())[0][0]
+        got = hsr.render(scene, fitted, 64, 48)
+        assert np.array_equal(got.face_id >= 0, want.face_id >= 0), scale
+        assert (got.face_id == want.face_id).mean() > 0.99
+        assert fitted.near < np.linalg.norm(np.subtract(cam.eye, cam.target)) < fitted.far
+
+
+def test_the_command_line_fits_camera_file_planes_and_takes_its_size(models_dir, tmp_path,
+                                                                     capsys):
+    from hsr.cli import main
+
+    scene, model = _scaled(models_dir, tmp_path, 1000.0)
+    cam = hsr.views.default(scene, 320 / 240)
+    path = tmp_path / "cams.json"
+    hsr.write_transforms(path, [cam], 320, 240)
+    doc = json.loads(path.read_text())
+    del doc["near"], doc["far"]  # as other tools write them
+    path.write_text(json.dumps(doc))
+    assert main(["render", model, "--camera", str(path), "-o", str(tmp_path / "r.png"),
+                 "--ids-out", str(tmp_path / "ids.npy")]) == 0
+    ids = np.load(tmp_path / "ids.npy")
+    assert ids.shape == (240, 320) and (ids >= 0).sum() > 1000
+    capsys.readouterr()
+    assert main(["visibility", model, "--views", str(path), "-o",
+                 str(tmp_path / "v.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "1 views at 320x240" in out and "min 0 " not in out, out
+    # A view that sees nothing says so in one line (it exited 0 in silence).
+    assert main(["render", model, "--camera", str(path), "--near", "1", "--far", "2",
+                 "-o", str(tmp_path / "empty.png")]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["hsr: warning: the view covers no pixel of the scene (is it behind the "
+                   "camera, or outside --near/--far?)"]

@@ -43,7 +43,8 @@ MAX_VIEWS = 1_000_000
 class ViewSpec:
     """Views for every model: a view set computed from each model's bounds (``kind`` one
     of orbit / sphere / hemisphere, ``count``, ``elevation`` for orbit), or fixed
-    ``cameras`` (the same for every model), or ``per_model`` cameras keyed by model path."""
+    ``cameras`` (the same for every model), or ``per_model`` cameras keyed by model path;
+    ``size``: the image size a camera file gives (its first camera's), else None."""
 
     kind: str
     count: int = 0
@@ -51,6 +52,7 @@ class ViewSpec:
     cameras: tuple = ()
     per_model: dict | None = None
     text: str = ""
+    size: tuple | None = None
 
     def count_for(self, model: str) -> int:
         if self.kind in _SETS:
@@ -60,14 +62,16 @@ class ViewSpec:
         return len(self.cameras)
 
 
-def parse_views(views: Any, models: list, near: float = 0.1, far: float = 100.0) -> ViewSpec:
+def parse_views(views: Any, models: list, near: float | None = None,
+                far: float | None = None, bounds: Any = None) -> ViewSpec:
     """A :class:`ViewSpec` from ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``,
     a transforms.json or COLMAP folder (the same cameras for every model),
     ``per-model:FILE`` (a JSON object from each model's path or file name to a
     transforms.json or COLMAP folder, relative to FILE), a list of :class:`hsr.Camera`,
     or a dict from model path to such a list. Raises :class:`BatchError` for anything
     else, and :class:`~hsr.errors.CameraError` for a bad camera file or bad ``near`` /
-    ``far`` (the planes of cameras read from files; checked whatever the views)."""
+    ``far`` (the planes of cameras read from files, None for the file's own or, where it
+    has none, fitted to the box ``bounds`` when given; checked whatever the views)."""
     from ..scene.camera import check_perspective_planes
     from ..scene.camera_files import read_colmap, read_transforms
 
@@ -99,11 +103,11 @@ def parse_views(views: Any, models: list, near: float = 0.1, far: float = 100.0)
         return ViewSpec("per-model", per_model=_per_model_file(rest, models, near, far),
                         text=views)
     if os.path.isdir(views):
-        return ViewSpec("cameras", cameras=tuple(read_colmap(views, near=near, far=far)[0]),
-                        text=views)
+        cameras, _, sizes = read_colmap(views, near=near, far=far, bounds=bounds)
+        return ViewSpec("cameras", cameras=tuple(cameras), text=views, size=sizes[0])
     if os.path.exists(views):
-        return ViewSpec("cameras", cameras=tuple(read_transforms(views, near=near, far=far)[0]),
-                        text=views)
+        cameras, _, size = read_transforms(views, near=near, far=far, bounds=bounds)
+        return ViewSpec("cameras", cameras=tuple(cameras), text=views, size=size)
     raise BatchError(f"views {views!r}: not orbit:N[:EL], sphere:N, hemisphere:N, "
                      f"per-model:FILE, nor an existing transforms.json or COLMAP folder")
 

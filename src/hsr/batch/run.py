@@ -105,7 +105,7 @@ def local_cluster(workers: int | None = None, pixels: int = 0):
 
 def render_views(models, views, size=(512, 512), outputs=("color",), out="batch",
                  client=None, *, format="files", resume=False, workers=None,
-                 progress=None, near=0.1, far=100.0, views_per_task=None, force=False,
+                 progress=None, near=None, far=None, views_per_task=None, force=False,
                  **render_options) -> BatchResult:
     """Render every model from every view, on a Dask cluster, writing the outputs to
     ``out`` (see docs/guide/batch.md for the layout).

@@ -14,7 +14,6 @@ from .options import (
     dask_client,
     key_values,
     rgb,
-    size,
 )
 
 
@@ -34,7 +33,8 @@ def add_parser(sub) -> None:
                    help="orbit:N[:ELEVATION], sphere:N, hemisphere:N, a transforms.json or "
                    "COLMAP folder (the same cameras for every model), or per-model:FILE "
                    "(JSON: model -> camera file)")
-    g.add_argument("--size", default="512x512", help="WxH in pixels")
+    g.add_argument("--size", help="WxH in pixels, or N for NxN (default: a camera file's "
+                   "size, else 512x512)")
     g.add_argument("--outputs", default="color", help="comma-separated, from: "
                    + ", ".join(OUTPUTS))
     g.add_argument("--out", default="batch", metavar="DIR", help="output folder")
@@ -71,6 +71,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..batch import render_views
+    from .setup import views_size
 
     if args.scheduler and args.workers is not None:
         raise CliError("--workers sizes the local cluster: it does not combine with "
@@ -78,7 +79,8 @@ def run(args) -> int:
     client = dask_client(args.scheduler, "batch") if args.scheduler else None
     try:
         result = render_views(
-            args.models, args.views, size(args.size), args.outputs, args.out, client,
+            args.models, args.views, views_size([args.views], args.size), args.outputs,
+            args.out, client,
             format=args.format, resume=args.resume, force=args.force, workers=args.workers,
             views_per_task=args.views_per_task,
             progress=not args.quiet and sys.stderr.isatty(), near=args.near, far=args.far,

@@ -175,9 +175,12 @@ def add_depth_func(g, help="glDepthFunc") -> None:
 
 
 def add_file_planes(g) -> None:
-    """--near and --far for the cameras of camera files (which give no planes)."""
-    g.add_argument("--near", type=float, default=0.1, help="near plane for camera files")
-    g.add_argument("--far", type=float, default=100.0, help="far plane for camera files")
+    """--near and --far for the cameras of camera files (default: the file's planes, as
+    hsr writes them, else fitted to the scene)."""
+    g.add_argument("--near", type=float, help="near plane for camera files (default: the "
+                   "file's, else fitted to the scene)")
+    g.add_argument("--far", type=float, help="far plane for camera files (default: the "
+                   "file's, else fitted to the scene)")
 
 
 def add_scene_args(p):

@@ -89,6 +89,10 @@ def run(args) -> int:
     if args.orbit is not None:
         return _render_orbit(args, scene, width, height, draw)
     frame = draw(camera)
+    if frame.stats.get("pixels_covered", 1) == 0:
+        # Exit 0 with a blank picture is what users met with a camera file's planes.
+        print("hsr: warning: the view covers no pixel of the scene (is it behind the "
+              "camera, or outside --near/--far?)", file=sys.stderr)
     _save_outputs(args, frame, "")
     if args.svg and args.lines:
         from ..lines.vector import hidden_lines, write_lines_svg

@@ -51,14 +51,30 @@ def input_plan(args, scene, *files):
     return plan
 
 
+def views_size(specs, default: str, option: str = "--size") -> tuple:
+    """The image size for --views SPECs: --size when given (``default`` is None then),
+    else the first camera file's own size, else ``default``."""
+    from ..scene.camera_files import read_colmap, read_transforms
+
+    if default is not None:
+        return size(default, option)
+    for spec in specs or ():
+        if isinstance(spec, str) and os.path.isdir(spec):
+            return read_colmap(spec)[2][0]
+        if isinstance(spec, str) and os.path.isfile(spec):
+            return read_transforms(spec)[2]
+    return 512, 512
+
+
 def view_inputs(specs) -> list:
     """``(what, path)`` of each --views SPEC that names a camera file or folder."""
     return [("a --views camera file", spec) for spec in specs or ()
             if isinstance(spec, str) and os.path.lexists(spec)]
 
 
-def camera_from_file(args):
-    """(camera, (w, h)) from --camera FILE[:INDEX], else (None, None)."""
+def camera_from_file(args, bounds=None):
+    """(camera, (w, h)) from --camera FILE[:INDEX], else (None, None); its planes are
+    --near / --far, else the file's, else fitted to the scene's box ``bounds``."""
     if not args.camera:
         return None, None
     from ..scene.camera_files import read_colmap, read_transforms
@@ -68,14 +84,11 @@ def camera_from_file(args):
         if getattr(args, dest) is not None:
             raise CliError(f"--camera sets the camera: it does not combine with --{flag}")
     path, index = camera_file(args.camera)
-    near = args.near if args.near is not None else 0.1
-    far = args.far if args.far is not None else 100.0
-    import os
-
     if os.path.isdir(path):
-        cameras, _, sizes = read_colmap(path, near=near, far=far)
+        cameras, _, sizes = read_colmap(path, near=args.near, far=args.far, bounds=bounds)
     else:
-        cameras, _, size = read_transforms(path, near=near, far=far)
+        cameras, _, size = read_transforms(path, near=args.near, far=args.far,
+                                           bounds=bounds)
         sizes = [size] * len(cameras)
     if index >= len(cameras):
         raise CliError(f"--camera: {path} has {len(cameras)} cameras, no index {index}")
@@ -148,8 +161,6 @@ def setup(args):
     from ..scene import builtin as scenes
 
     check_lens(args)
-    file_camera, file_size = camera_from_file(args)
-    width, height = size(args.size) if args.size else (file_size or (800, 600))
     default_camera = None
     if args.light is None:
         args.light = "studio" if args.models else "headlight"
@@ -162,6 +173,9 @@ def setup(args):
             raise CliError("--texture needs MODEL files")
         scene, default_camera = scenes.get(args.scene)
         owner = list(range(len(scene.instances)))
+    # The camera file's planes, where it gives none, fit the scene (read after it).
+    file_camera, file_size = camera_from_file(args, scene.bounds() if args.camera else None)
+    width, height = size(args.size) if args.size else (file_size or (800, 600))
     if args.opacity:
         count = len(args.models) if args.models else len(scene.instances)
         values = args.opacity.split(",")

@@ -12,7 +12,6 @@ from .options import (
     add_file_planes,
     dask_client,
     load_models,
-    size,
 )
 
 
@@ -25,7 +24,8 @@ def add_parser(sub) -> None:
     p.add_argument("--views", required=True, metavar="SPEC", action="append",
                    help="sphere:N, hemisphere:N, orbit:N[:ELEVATION], a transforms.json or a "
                    "COLMAP folder; repeat to use several")
-    p.add_argument("--size", default="512x512", help="WxH in pixels, or N for NxN")
+    p.add_argument("--size", help="WxH in pixels, or N for NxN (default: the camera "
+                   "file's size, else 512x512)")
     p.add_argument("--what", default="faces", metavar="faces|vertices|points:FILE.npy",
                    help="faces: pixel counts per face and view; vertices: the scene's "
                    "vertices seen by each view; points:FILE.npy: an (N, 3) array's points")
@@ -49,9 +49,9 @@ def run(args) -> int:
     from ..scene.write import check_new
     from ..visibility import cameras_for
     from ..visibility.queries import write_visibility
-    from .setup import input_plan, view_inputs
+    from .setup import input_plan, view_inputs, views_size
 
-    width, height = size(args.size)
+    width, height = views_size(args.views, args.size)
     check_output(args.out, (".npz", ".csv"))
     if not args.force:
         check_new([args.out], "--force")

@@ -48,11 +48,19 @@ def _vec3(value, what) -> np.ndarray:
     return v
 
 
-def check_perspective_planes(near: float, far: float) -> None:
+def check_perspective_planes(near: float | None, far: float | None) -> None:
     """Raise :class:`CameraError` unless ``near`` and ``far`` are planes a perspective
     camera can render with: finite, 0 < near < far and far / near <= 2**24 (see
     :data:`MAX_DEPTH_RATIO`). For the planes given to cameras read from files, checked
-    even when no file is read, so a bad value is never ignored unseen."""
+    even when no file is read, so a bad value is never ignored unseen. A plane given as
+    None (the file's, or fitted to the scene) is checked against the default of the
+    other (0.1 near, 100 far) only for its sign."""
+    if near is None or far is None:
+        for value, what in ((near, "near"), (far, "far")):
+            if value is not None and not _finite(value, what) > 0:
+                raise CameraError(f"{what} must be > 0 for a perspective camera, got "
+                                  f"{value}")
+        return
     near, far = _finite(near, "near"), _finite(far, "far")
     if not near > 0:
         raise CameraError(f"near must be > 0 for a perspective camera, got {near}")
@@ -406,6 +414,28 @@ class Camera:
         near = max(0.95 * float(depth.min()), dist * 1e-3)
         far = 1.05 * float(depth.max())
         return cls.look_at(center + direction * dist, center, up, fov_y, near, far)
+
+    def fitted(self, bounds: ArrayLike) -> Camera:
+        """This camera with ``near`` and ``far`` enclosing the (2, 3) box ``bounds`` along
+        its view axis (far 5% past the farthest corner, near 90% of the nearest one in
+        front, at least far / 10^4): the planes ``--view`` framing gives, for a camera
+        whose file names none. An orthographic camera is returned as it is."""
+        import dataclasses
+
+        if self.is_orthographic:
+            return self
+        box = np.asarray(bounds, dtype=np.float64)
+        corners = np.array([[x, y, z] for x in box[:, 0] for y in box[:, 1]
+                            for z in box[:, 2]])
+        depth = -(corners @ self.view_matrix[2, :3] + self.view_matrix[2, 3])
+        far = float(np.abs(depth).max()) * 1.05
+        if not (math.isfinite(far) and far > 0):
+            return self
+        front = depth[depth > 0]
+        near = max(float(front.min()) * 0.9 if len(front) else 0.0, far * 1e-4)
+        if depth.min() <= 0:  # the eye inside the box (or the box partly behind it)
+            near = far * 1e-4
+        return dataclasses.replace(self, near=near, far=far)
 
     @property
     def is_orthographic(self) -> bool:

@@ -15,6 +15,7 @@ import math
 import os
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import CameraError
 from .camera import MAX_IMAGE_SIDE, OPENGL_TO_OPENCV, Camera
@@ -70,9 +71,30 @@ def _angle(value, what, where) -> float:
     return value
 
 
-def read_transforms(path: str | os.PathLike, near: float = 0.1,
-                    far: float = 100.0) -> tuple:
+# The planes of a camera file's camera when neither the call, the file nor a scene to fit
+# them to gives any.
+DEFAULT_PLANES = (0.1, 100.0)
+
+
+def _planes(keys: dict, near, far, where: str) -> tuple:
+    """``(near, far, fit)``: the planes given to the call, else the file's ``near`` /
+    ``far``, else :data:`DEFAULT_PLANES` with ``fit`` True (fit them to the scene when
+    one is known)."""
+    fit = near is None and far is None and "near" not in keys and "far" not in keys
+    if near is None:
+        near = _positive(keys["near"], "near", where) if "near" in keys else DEFAULT_PLANES[0]
+    if far is None:
+        far = _positive(keys["far"], "far", where) if "far" in keys else DEFAULT_PLANES[1]
+    return near, far, fit
+
+
+def read_transforms(path: str | os.PathLike, near: float | None = None,
+                    far: float | None = None, bounds: ArrayLike | None = None) -> tuple:
     """Cameras of a NeRF-style ``transforms.json``: ``(cameras, file_paths, (w, h))``.
+
+    Planes: ``near`` / ``far`` when given, else the file's ``near`` / ``far`` (top level
+    or per frame, as :func:`write_transforms` writes them), else fitted to the (2, 3) box
+    ``bounds`` of the scene (:meth:`hsr.Camera.fitted`), else 0.1 and 100.
 
     Intrinsics from ``fl_x``/``fl_y``/``cx``/``cy`` (COLMAP's half-pixel convention) or
     ``camera_angle_x`` (and ``camera_angle_y``; principal point at the centre), with
@@ -121,10 +143,12 @@ def read_transforms(path: str | os.PathLike, near: float = 0.1,
         R = OPENGL_TO_OPENCV @ rot.T
         t = -R @ c2w[:3, 3]
         K = np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]])
+        near_k, far_k, fit = _planes(keys, near, far, where)
         try:
-            cameras.append(Camera.from_opencv(K, R, t, w, h, near=near, far=far))
+            cam = Camera.from_opencv(K, R, t, w, h, near=near_k, far=far_k)
         except CameraError as exc:
             raise CameraError(f"{where}: {exc}") from None
+        cameras.append(cam.fitted(bounds) if fit and bounds is not None else cam)
         names.append(str(frame.get("file_path", f"{k:04d}")))
         size = size or (w, h)
     return cameras, names, size
@@ -134,7 +158,8 @@ def write_transforms(path: str | os.PathLike, cameras: list, width: int, height:
                      file_paths: list | None = None) -> None:
     """Write ``cameras`` (perspective) as a NeRF-style ``transforms.json`` for images of
     ``width`` x ``height``: intrinsics (``fl_x``, ``fl_y``, ``cx``, ``cy`` in COLMAP's
-    half-pixel convention, ``w``, ``h``) at the top when all cameras share them, else per
+    half-pixel convention, ``w``, ``h``) and the planes (``near``, ``far``, which
+    :func:`read_transforms` reads back) at the top when all cameras share them, else per
     frame; ``transform_matrix`` camera-to-world in OpenGL axes. Raises
     :class:`~hsr.errors.CameraError` for an orthographic camera and
     :class:`~hsr.errors.OutputError` when the file cannot be written."""
@@ -154,7 +179,8 @@ def write_transforms(path: str | os.PathLike, cameras: list, width: int, height:
         K, _, _ = cam.to_opencv(width, height)
         intrinsics.append({"fl_x": float(K[0, 0]), "fl_y": float(K[1, 1]),
                            "cx": float(K[0, 2]) + 0.5, "cy": float(K[1, 2]) + 0.5,
-                           "w": int(width), "h": int(height)})
+                           "w": int(width), "h": int(height),
+                           "near": float(cam.near), "far": float(cam.far)})
         frames.append({"file_path": name,
                        "transform_matrix": np.linalg.inv(cam.view_matrix).tolist()})
     if all(i == intrinsics[0] for i in intrinsics):
@@ -181,9 +207,12 @@ def _quaternion_matrix(qw, qx, qy, qz) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def read_colmap(folder: str | os.PathLike, near: float = 0.1, far: float = 100.0) -> tuple:
+def read_colmap(folder: str | os.PathLike, near: float | None = None,
+                far: float | None = None, bounds: ArrayLike | None = None) -> tuple:
     """Cameras of a COLMAP text model (``cameras.txt`` and ``images.txt`` in ``folder``):
-    ``(cameras, image_names, sizes)`` in ``images.txt`` order. Camera models
+    ``(cameras, image_names, sizes)`` in ``images.txt`` order. COLMAP stores no planes:
+    ``near`` / ``far`` when given, else fitted to the scene's box ``bounds``
+    (:meth:`hsr.Camera.fitted`), else 0.1 and 100. Camera models
     SIMPLE_PINHOLE (f, cx, cy) and PINHOLE (fx, fy, cx, cy); a model with lens distortion
     is refused (hsr renders pinholes), naming it. Raises :class:`~hsr.errors.CameraError`
     with the file and line on anything malformed."""
@@ -248,11 +277,13 @@ def read_colmap(folder: str | os.PathLike, near: float = 0.1, far: float = 100.0
             raise CameraError(f"{where}: camera {parts[8]} is not in cameras.txt")
         fx, fy, cx, cy, w, h = intrinsics[parts[8]]
         K = np.array([[fx, 0.0, cx - 0.5], [0.0, fy, cy - 0.5], [0.0, 0.0, 1.0]])
+        near_k, far_k, fit = _planes({}, near, far, where)
         try:
-            cameras.append(Camera.from_opencv(K, _quaternion_matrix(*q), t, w, h,
-                                              near=near, far=far))
+            cam = Camera.from_opencv(K, _quaternion_matrix(*q), t, w, h, near=near_k,
+                                     far=far_k)
         except CameraError as exc:
             raise CameraError(f"{where}: {exc}") from None
+        cameras.append(cam.fitted(bounds) if fit and bounds is not None else cam)
         names.append(" ".join(parts[9:]))
         sizes.append((w, h))
     if not cameras:

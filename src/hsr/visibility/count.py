@@ -53,12 +53,13 @@ def check_size(size) -> tuple:
     return width, height
 
 
-def cameras_for(scene: Scene, views: Any, aspect: float, near: float = 0.1,
-                far: float = 100.0) -> list:
+def cameras_for(scene: Scene, views: Any, aspect: float, near: float | None = None,
+                far: float | None = None) -> list:
     """The cameras of ``views``: a spec (``sphere:N``, ``hemisphere:N``,
     ``orbit:N[:ELEVATION]``: framed outside the scene's bounding sphere, as
     :mod:`hsr.views`), a transforms.json or COLMAP folder (interior viewpoints are
-    welcome), a :class:`hsr.Camera`, or a list mixing any of these (every set is used).
+    welcome; their planes ``near`` / ``far`` when given, else the file's, else fitted to
+    the scene), a :class:`hsr.Camera`, or a list mixing any of these (every set is used).
     Raises :class:`VisibilityError` for anything else."""
     from ..batch.plan import BatchError, parse_views
     from ..scene import views as view_sets
@@ -78,7 +79,10 @@ def cameras_for(scene: Scene, views: Any, aspect: float, near: float = 0.1,
         if isinstance(item, str) and item.startswith("per-model:"):
             raise VisibilityError("views: per-model is for hsr batch; give the cameras")
         try:
-            spec = parse_views(item, [], near, far)
+            is_file = isinstance(item, str) and os.path.exists(item)
+            if is_file and bounds is None:
+                bounds = scene.bounds()
+            spec = parse_views(item, [], near, far, bounds if is_file else None)
         except BatchError as exc:
             raise VisibilityError(str(exc)) from None
         if spec.kind == "cameras":
@@ -92,7 +96,8 @@ def cameras_for(scene: Scene, views: Any, aspect: float, near: float = 0.1,
 
 def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
                     client: Any = None, algorithm: str = "zbuffer",
-                    threads: int | None = None, near: float = 0.1, far: float = 100.0,
+                    threads: int | None = None, near: float | None = None,
+                    far: float | None = None,
                     progress: bool | None = None, cull_objects: bool | str = True,
                     **render_options) -> np.ndarray:
     """(n_faces,) int64: for each face of ``scene`` (global face ids, submission order),

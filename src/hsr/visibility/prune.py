@@ -123,8 +123,8 @@ def decide(scene: SceneLike, views: Any = "auto", size: int | str = "auto", *,
     _check_int("seed", seed, 0)
     run = dict(options, client=client, progress=progress)
     first = fixed + ([f"sphere:{AUTO_FIRST}"] if auto else [])
-    cameras = cameras_for(scene, first, width / height, options.get("near", 0.1),
-                          options.get("far", 100.0))
+    cameras = cameras_for(scene, first, width / height, options.get("near"),
+                          options.get("far"))
     counts = face_visibility(counted, cameras, (width, height), **run)
     keep = keep_faces(scene, counts, level, keep_neighbors, min_pixels)
     if not auto:

@@ -319,7 +319,8 @@ def view_group_columns(scene, cameras, width, height, options, quality) -> list:
 
 def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
                       client: Any = None, quality: bool = False,
-                      near: float = 0.1, far: float = 100.0, progress: bool | None = None,
+                      near: float | None = None, far: float | None = None,
+                      progress: bool | None = None,
                       **render_options) -> VisibilityMatrix:
     """The faces x views table of visible pixel counts (a :class:`VisibilityMatrix`,
     ``.counts`` a ``scipy.sparse.csr_matrix``), for ``views`` as
