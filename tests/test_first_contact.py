@@ -8,6 +8,7 @@ import os
 import struct
 
 import numpy as np
+import pytest
 
 import hsr
 
@@ -162,3 +163,64 @@ def test_the_command_line_fits_camera_file_planes_and_takes_its_size(models_dir,
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["hsr: warning: the view covers no pixel of the scene (is it behind the "
                    "camera, or outside --near/--far?)"]
+
+
+def test_pixel_rays_meet_opencv_pixel_centres_and_the_renderer(models_dir):
+    """Camera.pixel_rays (Open3D's create_rays_pinhole, in hsr's convention): a point on
+    the ray of pixel (x, y) projects with OpenCV to (x, y) (its centres are on integers,
+    hsr's at + 0.5), and casting the rays finds the faces the z-buffer draws."""
+    cv2 = pytest.importorskip("cv2")
+    K = np.array([[70.0, 0, 31.0], [0, 64.0, 22.5], [0, 0, 1]])
+    R = cv2.Rodrigues(np.array([0.2, -0.4, 0.1]))[0]
+    t = np.array([0.1, -0.2, 3.0])
+    cam = hsr.Camera.from_opencv(K, R, t, 64, 48, near=0.1, far=20)
+    origins, directions = cam.pixel_rays(64, 48)
+    assert origins.shape == directions.shape == (48, 64, 3)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=-1), 1.0)
+    points = (origins + 2.5 * directions).reshape(-1, 3)
+    uv, _ = cv2.projectPoints(points, cv2.Rodrigues(R)[0], t, K, None)
+    xs, ys = np.meshgrid(np.arange(64), np.arange(48))
+    np.testing.assert_allclose(uv.reshape(48, 64, 2), np.stack([xs, ys], -1), atol=1e-6)
+    mesh = hsr.load(os.path.join(models_dir, "spot.obj"))
+    for view in (hsr.views.default(mesh, 4 / 3),
+                 hsr.Camera.orthographic((0, 0.3, 3), (0, 0.3, 0), height=2.0, near=0.5,
+                                         far=6)):
+        origins, directions = view.pixel_rays(64, 48)
+        hits = hsr.RayScene(mesh).cast(origins.reshape(-1, 3), directions.reshape(-1, 3))
+        drawn = hsr.render(mesh, view, 64, 48).face_id.reshape(-1)
+        assert (hits.face_id == drawn).mean() > 0.98 and (drawn >= 0).sum() > 500
+
+
+def test_a_camera_reads_as_numbers():
+    cam = hsr.Camera.look_at((1, 2, 3), (0, 0, 0), (0, 1, 0), 45, 0.5, 20)
+    assert repr(cam) == ("Camera(eye=(1, 2, 3), target=(0, 0, 0), up=(0, 1, 0), fov_y=45, "
+                         "near=0.5, far=20)")
+    assert "np.float64" not in repr(hsr.views.default(hsr.scenes.cube()))
+
+
+def test_sort_last_takes_the_outputs_the_command_line_takes(tmp_path):
+    """render_partitioned(outputs=("ids",)) was refused though hsr batch takes ids."""
+    pytest.importorskip("zarr")
+    from hsr.batch import render_partitioned
+
+    scene = hsr.scenes.cube()
+    store = hsr.partition(scene, 2, tmp_path / "s.zarr")
+    cam = hsr.views.default(scene)
+    frame = render_partitioned(store, [cam], 32, 32, outputs=("ids", "window_depth"))[0]
+    assert np.array_equal(frame.face_id, hsr.render(scene, cam, 32, 32).face_id)
+
+
+def test_an_exr_output_without_its_extra_fails_before_anything_is_written(tmp_path):
+    """--depth-out d.exr without OpenEXR failed after the colour PNG was written."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['OpenEXR'] = None\n"
+            "from hsr.cli import main\n"
+            f"sys.exit(main(['render', '-o', {str(tmp_path / 'c.png')!r}, '--depth-out', "
+            f"{str(tmp_path / 'd.exr')!r}, '--size', '16x16']))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "hsr[exr]" in lines[0], lines
+    assert os.listdir(tmp_path) == []

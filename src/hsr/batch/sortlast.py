@@ -49,6 +49,9 @@ __all__ = ["CompositeFrame", "render_partitioned", "each_partitioned", "composit
 
 # Outputs a sort-last render can return, beside the face ids and window depth it always has.
 OUTPUTS = ("color", "eye_depth", "distance", "normals")
+# What every composited frame holds whether asked or not (hsr batch's names for them):
+# taken in outputs= and ignored, as the command line takes them.
+ALWAYS = ("ids", "window_depth", "object_ids")
 # Depth functions that order fragments (best first), and whether the last-drawn of equally
 # good fragments wins.
 _ORDERING = {"less": (np.less, False), "lequal": (np.less, True),
@@ -84,7 +87,7 @@ def _check(options: dict, outputs: tuple) -> RenderState:
     if options.get("algorithm", "zbuffer") != "zbuffer":
         raise PartitionError(f"sort-last rendering composites z-buffers: algorithm must be "
                              f"zbuffer, got {options['algorithm']!r}")
-    unknown = sorted(set(outputs) - set(OUTPUTS))
+    unknown = sorted(set(outputs) - set(OUTPUTS) - set(ALWAYS))
     if unknown:
         raise PartitionError(f"unknown output(s) {', '.join(unknown)}; choose from "
                              f"{', '.join(OUTPUTS)} (face ids and depth always come)")
@@ -182,8 +185,8 @@ def each_partitioned(store: PartitionedScene | str, cameras: list, width: int, h
     if not isinstance(store, PartitionedScene):
         store = open_partitioned(store)
     check_size(width, height)
-    outputs = tuple(outputs)
-    state = _check(options, outputs)
+    state = _check(options, tuple(outputs))
+    outputs = tuple(o for o in outputs if o not in ALWAYS)
     if any(inst["opacity"] < 1.0 for inst in store.instances):
         raise PartitionError("the scene has transparent instances, which blend in depth "
                              "order across parts: not composited")

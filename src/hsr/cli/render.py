@@ -57,6 +57,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from ..errors import require_extra
     from ..render import render
     from ..scene.files import check_output
 
@@ -69,6 +70,8 @@ def run(args) -> int:
                         (args.normals_out, (".npy", ".exr", ".png"))):
         if path:
             check_output(path, kinds)
+            if path.lower().endswith(".exr"):  # before any output is written, not after
+                require_extra(f"writing {path}", "OpenEXR")
     scene, camera, width, height, state, background, options = setup(args)
     _plan_outputs(args, scene)
     if args.lines and not args.svg:

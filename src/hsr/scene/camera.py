@@ -415,6 +415,51 @@ class Camera:
         far = 1.05 * float(depth.max())
         return cls.look_at(center + direction * dist, center, up, fov_y, near, far)
 
+    def __repr__(self) -> str:
+        def number(v) -> str:
+            return f"{float(v):.6g}"
+
+        def triple(v) -> str:
+            return "(" + ", ".join(number(c) for c in v) + ")"
+
+        lens = (f"ortho_height={number(self.ortho_height)}" if self.ortho_height is not None
+                else f"fov_y={number(self.fov_y)}")
+        extra = ("" if self.intrinsics is None
+                 else f", intrinsics={triple(self.intrinsics)}")
+        return (f"Camera(eye={triple(self.eye)}, target={triple(self.target)}, "
+                f"up={triple(self.up)}, {lens}, near={number(self.near)}, "
+                f"far={number(self.far)}{extra})")
+
+    def pixel_rays(self, width: int, height: int) -> tuple:
+        """``(origins, directions)``, each (H, W, 3) float64 in world space: the ray
+        through the centre of every pixel (x + 0.5, y + 0.5; row 0 at the top) of a
+        ``width`` x ``height`` image, from the near plane for an orthographic camera and
+        from the eye for a perspective one, directions unit length (as Open3D's
+        ``create_rays_pinhole``, in hsr's pixel convention). Feed them to
+        :meth:`hsr.RayScene.cast` after ``reshape(-1, 3)``."""
+        for side, what in ((width, "width"), (height, "height")):
+            if isinstance(side, bool) or not isinstance(side, (int, np.integer)) \
+                    or not 1 <= side <= MAX_IMAGE_SIDE:
+                raise CameraError(f"pixel_rays: {what} must be a whole number in "
+                                  f"1..{MAX_IMAGE_SIDE}, got {side!r}")
+        x_ndc = 2.0 * (np.arange(width) + 0.5) / width - 1.0
+        y_ndc = 1.0 - 2.0 * (np.arange(height) + 0.5) / height
+        gx, gy = np.meshgrid(x_ndc, y_ndc)
+        inverse = np.linalg.inv(self.projection_matrix(width / height) @ self.view_matrix)
+
+        def unproject(z_ndc: float) -> np.ndarray:
+            clip = np.stack([gx, gy, np.full_like(gx, z_ndc), np.ones_like(gx)], axis=-1)
+            world = clip @ inverse.T
+            return world[..., :3] / world[..., 3:]
+
+        near, far = unproject(-1.0), unproject(1.0)
+        directions = far - near
+        directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
+        if self.is_orthographic:
+            return near, directions
+        return np.broadcast_to(np.asarray(self.eye, dtype=np.float64),
+                               near.shape).copy(), directions
+
     def fitted(self, bounds: ArrayLike) -> Camera:
         """This camera with ``near`` and ``far`` enclosing the (2, 3) box ``bounds`` along
         its view axis (far 5% past the farthest corner, near 90% of the nearest one in
