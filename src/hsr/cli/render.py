@@ -92,7 +92,7 @@ def run(args) -> int:
     if args.orbit is not None:
         return _render_orbit(args, scene, width, height, draw)
     frame = draw(camera)
-    if frame.stats.get("pixels_covered", 1) == 0:
+    if frame.stats.get("pixels_covered", 1) == 0 and not args.quiet:
         # Exit 0 with a blank picture is what users met with a camera file's planes.
         print("hsr: warning: the view covers no pixel of the scene (is it behind the "
               "camera, or outside --near/--far?)", file=sys.stderr)
