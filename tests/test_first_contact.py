@@ -224,3 +224,31 @@ def test_an_exr_output_without_its_extra_fails_before_anything_is_written(tmp_pa
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and "hsr[exr]" in lines[0], lines
     assert os.listdir(tmp_path) == []
+
+
+def test_the_first_run_says_it_compiles_and_warmup_compiles(tmp_path, monkeypatch):
+    """hsr render took 16.5 s the first time and printed nothing."""
+    import io
+
+    from conftest import run_cli
+    from hsr.cli.warmup import kernels_cached, note_first_run
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))  # an empty cache
+    assert not kernels_cached()
+    for command, quiet, said in (("render", False, True), ("render", True, False),
+                                 ("warmup", False, False)):
+        err = Terminal()
+        monkeypatch.setattr("sys.stderr", err)
+        note_first_run(command, quiet)
+        lines = err.getvalue().splitlines()
+        assert lines == (["hsr: compiling kernels, first run only (15 s for a render, "
+                          "minutes for every kernel; `hsr warmup` compiles them all "
+                          "ahead)"] if said else []), (command, quiet, lines)
+    (tmp_path / "hsr_kernel.nbi").write_bytes(b"")
+    assert kernels_cached()
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    assert run_cli(["warmup"]) == (0, [])

@@ -13,7 +13,7 @@ import sys
 import warnings
 
 from ..errors import HsrError
-from . import batch, compare, explain, partition, prune, render, report, view, visibility
+from . import batch, compare, explain, partition, prune, render, report, view, visibility, warmup
 from .options import EXIT_USAGE, CliError, HelpFormatter, Parser
 
 __all__ = ["main", "build_parser", "CliError", "EXIT_USAGE"]
@@ -21,7 +21,7 @@ __all__ = ["main", "build_parser", "CliError", "EXIT_USAGE"]
 # In the order ``hsr --help`` lists them.
 COMMANDS = {"render": render, "compare": compare, "explain": explain, "report": report,
             "batch": batch, "partition": partition, "prune": prune, "visibility": visibility,
-            "view": view}
+            "view": view, "warmup": warmup}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -84,6 +84,7 @@ def _main(argv: list, debug: bool) -> int:
             parser.print_help()
             return EXIT_USAGE
         if args.command in COMMANDS:
+            warmup.note_first_run(args.command, getattr(args, "quiet", False))
             return COMMANDS[args.command].run(args)
         raise CliError(f"unknown command {args.command!r}")
     except HsrError as exc:
