@@ -252,3 +252,21 @@ def test_the_first_run_says_it_compiles_and_warmup_compiles(tmp_path, monkeypatc
     assert kernels_cached()
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     assert run_cli(["warmup"]) == (0, [])
+
+
+def test_render_alone_is_what_the_docs_and_the_command_line_draw(models_dir, tmp_path):
+    """rendering.md said hsr.render(spot) alone gives its 800x600 picture; the library
+    drew 640x480, the command line 800x600."""
+    from conftest import run_cli
+
+    path = os.path.join(models_dir, "spot.obj")
+    spot = hsr.load(path)
+    alone = hsr.render(spot)
+    documented = hsr.render(spot, hsr.first_look(spot, aspect=4 / 3), 800, 600,
+                            light="studio")
+    assert alone.color.shape == (600, 800, 3)
+    assert np.array_equal(alone.color, documented.color)
+    code, err = run_cli(["render", path, "-o", str(tmp_path / "c.png"), "--ids-out",
+                         str(tmp_path / "ids.npy"), "--quiet"])
+    assert code == 0, err
+    assert np.array_equal(np.load(tmp_path / "ids.npy"), alone.face_id)

@@ -198,7 +198,7 @@ class Frame:
         save_ids(self.face_id, path)
 
 
-def render(scene: SceneLike, camera: Camera | None = None, width: int = 640, height: int = 480, *,
+def render(scene: SceneLike, camera: Camera | None = None, width: int = 800, height: int = 600, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
            shading: str = "flat", background: ArrayLike = (0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
@@ -209,8 +209,9 @@ def render(scene: SceneLike, camera: Camera | None = None, width: int = 640, hei
            hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
            color: bool = True, workspace: Workspace | None = None,
            **state_fields) -> Frame:
-    """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces)) seen by
-    ``camera`` into a ``width`` x ``height`` Frame. Without a camera: the first look of
+    """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces), a path or a
+    list of them) seen by ``camera`` into a ``width`` x ``height`` Frame (800 x 600 by
+    default, as ``hsr render``). Without a camera: the first look of
     ``hsr render MODEL`` (:func:`hsr.first_look`: the model framed tight from the side
     that shows the most of its shape, and the studio light unless ``light`` says
     otherwise).
