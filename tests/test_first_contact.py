@@ -270,3 +270,33 @@ def test_render_alone_is_what_the_docs_and_the_command_line_draw(models_dir, tmp
                          str(tmp_path / "ids.npy"), "--quiet"])
     assert code == 0, err
     assert np.array_equal(np.load(tmp_path / "ids.npy"), alone.face_id)
+
+
+def test_a_z_up_model_stands_up(models_dir, tmp_path):
+    """The first look assumed +Y up (a Z-up scan was seen from below) and --up 0,0,1
+    without --eye tilted the view. With up_axis="z" (--up-axis z) a model turned Z-up is
+    drawn as the Y-up one is: the same faces at the same pixels."""
+    from conftest import run_cli
+
+    spot = hsr.load(os.path.join(models_dir, "spot.obj"))
+    p = spot.positions
+    turned = hsr.Mesh(np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=1), spot.faces)
+    want = hsr.render(spot, hsr.first_look(spot, 4 / 3), 160, 120).face_id
+    got = hsr.render(turned, hsr.first_look(turned, 4 / 3, up_axis="z"), 160, 120).face_id
+    assert (got == want).mean() > 0.999
+    assert (hsr.render(turned, hsr.first_look(turned, 4 / 3), 160, 120).face_id
+            == want).mean() < 0.9  # the +Y first look of a Z-up model is another picture
+    for y_cam, z_cam in zip(hsr.views.orbit(spot.bounds(), 3, 20, 4 / 3),
+                            hsr.views.orbit(turned.bounds(), 3, 20, 4 / 3, up_axis="z")):
+        assert (hsr.render(spot, y_cam, 80, 60).face_id
+                == hsr.render(turned, z_cam, 80, 60).face_id).mean() > 0.999
+    hsr.write_mesh(turned, tmp_path / "zup.ply")
+    code, err = run_cli(["render", str(tmp_path / "zup.ply"), "--up-axis", "z", "--view",
+                         "35,25", "--size", "160x120", "--ids-out",
+                         str(tmp_path / "ids.npy"), "-o", str(tmp_path / "c.png"), "--quiet"])
+    assert code == 0, err
+    framed = hsr.render(spot, hsr.views.default(spot, 4 / 3), 160, 120, light="studio")
+    assert (np.load(tmp_path / "ids.npy") == framed.face_id).mean() > 0.999
+    code, err = run_cli(["render", str(tmp_path / "zup.ply"), "--up", "0,0,1", "-o",
+                         str(tmp_path / "d.png")])
+    assert code == 2 and "--up-axis z" in err[0], err

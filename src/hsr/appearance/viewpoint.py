@@ -35,7 +35,7 @@ from ..geometry.state import RenderState
 from ..parallel import Workers
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene, normal_matrix
-from ..scene.views import DEFAULT_VIEW, MARGIN, default, direction, model_points
+from ..scene.views import DEFAULT_VIEW, MARGIN, default, direction, model_points, up_vector
 
 AZIMUTHS = tuple(35.0 + 45.0 * k for k in range(8))
 ELEVATIONS = (15.0, 35.0)
@@ -55,7 +55,8 @@ def candidates(n_faces: int) -> list:
     return [DEFAULT_VIEW]
 
 
-def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = None) -> tuple:
+def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = None,
+              up_axis: str = "y") -> tuple:
     """``(azimuth, elevation)`` in degrees (as :func:`hsr.views.direction` takes them) of
     the candidate view of ``model`` (a Mesh or Scene) with the largest projected total
     curvature, see the module. Deterministic; about 16 renders of 96 x 72 (fewer for
@@ -72,8 +73,8 @@ def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = N
     width, height = SIZE
     best, best_score = tried[0], -1.0
     for az, el in tried:
-        camera = Camera.frame(bounds, direction(az, el), (0.0, 1.0, 0.0), fov_y,
-                              margin=MARGIN, aspect=width / height, fit="points",
+        camera = Camera.frame(bounds, direction(az, el, up_axis), tuple(up_vector(up_axis)),
+                              fov_y, margin=MARGIN, aspect=width / height, fit="points",
                               points=points)
         score = projected_curvature(_face_ids(scene, camera, width, height, workers),
                                     normals)
@@ -82,14 +83,17 @@ def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = N
     return best
 
 
-def first_look(model: SceneLike, aspect: float = 1.0, fov_y: float = 45.0) -> Camera:
+def first_look(model: SceneLike, aspect: float = 1.0, fov_y: float = 45.0,
+               up_axis: str = "y") -> Camera:
     """The camera ``hsr render MODEL`` and ``hsr.render(model)`` start from: the model
     framed as :func:`hsr.views.default` frames it (as large as it fits in an image of
-    ``aspect``), from :func:`best_view`. Raises :class:`~hsr.errors.MeshError` for
+    ``aspect``), from :func:`best_view`, with ``up_axis`` (``"y"`` or ``"z"``: a Z-up
+    scan or CAD part stands up) up. Raises :class:`~hsr.errors.MeshError` for
     something that is not a mesh or scene and :class:`~hsr.errors.CameraError` for an
-    aspect or fov out of range."""
+    aspect or fov out of range or another up axis."""
     scene = as_scene(model)
-    return default(scene, aspect, fov_y, view=best_view(scene, fov_y))
+    view = best_view(scene, fov_y, up_axis=up_axis)
+    return default(scene, aspect, fov_y, view=view, up_axis=up_axis)
 
 
 def projected_curvature(face_id: np.ndarray, normals: np.ndarray) -> float:

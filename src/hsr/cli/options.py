@@ -204,7 +204,11 @@ def add_scene_args(p):
                    "built-in scenes: their own camera)")
     g.add_argument("--eye", help="camera position x,y,z (default: frame the model)")
     g.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
-    g.add_argument("--up", default="0,1,0", help="up vector x,y,z (default %(default)s)")
+    g.add_argument("--up", help="up vector x,y,z of a camera placed with --eye (default: "
+                   "the --up-axis)")
+    g.add_argument("--up-axis", default="y", choices=["y", "z"], help="the model's up: y "
+                   "(glTF, OpenGL) or z (CAD, scans, Blender, STL); --view and the first "
+                   "look turn about it")
     g.add_argument("--camera", metavar="FILE[:INDEX]", help="camera INDEX (default 0) of a "
                    "NeRF transforms.json or a COLMAP text model folder")
     g.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")

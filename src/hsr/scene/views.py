@@ -29,30 +29,61 @@ DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter vi
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
 
 
-def direction(azimuth: float, elevation: float) -> np.ndarray:
-    """Unit vector from the model's centre towards the eye."""
+# The world axis that points up: +Y (glTF, OpenGL, most meshes) or +Z (CAD, scans,
+# Blender, STL). A Z-up model is seen as the same model turned to Y-up would be.
+UP_AXES = ("y", "z")
+
+
+def up_vector(up_axis: str = "y") -> np.ndarray:
+    """The unit up vector of ``up_axis`` (``"y"`` or ``"z"``)."""
+    return np.array([0.0, 1.0, 0.0]) if _axis(up_axis) == "y" else np.array([0.0, 0.0, 1.0])
+
+
+def _axis(up_axis) -> str:
+    if not isinstance(up_axis, str) or up_axis not in UP_AXES:
+        raise CameraError(f"up_axis must be y or z, got {up_axis!r}")
+    return up_axis
+
+
+def _oriented(vectors: np.ndarray, up_axis: str) -> np.ndarray:
+    """Y-up ``vectors`` (..., 3) in the frame of ``up_axis``: for z, (x, y, z) ->
+    (x, -z, y), the quarter turn about +X that takes +Y to +Z and the front (+Z) to -Y."""
+    if _axis(up_axis) == "y":
+        return vectors
+    out = np.empty_like(vectors)
+    out[..., 0], out[..., 1], out[..., 2] = vectors[..., 0], -vectors[..., 2], vectors[..., 1]
+    return out
+
+
+def direction(azimuth: float, elevation: float, up_axis: str = "y") -> np.ndarray:
+    """Unit vector from the model's centre towards the eye: ``azimuth`` degrees about the
+    up axis (from the front, +Z for Y-up and -Y for Z-up, towards +X), ``elevation``
+    degrees above the horizon."""
     az, el = math.radians(azimuth), math.radians(elevation)
-    return np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)])
+    return _oriented(np.array([math.cos(el) * math.sin(az), math.sin(el),
+                               math.cos(el) * math.cos(az)]), up_axis)
 
 
 def framed(bounds: ArrayLike, toward: ArrayLike, aspect: float = 1.0,
-           fov_y: float = 45.0) -> Camera:
+           fov_y: float = 45.0, up_axis: str = "y") -> Camera:
     """A perspective camera on the line from the centre of ``bounds`` along ``toward`` (a
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
-    with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin).
-    Raises :class:`~hsr.errors.CameraError` as the module says."""
-    return Camera.frame(bounds, toward, (0.0, 1.0, 0.0), fov_y, margin=MARGIN, aspect=aspect)
+    with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin),
+    ``up_axis`` up. Raises :class:`~hsr.errors.CameraError` as the module says."""
+    return Camera.frame(bounds, toward, tuple(up_vector(up_axis)), fov_y, margin=MARGIN,
+                        aspect=aspect)
 
 
 def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
-            view: tuple = DEFAULT_VIEW) -> Camera:
+            view: tuple = DEFAULT_VIEW, up_axis: str = "y") -> Camera:
     """A model framed from ``view`` = (azimuth, elevation) in degrees, by default a
     three-quarter view from the front-right and above (35, 25: three faces of a box
     show, so the shape reads). ``model`` is a Mesh or Scene (the eye comes as close as
     its vertices allow with a 5% margin: the whole model, as large as it fits) or a
     (2, 3) box (as close as the box's corners allow). :func:`hsr.first_look` frames the
     same way from the view that shows the most of the model's shape, which is what
-    ``hsr render MODEL`` draws. Raises :class:`~hsr.errors.CameraError` as the module
+    ``hsr render MODEL`` draws. ``up_axis``: ``"y"`` or ``"z"`` (see :func:`direction`).
+    Raises :class:`~hsr.errors.CameraError` as the module
     says, and for a view that is not two finite numbers."""
     try:
         if isinstance(view, str):
@@ -72,8 +103,8 @@ def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
         # transforming every face corner a second time).
         bounds = model if points is None else np.stack([points.min(axis=0),
                                                         points.max(axis=0)])
-    return Camera.frame(bounds, direction(azimuth, elevation), (0.0, 1.0, 0.0), fov_y,
-                        margin=MARGIN, aspect=aspect,
+    return Camera.frame(bounds, direction(azimuth, elevation, up_axis),
+                        tuple(up_vector(up_axis)), fov_y, margin=MARGIN, aspect=aspect,
                         fit="box" if points is None else "points", points=points)
 
 
@@ -83,7 +114,8 @@ def model_points(model: Any) -> np.ndarray:
     return model.world_points() if hasattr(model, "instances") else model.used_positions()
 
 
-def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0) -> list:
+def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0,
+               up_axis: str = "y") -> list:
     """The unit directions (centre towards eye) of a view set: ``orbit`` (``n`` equal
     azimuth steps from ``azimuth`` at ``elevation``), ``sphere`` or ``hemisphere``.
     :func:`orbit`, :func:`sphere` and :func:`hemisphere` frame a camera along each; a
@@ -91,30 +123,35 @@ def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0)
     :class:`~hsr.errors.CameraError` as the module says, and for an unknown kind."""
     n = _count(n)
     if kind == "orbit":
-        return [direction(azimuth + 360.0 * k / n, elevation) for k in range(n)]
+        return [direction(azimuth + 360.0 * k / n, elevation, up_axis) for k in range(n)]
     if kind in ("sphere", "hemisphere"):
-        return list(_fibonacci(n, -1.0 if kind == "sphere" else 0.0))
+        return list(_oriented(_fibonacci(n, -1.0 if kind == "sphere" else 0.0), up_axis))
     raise CameraError(f"view set must be orbit, sphere or hemisphere, got {kind!r}")
 
 
 def orbit(bounds: ArrayLike, n: int, elevation: float = 20.0, aspect: float = 1.0,
-          fov_y: float = 45.0, azimuth: float = 0.0) -> list:
-    """``n`` cameras at equal azimuth steps (from +Z towards +X, the first at ``azimuth``)
-    at ``elevation``. Raises :class:`~hsr.errors.CameraError` as the module says."""
-    return [framed(bounds, d, aspect, fov_y)
-            for d in directions("orbit", n, elevation, azimuth)]
+          fov_y: float = 45.0, azimuth: float = 0.0, up_axis: str = "y") -> list:
+    """``n`` cameras at equal azimuth steps (from the front towards +X, the first at
+    ``azimuth``) at ``elevation`` about ``up_axis``. Raises
+    :class:`~hsr.errors.CameraError` as the module says."""
+    return [framed(bounds, d, aspect, fov_y, up_axis)
+            for d in directions("orbit", n, elevation, azimuth, up_axis)]
 
 
-def sphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
+def sphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0,
+           up_axis: str = "y") -> list:
     """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
-    return [framed(bounds, d, aspect, fov_y) for d in directions("sphere", n)]
+    return [framed(bounds, d, aspect, fov_y, up_axis)
+            for d in directions("sphere", n, up_axis=up_axis)]
 
 
-def hemisphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0) -> list:
-    """``n`` cameras spread evenly over the upper hemisphere (y >= 0). Raises
-    :class:`~hsr.errors.CameraError` as the module says."""
-    return [framed(bounds, d, aspect, fov_y) for d in directions("hemisphere", n)]
+def hemisphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0,
+               up_axis: str = "y") -> list:
+    """``n`` cameras spread evenly over the upper hemisphere (above the horizon of
+    ``up_axis``). Raises :class:`~hsr.errors.CameraError` as the module says."""
+    return [framed(bounds, d, aspect, fov_y, up_axis)
+            for d in directions("hemisphere", n, up_axis=up_axis)]
 
 
 def _count(n) -> int:
