@@ -77,12 +77,32 @@ def beside_shared(tmp_path, monkeypatch, models_dir):
     return work
 
 
+# A quoted output: ``print(...)  # prints TEXT``, where ``...`` in TEXT stands for any text
+# (a time, say); the page's claim is checked against what the call prints.
+PRINTS = re.compile(r"^(\s*)print\((.*)\)\s*# prints (.*)$", re.M)
+
+
+def _check_print(*values, expected: str, where: str) -> None:
+    printed = " ".join(str(v) for v in values)
+    pattern = ".*".join(re.escape(part) for part in expected.strip().split("..."))
+    assert re.fullmatch(pattern, printed), f"{where}: prints {printed!r}, the page says " \
+                                           f"{expected.strip()!r}"
+    print(printed)
+
+
+def checked_prints(body: str, page: str) -> str:
+    """``body`` with each ``print(...)  # prints TEXT`` line made a check of TEXT."""
+    return PRINTS.sub(lambda m: f"{m.group(1)}_check_print({m.group(2)}, expected="
+                                f"{m.group(3)!r}, where={page!r})", body)
+
+
 def run_page(page: str, capsys) -> tuple:
     """Run a page's blocks in order; (namespace, Python blocks run, hsr commands run)."""
-    namespace, ran_python, ran_hsr = {"__name__": "__main__"}, 0, 0
+    namespace = {"__name__": "__main__", "_check_print": _check_print}
+    ran_python, ran_hsr = 0, 0
     for lang, body in fenced_blocks(page):
         if lang == "python":
-            exec(compile(body, page, "exec"), namespace)
+            exec(compile(checked_prints(body, page), page, "exec"), namespace)
             ran_python += 1
             continue
         for tokens in commands(body):
@@ -179,3 +199,22 @@ def test_site_builds_strictly_and_names_the_api(tmp_path):
         assert name in documented, name
     for picture in ("algorithms.png", "models.png", "prune.png"):
         assert (site / "gallery" / picture).stat().st_size > 0, picture
+
+
+def test_quoted_outputs_are_checked_and_can_fail():
+    """A page's ``# prints`` claim that the code does not print fails the page."""
+    namespace = {"_check_print": _check_print}
+    exec(checked_prints("print(6 * 7)  # prints 42\nprint('t', 1.25)  # prints t ...\n",
+                        "page.md"), namespace)
+    with pytest.raises(AssertionError, match="the page says '332 -> 12'"):
+        exec(checked_prints("print(1292, '->', 12)  # prints 332 -> 12\n", "page.md"),
+             namespace)
+
+
+def test_the_command_line_page_lists_every_built_in_scene():
+    """cli.md's --scene list missed two scenes."""
+    from hsr.scene.builtin import SCENES
+
+    text = open(os.path.join(DOCS, "guide", "cli.md")).read()
+    listed = re.search(r"`--scene NAME` \(`([^`]*)`\)", text)
+    assert listed and listed.group(1).split() == list(SCENES)
