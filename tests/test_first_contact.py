@@ -300,3 +300,15 @@ def test_a_z_up_model_stands_up(models_dir, tmp_path):
     code, err = run_cli(["render", str(tmp_path / "zup.ply"), "--up", "0,0,1", "-o",
                          str(tmp_path / "d.png")])
     assert code == 2 and "--up-axis z" in err[0], err
+
+
+def test_the_viewer_opens_a_model_at_its_first_look(models_dir):
+    """hsr view opened every model at the fixed three-quarter view, not the side hsr
+    render MODEL draws."""
+    from hsr.viewer.frames import Library
+
+    path = os.path.join(models_dir, "spot.obj")
+    library = Library([path], builtin=False)
+    az, el = hsr.best_view(hsr.load(path))
+    assert library.initial("spot.obj") == {"az": az, "el": el}
+    assert (az, el) != hsr.views.DEFAULT_VIEW  # spot's face, not its flank

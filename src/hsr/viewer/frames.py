@@ -48,10 +48,20 @@ class Library:
 
     def initial(self, name: str) -> dict:
         """The orbit controls a scene opens with: a built-in scene's own camera (the
-        seeds' view of it), else the three-quarter view (the controls' defaults)."""
+        seeds' view of it), else a model's first look, from the side that shows the most
+        of its shape (:func:`hsr.best_view`, as ``hsr render MODEL`` draws it), found
+        once per model."""
+        from ..appearance.viewpoint import best_view
         from .params import orbit_of
 
-        if name not in self._builtin or name in self._paths:
+        if name in self._paths:
+            scene = self.get(name)
+            with self._lock:
+                if name not in self._cameras:
+                    az, el = best_view(scene)
+                    self._cameras[name] = {"az": float(az), "el": float(el)}
+                return dict(self._cameras[name])
+        if name not in self._builtin:
             return {}
         bounds = self.bounds(name)
         return orbit_of(bounds, self._cameras[name])
