@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -214,7 +215,11 @@ def main(argv=None) -> int:
         readme_montage(args.readme)
         return 0
     os.makedirs(args.out, exist_ok=True)
-    for name in PICTURES:
+    start = time.perf_counter()
+    for k, name in enumerate(PICTURES, 1):
+        # The build waits minutes here (the first run compiles the kernels): say why.
+        print(f"gallery: {k}/{len(PICTURES)} {name} ({time.perf_counter() - start:.0f} s)",
+              file=sys.stderr, flush=True)
         save(make(name), os.path.join(args.out, name))
     return 0
 

@@ -33,4 +33,6 @@ def on_pre_build(config, **kwargs) -> None:
             _newest_source():
         return
     # A process of its own: the renders' threads and compiled kernels stay out of MkDocs.
+    print(f"gallery: drawing {len(paths)} pictures (minutes on a first run, while the "
+          f"kernels compile)", file=sys.stderr, flush=True)
     subprocess.run([sys.executable, os.path.join(HERE, "gallery.py"), out], check=True)
