@@ -240,7 +240,7 @@ def test_other_bad_requests_are_refused(tie_stores, tmp_path):
     scene, stores = tie_stores
     store = stores[2]
     with pytest.raises(PartitionError, match="unknown output"):
-        render_partitioned(store, tie_cameras(), 32, 24, outputs=("ids",))
+        render_partitioned(store, tie_cameras(), 32, 24, outputs=("texture",))
     with pytest.raises(CameraError):
         render_partitioned(store, [], 32, 24)
     with pytest.raises(CameraError):
