@@ -66,8 +66,8 @@ class GlbStream:
             self.positions[key] = self._read(primitive["attributes"]["POSITION"], "VEC3",
                                              (5126,)).astype(np.float64)
             if "indices" in primitive:
-                self.counts[key] = _accessor(header, primitive["indices"], self.name)[
-                    "count"] // 3
+                self.counts[key] = _item(header, "accessors", primitive["indices"],
+                                         self.name)["count"] // 3
             else:
                 self.counts[key] = len(self.positions[key]) // 3
         self.n_faces = sum(self.counts[inst[3]] for inst in self.instances)
@@ -92,8 +92,9 @@ class GlbStream:
     def _read(self, index: int, kind: str, types: tuple, first: int = 0,
               count: int | None = None) -> np.ndarray:
         """Elements ``first .. first + count - 1`` of accessor ``index`` from the binary
-        chunk (its data checked to lie inside the chunk)."""
-        acc = _accessor(self.header, index, self.name)
+        chunk (that its elements lie inside their view, and the view inside the chunk,
+        was checked as the stream opened: :func:`~hsr.scene.assets.check_gltf_assets`)."""
+        acc = _item(self.header, "accessors", index, self.name)
         if acc.get("type") != kind or acc.get("componentType") not in types \
                 or acc.get("sparse") or acc.get("normalized") or "bufferView" not in acc:
             raise MeshError(f"{self.name}: accessor {index} is not a plain {kind} "
@@ -104,13 +105,8 @@ class GlbStream:
         dtype = np.dtype(_INDEX_TYPES.get(acc["componentType"], np.float32)).newbyteorder("<")
         width = 3 if kind == "VEC3" else 1
         stride = int(view.get("byteStride", dtype.itemsize * width))
-        total = int(acc["count"])
-        count = total - first if count is None else count
+        count = int(acc["count"]) - first if count is None else count
         start = int(view.get("byteOffset", 0)) + int(acc.get("byteOffset", 0))
-        end = start + stride * (total - 1) + dtype.itemsize * width if total else start
-        limit = int(view.get("byteOffset", 0)) + int(view.get("byteLength", 0))
-        if end > limit or limit > self.bin_length:
-            raise MeshError(f"{self.name}: accessor {index} reaches past its buffer")
         if count == 0:
             return np.zeros((0, width) if width > 1 else (0,), dtype=dtype)
         row = dtype.itemsize * width
@@ -174,13 +170,6 @@ def _item(header: dict, kind: str, index, name: str) -> dict:
             or not 0 <= index < len(items) or not isinstance(items[index], dict):
         raise MeshError(f"{name}: {kind} {index!r} does not exist")
     return items[index]
-
-
-def _accessor(header: dict, index, name: str) -> dict:
-    acc = _item(header, "accessors", index, name)
-    if not isinstance(acc.get("count"), int) or acc["count"] < 0:
-        raise MeshError(f"{name}: accessor {index} has no count")
-    return acc
 
 
 def _primitive(header: dict, key: tuple, name: str) -> dict:
