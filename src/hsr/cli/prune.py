@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 
 import numpy as np
@@ -144,12 +143,11 @@ def _check_prune_output(args) -> None:
     """Before any work: OUT is never MODEL (nor a link to it), and an OUT that exists is
     replaced only with --force."""
     from ..scene.files import check_output
+    from ..scene.outputs import same_file
     from ..scene.write import MESH_FORMATS, check_new
 
     check_output(args.output, MESH_FORMATS)
-    if os.path.realpath(args.output) == os.path.realpath(args.model) or (
-            os.path.exists(args.output) and os.path.exists(args.model)
-            and os.path.samefile(args.output, args.model)):  # a hard link too
+    if same_file(args.output, args.model):  # a link, a hard link too
         raise CliError(f"-o {args.output} is MODEL itself: write the pruned model to "
                        f"another file")
     if not args.force:

@@ -21,7 +21,7 @@ import uuid
 from ..errors import OutputError
 
 __all__ = ["OutputPlan", "same_file", "staged", "write_atomic", "check_store_target",
-           "check_outside", "input_files"]
+           "check_outside", "input_inside", "input_files"]
 
 
 def _identity(path: str) -> tuple:
@@ -36,9 +36,7 @@ def _identity(path: str) -> tuple:
 
 def same_file(a, b) -> bool:
     """True when the paths ``a`` and ``b`` name one file (see the module)."""
-    ra, ia = _identity(os.fspath(a))
-    rb, ib = _identity(os.fspath(b))
-    return ra == rb or (ia is not None and ia == ib)
+    return _same(_identity(os.fspath(a)), _identity(os.fspath(b)))
 
 
 def input_files(paths) -> list:
@@ -91,16 +89,24 @@ class OutputPlan:
         return path
 
 
-def check_outside(inputs, targets, what: str = "--out") -> None:
-    """Refuse (:class:`~hsr.errors.OutputError`) when one of the ``inputs`` is one of the
-    ``targets`` or lies inside one of them (folders an output is written into)."""
+def input_inside(inputs, targets) -> tuple | None:
+    """The first ``(input, target)`` where one of the ``inputs`` is one of the ``targets``
+    or lies inside one of them (folders an output is written into), else None."""
     for target in targets:
         inside = os.path.realpath(target)
         for path in inputs:
             real = os.path.realpath(path)
             if same_file(path, target) or os.path.commonpath([real, inside]) == inside:
-                raise OutputError(f"{what} would write {target}, which holds the input "
-                                  f"{path}: write the output elsewhere")
+                return path, target
+    return None
+
+
+def check_outside(inputs, targets, what: str = "--out") -> None:
+    """Refuse (:class:`~hsr.errors.OutputError`) what :func:`input_inside` finds."""
+    found = input_inside(inputs, targets)
+    if found:
+        raise OutputError(f"{what} would write {found[1]}, which holds the input "
+                          f"{found[0]}: write the output elsewhere")
 
 
 def _same(a: tuple, b: tuple) -> bool:
@@ -139,7 +145,7 @@ def check_store_target(path, force: bool, is_own, flag: str, what: str = "store"
 
 
 @contextlib.contextmanager
-def staged(path, companions: int = 0):
+def staged(path):
     """Yield a temporary path with ``path``'s file name (so writers that choose a format by
     the extension, or name companion files by the stem, work unchanged) in a new hidden
     folder beside it; when the block ends without an exception, every file in that folder

@@ -26,7 +26,7 @@ from .gltf_stream import GlbStream, is_glb
 from .load import load_scene
 from .mesh import Scene, SceneLike, as_scene, check_used_positions, instance_of, place_vertices
 from .obj_stream import ObjStream
-from .outputs import check_store_target, same_file
+from .outputs import check_store_target, input_inside
 from .partitioned import (
     FACE_ATTRIBUTES,
     KIND,
@@ -121,11 +121,10 @@ def _check_out(out: str | os.PathLike, overwrite: bool, inputs=()) -> str:
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
         raise PartitionError(f"cannot write {out}: folder {folder} does not exist")
-    for path in inputs:
-        real, inside = os.path.realpath(path), os.path.realpath(out)
-        if same_file(path, out) or os.path.commonpath([real, inside]) == inside:
-            raise PartitionError(f"--out {out} would replace the model {path}, an input: "
-                                 f"write the store elsewhere")
+    found = input_inside(inputs, [out])
+    if found:
+        raise PartitionError(f"--out {out} would replace the model {found[0]}, an input: "
+                             f"write the store elsewhere")
     try:
         check_store_target(out, overwrite, is_partitioned, "--out", "partitioned scene")
     except OutputError as exc:
