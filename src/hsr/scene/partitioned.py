@@ -382,6 +382,15 @@ class PartitionedScene:
     def _where(self, p, name: str) -> str:
         return f"{self.path}: " + ("" if p is None else f"part {p}, ") + f"array {name}"
 
+    def _folder(self, p, name: str) -> str:
+        """The folder of array ``name`` of part ``p`` (of the root for None)."""
+        return os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
+
+    def _ids_ascend(self, face_id: np.ndarray) -> bool:
+        """Whether part face ids ascend strictly within 0..n_faces - 1."""
+        return not len(face_id) or bool(face_id.min() >= 0 and face_id.max() < self.n_faces
+                                        and np.all(np.diff(face_id) > 0))
+
     def _layouts(self, p: int) -> dict:
         """Array name -> its checked layout, for the arrays part ``p`` must hold: the
         shapes follow from the metadata (a part of F faces uses at most 3 F vertices)."""
@@ -410,7 +419,7 @@ class PartitionedScene:
         any (N, 3)), dtype, regular chunk grid, default chunk keys with '/', the codecs
         hsr writes, and every chunk file present."""
         where = self._where(p, name)
-        folder = os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
+        folder = self._folder(p, name)
         meta = _zarr_json(folder, MAX_ARRAY_METADATA_BYTES, where, where)
         problem = _array_problem(meta, shape, dtype, texture=p is None)
         if problem:
@@ -428,15 +437,15 @@ class PartitionedScene:
         return meta
 
     def _read(self, p, name: str) -> np.ndarray:
-        """Array ``name`` of part ``p`` (or of the root for None), its layout checked
-        first; Zarr's errors and warnings are a :class:`PartitionError` naming it."""
+        """Array ``name`` of part ``p`` (or of the root for None), whose layout the caller
+        checked (:meth:`_layout`); Zarr's errors and warnings are a
+        :class:`PartitionError` naming it."""
         import zarr
 
-        folder = os.path.join(self.path, *(() if p is None else (f"part_{p:04d}",)), name)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("error")
-                return np.asarray(zarr.open_array(folder, mode="r")[...])
+                return np.asarray(zarr.open_array(self._folder(p, name), mode="r")[...])
         except Exception as exc:  # noqa: BLE001 - zarr's errors for a damaged chunk vary
             raise PartitionError(f"{self._where(p, name)} cannot be read "
                                  f"({type(exc).__name__}: {str(exc)[:120]})") from None
@@ -447,9 +456,7 @@ class PartitionedScene:
         seen = np.zeros(self.n_faces, dtype=bool)
         for p in range(self.parts):
             face_id = self._read(p, "face_id")
-            if face_id.shape != (self.part_faces[p],) or (len(face_id) and (
-                    face_id.min() < 0 or face_id.max() >= self.n_faces
-                    or np.any(np.diff(face_id) <= 0))):
+            if face_id.shape != (self.part_faces[p],) or not self._ids_ascend(face_id):
                 raise PartitionError(f"{self._where(p, 'face_id')}: face ids must ascend "
                                      f"strictly within 0..{self.n_faces - 1}")
             if seen[face_id].any():
@@ -481,8 +488,7 @@ class PartitionedScene:
         if starts.shape != (len(self.instances) + 1,) or starts[0] != 0 \
                 or starts[-1] != len(positions) or np.any(np.diff(starts) < 0):
             return "vertex_start must ascend from 0 to the vertex count, one per instance"
-        if n_faces and (face_id.min() < 0 or face_id.max() >= self.n_faces
-                        or np.any(np.diff(face_id) <= 0)):
+        if not self._ids_ascend(face_id):
             return "face_id must ascend strictly within 0..n_faces - 1"
         owner = instance_of(self.face_offsets(), face_id)
         if n_faces and (np.any(faces < starts[owner][:, None])
