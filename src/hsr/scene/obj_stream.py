@@ -24,6 +24,7 @@ from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, fan_corners, 
 __all__ = ["ObjStream", "CHUNK_BYTES"]
 
 CHUNK_BYTES = 1 << 26
+_KINDS = ("vertex", "texture", "normal")  # the three indices of a face corner, in order
 
 
 class ObjStream:
@@ -42,12 +43,8 @@ class ObjStream:
         seen = np.zeros(3, dtype=np.int64)  # v, vt, vn defined before the chunk
         highest = np.full(3, -1, dtype=np.int64)  # highest 0-based index any face used
         self.n_faces = 0
-        line = 1
         with open(self.faces_file, "wb") as out:
-            for k, data in enumerate(_line_chunks(self.path, chunk_bytes, self.name)):
-                text = _normalise(data, self.name, file_start=k == 0)
-                scanned = scan_careful(text, self.name, first_line=line)
-                line += text.count("\n")
+            for scanned in _scanned_chunks(self.path, chunk_bytes, self.name):
                 positions.append(_numbers(scanned.v, 3, 3, self.name, "vertex"))
                 triangles = _triangles(scanned, seen, highest, self.name)
                 triangles.tofile(out)
@@ -100,30 +97,47 @@ def _line_chunks(path: str, chunk_bytes: int, name: str):
             carry = data[cut + 1:]
 
 
+def _scanned_chunks(path: str, chunk_bytes: int, name: str):
+    """The file's chunks (:func:`_line_chunks`) normalised and scanned as
+    :mod:`hsr.scene.obj` scans a whole file (a byte-order mark only at its start, line
+    numbers counted on)."""
+    line = 1
+    for k, data in enumerate(_line_chunks(path, chunk_bytes, name)):
+        text = _normalise(data, name, file_start=k == 0)
+        yield scan_careful(text, name, first_line=line)
+        line += text.count("\n")
+
+
 def _refuse_first_bad_face(path: str, chunk_bytes: int, name: str, totals) -> None:
     """Raise the :class:`MeshError` :func:`hsr.load` raises for the first face (in file
     order, vertices before texture coordinates before normals) whose index passes the
     file's ``totals``: the file is read again, only on this error path, since the totals
     are known only at its end."""
-    what = ("vertex", "texture", "normal")
     for c in range(3):
-        line = 1
-        for k, data in enumerate(_line_chunks(path, chunk_bytes, name)):
-            text = _normalise(data, name, file_start=k == 0)
-            scanned = scan_careful(text, name, first_line=line)
-            line += text.count("\n")
+        for scanned in _scanned_chunks(path, chunk_bytes, name):
             if not scanned.f:
                 continue
-            counts = np.fromiter((row.count(" ") + 1 for row in scanned.f), dtype=np.int64,
-                                 count=len(scanned.f))
-            corner_face = np.repeat(np.arange(len(counts)), counts)
-            refs = _face_refs(" ".join(scanned.f), name, scanned.f_lines, corner_face)
+            _, corner_face, refs = _corner_refs(scanned, name)
             bad = refs[:, c] > totals[c]
             if bad.any():
                 j = int(np.argmax(bad))
-                raise MeshError(f"{name}:{scanned.f_lines[corner_face[j]]}: {what[c]} index "
-                                f"{int(refs[j, c])} outside 1..{int(totals[c])}")
+                raise MeshError(f"{name}:{scanned.f_lines[corner_face[j]]}: {_KINDS[c]} "
+                                f"index {int(refs[j, c])} outside 1..{int(totals[c])}")
     raise MeshError(f"{name}: a face names an element the file does not define")
+
+
+def _corner_refs(scanned, name: str) -> tuple:
+    """``(corners per face, face of each corner, (C, 3) raw v / vt / vn references)`` of
+    a chunk's faces (0 = absent); a face of fewer than 3 corners is a
+    :class:`MeshError` naming its line."""
+    counts = np.fromiter((row.count(" ") + 1 if row else 0 for row in scanned.f),
+                         dtype=np.int64, count=len(scanned.f))
+    if counts.min() < 3:
+        bad = int(np.argmax(counts < 3))
+        raise MeshError(f"{name}:{scanned.f_lines[bad]}: a face needs at least 3 vertices")
+    corner_face = np.repeat(np.arange(len(counts)), counts)
+    return counts, corner_face, _face_refs(" ".join(scanned.f), name, scanned.f_lines,
+                                           corner_face)
 
 
 def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.ndarray:
@@ -133,16 +147,9 @@ def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.
     updated with the largest index of each kind."""
     if not scanned.f:
         return np.zeros((0, 3), dtype=np.int64)
-    counts = np.fromiter((row.count(" ") + 1 if row else 0 for row in scanned.f),
-                         dtype=np.int64, count=len(scanned.f))
-    if counts.min() < 3:
-        bad = int(np.argmax(counts < 3))
-        raise MeshError(f"{name}:{scanned.f_lines[bad]}: a face needs at least 3 vertices")
-    corner_face = np.repeat(np.arange(len(counts)), counts)
-    refs = _face_refs(" ".join(scanned.f), name, scanned.f_lines, corner_face)
+    counts, corner_face, refs = _corner_refs(scanned, name)
     limits = np.stack([np.asarray(scanned.f_nv), np.asarray(scanned.f_nt),
                        np.asarray(scanned.f_nn)], axis=1)[corner_face] + seen
-    what = ("vertex", "texture", "normal")
     resolved = np.where(refs < 0, limits + refs, refs - 1)
     for c in range(3):
         present = refs[:, c] != 0
@@ -151,7 +158,7 @@ def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.
             bad |= ~present
         if bad.any():
             k = int(np.argmax(bad))
-            raise MeshError(f"{name}:{scanned.f_lines[corner_face[k]]}: {what[c]} index "
+            raise MeshError(f"{name}:{scanned.f_lines[corner_face[k]]}: {_KINDS[c]} index "
                             f"{int(refs[k, c])} outside 1..{int(limits[k, c])}")
         if present.any():
             highest[c] = max(highest[c], int(resolved[present, c].max()))
