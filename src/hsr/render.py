@@ -42,7 +42,7 @@ from .parallel import (
 )
 from .scene.camera import Camera
 from .scene.load import scene_of
-from .scene.mesh import SceneLike, as_scene, instance_of
+from .scene.mesh import SceneLike, instance_of
 
 __all__ = ["Frame", "View", "render", "MAX_SIZE"]
 
@@ -296,7 +296,6 @@ def render(scene: SceneLike, camera: Camera | None = None, width: int = 800, hei
         raise RenderError(f"into must be an hsr.Frame, got {type(into).__name__}")
     if into is not None and (into.width, into.height) != (width, height):
         raise RenderError("into= frame has a different size")
-    scene = as_scene(scene)
     if options is not None and not isinstance(options, dict):
         raise RenderError(f"options must be a dict, got {type(options).__name__}")
     options = dict(options or {})
