@@ -13,9 +13,9 @@ from .options import CliError, check_lens, check_threads, floats, key_values, lo
 
 def auto_near_far(eye: np.ndarray, bounds: np.ndarray) -> tuple[float, float]:
     """Near/far that enclose the box as seen from ``eye``."""
-    corners = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
-                        for z in bounds[:, 2]])
-    dist = np.linalg.norm(corners - eye, axis=1)
+    from ..scene.camera import box_corners
+
+    dist = np.linalg.norm(box_corners(bounds) - eye, axis=1)
     diag = max(float(np.linalg.norm(bounds[1] - bounds[0])), 1e-9)
     far = float(dist.max()) * 1.05 + 1e-6 * diag
     inside = np.all((eye >= bounds[0]) & (eye <= bounds[1]))

@@ -48,6 +48,12 @@ def _vec3(value, what) -> np.ndarray:
     return v
 
 
+def box_corners(bounds: np.ndarray) -> np.ndarray:
+    """The (8, 3) corners of the (2, 3) box ``bounds``."""
+    return np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
+                     for z in bounds[:, 2]])
+
+
 def check_perspective_planes(near: float | None, far: float | None) -> None:
     """Raise :class:`CameraError` unless ``near`` and ``far`` are planes a perspective
     camera can render with: finite, 0 < near < far and far / near <= 2**24 (see
@@ -371,8 +377,7 @@ class Camera:
         half_x = math.atan(aspect * math.tan(half_y))
         if fit in ("box", "points"):
             if fit == "box":
-                points = np.array([[x, y, z] for x in bounds[:, 0] for y in bounds[:, 1]
-                                   for z in bounds[:, 2]])
+                points = box_corners(bounds)
             else:
                 points = _points(points)
             return cls._frame_points(points, center, radius, toward, up, fov_y,
@@ -469,17 +474,13 @@ class Camera:
 
         if self.is_orthographic:
             return self
-        box = np.asarray(bounds, dtype=np.float64)
-        corners = np.array([[x, y, z] for x in box[:, 0] for y in box[:, 1]
-                            for z in box[:, 2]])
+        corners = box_corners(np.asarray(bounds, dtype=np.float64))
         depth = -(corners @ self.view_matrix[2, :3] + self.view_matrix[2, 3])
         far = float(np.abs(depth).max()) * 1.05
         if not (math.isfinite(far) and far > 0):
             return self
-        front = depth[depth > 0]
-        near = max(float(front.min()) * 0.9 if len(front) else 0.0, far * 1e-4)
-        if depth.min() <= 0:  # the eye inside the box (or the box partly behind it)
-            near = far * 1e-4
+        # The eye inside the box (or the box partly behind it): the nearest plane allowed.
+        near = far * 1e-4 if depth.min() <= 0 else max(float(depth.min()) * 0.9, far * 1e-4)
         return dataclasses.replace(self, near=near, far=far)
 
     @property
