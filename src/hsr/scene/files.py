@@ -77,11 +77,12 @@ def read_npy(path, what: str, max_bytes: int, error=MeshError) -> np.ndarray:
             start = fh.tell()
             if dtype.hasobject or dtype.kind not in "iuf":
                 raise ValueError(f"dtype {dtype} is not real numbers")
-            expected = int(np.prod(shape, dtype=object)) * dtype.itemsize
-            if expected != size - start:
-                raise ValueError(f"the header's shape {shape} needs {expected:,} bytes of "
-                                 f"data, the file holds {size - start:,}")
-            array = np.fromfile(fh, dtype=dtype, count=int(np.prod(shape, dtype=object)))
+            count = int(np.prod(shape, dtype=object))  # Python ints: no overflow
+            if count * dtype.itemsize != size - start:
+                raise ValueError(f"the header's shape {shape} needs "
+                                 f"{count * dtype.itemsize:,} bytes of data, the file "
+                                 f"holds {size - start:,}")
+            array = np.fromfile(fh, dtype=dtype, count=count)
     except (ValueError, OSError, EOFError, SyntaxError, TypeError) as exc:
         raise error(f"{what}: {path} is not a .npy array hsr reads ({exc})"[:400]) from None
     return array.reshape(shape, order="F" if fortran else "C")
