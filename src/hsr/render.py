@@ -200,7 +200,7 @@ class Frame:
 
 def render(scene: SceneLike, camera: Camera | None = None, width: int = 800, height: int = 600, *,
            algorithm: str = "zbuffer", state: RenderState | None = None,
-           shading: str = "flat", background: ArrayLike = (0, 0, 0), counts: bool = False,
+           shading: str = "auto", background: ArrayLike = (0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
            occlusion_cull: bool = False, options: dict | None = None,
            look: Look | None = None, fog: Fog | None = None, textures: bool = True,

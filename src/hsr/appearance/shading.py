@@ -16,6 +16,7 @@ per fragment by :func:`shade_fragments`, which the transparency pass also uses."
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +39,13 @@ __all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look"
            "shade_fragments", "face_colors", "paint_faces", "shade_depth", "face_random_colors",
            "linear_eye_depth", "vertex_normals", "as_look", "check_background", "shade_visible"]
 
-SHADING_MODES = ("flat", "gouraud", "normal", "random", "depth")
+# ``auto``: ``smooth`` on meshes whose file carries normals (as every glTF viewer draws
+# them), ``flat`` on the others. ``smooth`` interpolates the normals and lights each pixel
+# (Phong's normal interpolation, 1975); ``gouraud`` lights the corners and interpolates.
+SHADING_MODES = ("auto", "flat", "smooth", "gouraud", "normal", "random", "depth")
+# Computed normals average only the faces round a vertex within this many degrees of the
+# corner's own face, so a cube keeps its edges (Blender's auto-smooth default).
+CREASE_ANGLE = 30.0
 LIGHTS = ("headlight", "studio")
 
 # The studio rig, in eye space (x right, y up, z towards the viewer): directions towards
@@ -82,6 +89,7 @@ def lambert(rig: LightRig, normals, toward_eye) -> np.ndarray:
     lit = np.maximum(0.0, (normals @ rig.directions.T) * np.asarray(toward_eye)[..., None])
     return rig.ambient + lit @ rig.power
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
+LIT = ("flat", "smooth", "gouraud")  # the modes that light a base colour
 
 
 # Faces per block of :func:`_face_rgb`: its per-face arrays stay in L1 (64 x 11 doubles).
@@ -249,7 +257,7 @@ def face_colors(mode: str, scene, camera, workers, face_id=None,
         raise RenderError(f"shading must be one of {', '.join(SHADING_MODES)}; got {mode!r}")
     if mode == "depth":
         return np.zeros((0, 3), dtype=np.uint8)
-    if mode == "gouraud":  # per-face stand-in (line and point drawing): flat Lambert
+    if mode in ("auto", "smooth", "gouraud"):  # per-face stand-in (lines, points, SVG)
         mode = "flat"
     if mode == "random":
         return face_random_colors(scene.n_faces)
@@ -313,7 +321,10 @@ def linear_eye_depth(depth_window, camera, depth_range=(0.0, 1.0)) -> np.ndarray
 class Look:
     """How visible surfaces are coloured (everything after visibility).
 
-    shading : one of :data:`SHADING_MODES`.
+    shading : one of :data:`SHADING_MODES`: ``auto`` (the default) draws a mesh whose
+        file carries normals ``smooth`` and the others ``flat``; ``smooth`` and ``gouraud``
+        compute normals where a mesh has none, averaging the faces round each vertex that
+        lie within ``crease_angle`` degrees of each other.
     textures : use the meshes' textures where they have one and texture coordinates.
     texture_filter : ``nearest`` or ``bilinear``; texture_wrap : ``repeat`` or ``clamp``.
     fog : a :class:`hsr.Fog` or None.
@@ -325,12 +336,13 @@ class Look:
     light, or a fog that is not an :class:`hsr.Fog`.
     """
 
-    shading: str = "flat"
+    shading: str = "auto"
     textures: bool = True
     texture_filter: str = "bilinear"
     texture_wrap: str = "repeat"
     fog: Fog | None = None
     light: str = "headlight"
+    crease_angle: float = CREASE_ANGLE
 
     def __post_init__(self):
         check_choice(self.shading, SHADING_MODES, "shading")
@@ -341,6 +353,16 @@ class Look:
             raise RenderError(f"textures must be True or False, got {self.textures!r}")
         if self.fog is not None and not isinstance(self.fog, Fog):
             raise RenderError(f"fog must be an hsr.Fog, got {type(self.fog).__name__}")
+        angle = self.crease_angle
+        if (isinstance(angle, bool) or not isinstance(angle, (int, float, np.floating))
+                or not 0.0 <= angle <= 180.0):
+            raise RenderError(f"crease_angle must be a number in 0..180 degrees, got {angle!r}")
+
+    def mode_of(self, mesh) -> str:
+        """The shading mode ``mesh`` is drawn with (``auto`` resolved for it)."""
+        if self.shading == "auto":
+            return "smooth" if mesh.corner_normals is not None else "flat"
+        return self.shading
 
 
 def as_look(look, shading, textures, texture_filter, texture_wrap, fog,
@@ -365,7 +387,7 @@ def check_background(background) -> np.ndarray:
 
 
 def _textured(look, mesh) -> bool:
-    return look.textures and mesh.texture is not None and look.shading in ("flat", "gouraud")
+    return look.textures and mesh.texture is not None and look.mode_of(mesh) in LIT
 
 
 @dataclass
@@ -392,10 +414,10 @@ class ShadeContext:
     def per_pixel(self) -> bool:
         """True when colours cannot be a plain per-face table."""
         look = self.look
-        return (look.shading == "gouraud" or look.fog is not None
-                or any(_textured(look, inst.mesh) or (inst.mesh.corner_colors is not None
-                                                      and look.shading == "flat")
-                       for inst in self.scene.instances))
+        return look.fog is not None or any(
+            look.mode_of(inst.mesh) in ("smooth", "gouraud") or _textured(look, inst.mesh)
+            or (inst.mesh.corner_colors is not None and look.mode_of(inst.mesh) == "flat")
+            for inst in self.scene.instances)
 
     def texture(self, k):
         if k not in self._textures:
@@ -407,7 +429,7 @@ class ShadeContext:
         if k not in self._normals:
             inst = self.scene.instances[k]
             normals = (inst.mesh.corner_normals if inst.mesh.corner_normals is not None
-                       else vertex_normals(inst.mesh))
+                       else vertex_normals(inst.mesh, self.look.crease_angle))
             # Normals transform by the cofactor matrix (the inverse transpose up to scale,
             # and defined for singular model matrices too).
             world = normals @ normal_matrix(inst.model).T
@@ -417,21 +439,52 @@ class ShadeContext:
         return self._normals[k]
 
 
-def vertex_normals(mesh) -> np.ndarray:
-    """(F, 3, 3) unit normals at face corners: the area-weighted average of the normals of
-    the faces around each vertex, vertices welded by exact position (so a mesh stored with
-    split vertices still gets smooth normals)."""
+def vertex_normals(mesh, crease_angle: float = CREASE_ANGLE) -> np.ndarray:
+    """(F, 3, 3) unit normals at face corners: at each corner, the area-weighted average of
+    the normals of the faces round its vertex that lie within ``crease_angle`` degrees of
+    the corner's own face (a crease stays sharp, as with Blender's auto smooth); vertices
+    welded by exact position, so a mesh stored with split vertices is smoothed too."""
     _, weld = np.unique(mesh.positions, axis=0, return_inverse=True)
-    weld = weld.reshape(-1)
+    corner_vertex = weld.reshape(-1)[mesh.faces].astype(np.int64)
     tri = mesh.positions[mesh.faces]
     area_normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # 2 x area
-    accum = np.zeros((weld.max() + 1, 3))
-    corner_vertex = weld[mesh.faces]
-    for c in range(3):
-        np.add.at(accum, corner_vertex[:, c], area_normal)
-    length = np.linalg.norm(accum, axis=1, keepdims=True)
-    unit = np.divide(accum, length, out=np.zeros_like(accum), where=length > 0)
-    return unit[corner_vertex]
+    length = np.linalg.norm(area_normal, axis=1, keepdims=True)
+    unit = np.divide(area_normal, length, out=np.zeros_like(area_normal), where=length > 0)
+    # The faces round each vertex, as compressed rows (vertex -> corners sorted by vertex).
+    order = np.argsort(corner_vertex.reshape(-1), kind="stable")
+    starts = np.searchsorted(corner_vertex.reshape(-1)[order],
+                             np.arange(int(corner_vertex.max(initial=-1)) + 2))
+    # A hair below the cosine, so faces exactly at the crease angle are smoothed.
+    cos_crease = math.cos(math.radians(crease_angle)) - 1e-12
+    out = np.zeros((len(mesh.faces), 3, 3))
+    _corner_normals(corner_vertex, area_normal, unit, order // 3, starts, cos_crease, out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _corner_normals(corner_vertex, area_normal, unit, ring_face, starts, cos_crease, out):
+    """Fill ``out`` (F, 3, 3) with the normalised sum of ``area_normal`` over the faces
+    ``ring_face[starts[v]:starts[v + 1]]`` round each corner's vertex v whose ``unit``
+    normal is within the crease of the corner's face (its own face always is, unless
+    degenerate)."""
+    for f in range(corner_vertex.shape[0]):
+        for c in range(3):
+            v = corner_vertex[f, c]
+            sx = 0.0
+            sy = 0.0
+            sz = 0.0
+            for i in range(starts[v], starts[v + 1]):
+                g = ring_face[i]
+                if (unit[f, 0] * unit[g, 0] + unit[f, 1] * unit[g, 1]
+                        + unit[f, 2] * unit[g, 2]) >= cos_crease:
+                    sx += area_normal[g, 0]
+                    sy += area_normal[g, 1]
+                    sz += area_normal[g, 2]
+            norm = math.sqrt(sx * sx + sy * sy + sz * sz)
+            if norm > 0.0:
+                out[f, c, 0] = sx / norm
+                out[f, c, 1] = sy / norm
+                out[f, c, 2] = sz / norm
 
 
 def _instance_groups(scene, faces):
@@ -467,7 +520,7 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
         table = face_colors(look.shading, scene, camera, ctx.workers,
                             _face_mask_image(faces, scene.n_faces))
         rgb[:] = table[faces]
-    needs_bary = look.fog is not None or look.shading in ("flat", "gouraud")
+    needs_bary = look.fog is not None or look.shading in ("auto",) + LIT
     bary = barycentrics_at(ctx.screen, rows, cols, faces) if needs_bary else None
     forward = np.asarray(camera.forward, dtype=np.float64)
     rig = light_rig(look.light, camera)
@@ -475,23 +528,14 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
     for k, local, idx in _instance_groups(scene, faces):
         inst = scene.instances[k]
         mesh = inst.mesh
+        mode = look.mode_of(mesh)
         b: Any = bary[idx] if bary is not None else None
         if needs_bary:
             world = (mesh.positions[mesh.faces[local]] @ inst.model[:3, :3].T
                      + inst.model[:3, 3])  # (K, 3 corners, 3)
-        if look.shading in ("flat", "gouraud"):
-            tri = world
-            normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            length = np.linalg.norm(normal, axis=1)
-            normal /= np.where(length > 0, length, 1.0)[:, None]
-            # Two-sided: a face looking away from the eye is lit as if turned round.
-            toward_eye = np.where(normal @ forward > 0.0, -1.0, 1.0)
-            if look.shading == "flat":
-                intensity = lambert(rig, normal, toward_eye)
-            else:
-                # Lambert at the corners, then interpolated (Gouraud 1971).
-                lit = lambert(rig, ctx.corner_normals(k)[local], toward_eye[:, None])
-                intensity = np.einsum("ij,ij->i", b, lit)
+        if mode in LIT:
+            intensity = _intensity(mode, rig, world, forward, b,
+                                   ctx.corner_normals(k)[local] if mode != "flat" else None)
             # glTF's base colour: texel x factor (face colour) x vertex colour, each
             # where given; hsr's light grey where none is.
             if _textured(look, mesh):
@@ -514,6 +558,25 @@ def shade_fragments(ctx: ShadeContext, rows, cols, faces, depth_window) -> np.nd
             pos_eye = np.einsum("ij,ijk->ik", b, eye)
             rgb[idx] = look.fog.apply(rgb[idx], pos_eye)
     return rgb
+
+
+def _intensity(mode, rig, world, forward, bary, corner_normals) -> np.ndarray:
+    """(K,) Lambert intensity of K fragments with barycentrics ``bary`` on triangles
+    ``world`` (K, 3, 3): of the face normal (flat), of the interpolated corner normal
+    (smooth, Phong 1975), or interpolated from the corners' (Gouraud 1971). Two-sided: a
+    face looking away from the eye is lit as if turned round."""
+    normal = np.cross(world[:, 1] - world[:, 0], world[:, 2] - world[:, 0])
+    length = np.linalg.norm(normal, axis=1)
+    normal /= np.where(length > 0, length, 1.0)[:, None]
+    toward_eye = np.where(normal @ forward > 0.0, -1.0, 1.0)
+    if mode == "flat":
+        return lambert(rig, normal, toward_eye)
+    if mode == "gouraud":
+        return np.einsum("ij,ij->i", bary, lambert(rig, corner_normals, toward_eye[:, None]))
+    pixel = np.einsum("ij,ijk->ik", bary, corner_normals)
+    length = np.linalg.norm(pixel, axis=1, keepdims=True)
+    pixel = np.divide(pixel, length, out=normal.copy(), where=length > 0)
+    return lambert(rig, pixel, toward_eye)
 
 
 def _face_mask_image(faces, n_faces):

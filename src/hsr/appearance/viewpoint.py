@@ -35,7 +35,16 @@ from ..geometry.state import RenderState
 from ..parallel import Workers
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene, normal_matrix
-from ..scene.views import DEFAULT_VIEW, MARGIN, default, direction, model_points, up_vector
+from ..scene.views import (
+    DEFAULT_VIEW,
+    MARGIN,
+    UpAxis,
+    default,
+    direction,
+    model_points,
+    model_up,
+    up_vector,
+)
 
 AZIMUTHS = tuple(35.0 + 45.0 * k for k in range(8))
 ELEVATIONS = (15.0, 35.0)
@@ -56,13 +65,15 @@ def candidates(n_faces: int) -> list:
 
 
 def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = None,
-              up_axis: str = "y") -> tuple:
+              up_axis: UpAxis | None = None) -> tuple:
     """``(azimuth, elevation)`` in degrees (as :func:`hsr.views.direction` takes them) of
     the candidate view of ``model`` (a Mesh or Scene) with the largest projected total
     curvature, see the module. Deterministic; about 16 renders of 96 x 72 (fewer for
     models over :data:`FACE_BUDGET` faces). Raises :class:`~hsr.errors.MeshError` for
-    something that is not a mesh or scene."""
+    something that is not a mesh or scene. ``up_axis``: ``"y"``, ``"z"`` or None for the
+    model's own (:meth:`hsr.Scene.up_axis`)."""
     scene = as_scene(model)
+    up = model_up(scene, up_axis)
     tried = candidates(scene.n_faces)
     if len(tried) == 1:
         return tried[0]
@@ -73,7 +84,7 @@ def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = N
     width, height = SIZE
     best, best_score = tried[0], -1.0
     for az, el in tried:
-        camera = Camera.frame(bounds, direction(az, el, up_axis), tuple(up_vector(up_axis)),
+        camera = Camera.frame(bounds, direction(az, el, up), tuple(up_vector(up)),
                               fov_y, margin=MARGIN, aspect=width / height, fit="points",
                               points=points)
         score = projected_curvature(_face_ids(scene, camera, width, height, workers),
@@ -84,16 +95,18 @@ def best_view(model: SceneLike, fov_y: float = 45.0, workers: Workers | None = N
 
 
 def first_look(model: SceneLike, aspect: float = 1.0, fov_y: float = 45.0,
-               up_axis: str = "y") -> Camera:
+               up_axis: UpAxis | None = None) -> Camera:
     """The camera ``hsr render MODEL`` and ``hsr.render(model)`` start from: the model
     framed as :func:`hsr.views.default` frames it (as large as it fits in an image of
     ``aspect``), from :func:`best_view`, with ``up_axis`` (``"y"`` or ``"z"``: a Z-up
-    scan or CAD part stands up) up. Raises :class:`~hsr.errors.MeshError` for
+    scan or CAD part stands up; None, the default: the one the model declares, see
+    :func:`hsr.load`) up. Raises :class:`~hsr.errors.MeshError` for
     something that is not a mesh or scene and :class:`~hsr.errors.CameraError` for an
     aspect or fov out of range or another up axis."""
     scene = as_scene(model)
-    view = best_view(scene, fov_y, up_axis=up_axis)
-    return default(scene, aspect, fov_y, view=view, up_axis=up_axis)
+    up = model_up(scene, up_axis)
+    view = best_view(scene, fov_y, up_axis=up)
+    return default(scene, aspect, fov_y, view=view, up_axis=up)
 
 
 def projected_curvature(face_id: np.ndarray, normals: np.ndarray) -> float:

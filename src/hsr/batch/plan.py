@@ -40,6 +40,30 @@ MAX_VIEWS = 1_000_000
 
 
 @dataclass(frozen=True)
+class Unfitted:
+    """A camera read from a file that names no planes (and none given to the call): each
+    model's worker fits its near and far to that model (:meth:`hsr.Camera.fitted`), as
+    ``--view`` framing does, so a millimetre scan and a kilometre terrain both show."""
+
+    camera: Camera
+
+    def on(self, bounds) -> Camera:
+        return self.camera.fitted(bounds)
+
+
+def file_cameras(cameras, fit, bounds) -> tuple:
+    """Cameras read from a file: fitted to ``bounds`` where ``fit`` says so, or, with no
+    bounds known yet (a batch job's models load on the workers), marked :class:`Unfitted`."""
+    return tuple((Unfitted(c) if bounds is None else c.fitted(bounds)) if f else c
+                 for c, f in zip(cameras, fit))
+
+
+def placed(camera, bounds) -> Camera:
+    """A view's camera for a model of box ``bounds`` (an :class:`Unfitted` one fitted)."""
+    return camera.on(bounds) if isinstance(camera, Unfitted) else camera
+
+
+@dataclass(frozen=True)
 class ViewSpec:
     """Views for every model: a view set computed from each model's bounds (``kind`` one
     of orbit / sphere / hemisphere, ``count``, ``elevation`` for orbit), or fixed
@@ -53,6 +77,7 @@ class ViewSpec:
     per_model: dict | None = None
     text: str = ""
     size: tuple | None = None
+    up_axis: str | None = None
 
     def count_for(self, model: str) -> int:
         if self.kind in _SETS:
@@ -63,7 +88,8 @@ class ViewSpec:
 
 
 def parse_views(views: Any, models: list, near: float | None = None,
-                far: float | None = None, bounds: Any = None) -> ViewSpec:
+                far: float | None = None, bounds: Any = None,
+                up_axis: str | None = None) -> ViewSpec:
     """A :class:`ViewSpec` from ``orbit:N[:ELEVATION]``, ``sphere:N``, ``hemisphere:N``,
     a transforms.json or COLMAP folder (the same cameras for every model),
     ``per-model:FILE`` (a JSON object from each model's path or file name to a
@@ -71,11 +97,16 @@ def parse_views(views: Any, models: list, near: float | None = None,
     or a dict from model path to such a list. Raises :class:`BatchError` for anything
     else, and :class:`~hsr.errors.CameraError` for a bad camera file or bad ``near`` /
     ``far`` (the planes of cameras read from files, None for the file's own or, where it
-    has none, fitted to the box ``bounds`` when given; checked whatever the views)."""
+    has none, fitted to the box ``bounds`` when given, else to each model; checked
+    whatever the views); ``up_axis`` (``y``, ``z`` or None for each model's own) orients
+    a view set."""
     from ..scene.camera import check_perspective_planes
-    from ..scene.camera_files import read_colmap, read_transforms
+    from ..scene.camera_files import colmap_cameras, transforms_cameras
+    from ..scene.views import check_up_axis
 
     check_perspective_planes(near, far)
+    if up_axis is not None:
+        check_up_axis(up_axis)
 
     if isinstance(views, dict):
         return ViewSpec("per-model", per_model=_per_model(views, models), text="per-model")
@@ -98,16 +129,18 @@ def parse_views(views: Any, models: list, near: float | None = None,
             elevation = _float(parts[1], f"views {views!r}: ELEVATION")
             if not -90.0 <= elevation <= 90.0:
                 raise BatchError(f"views {views!r}: ELEVATION must be in -90..90 degrees")
-        return ViewSpec(head, count, elevation, text=views)
+        return ViewSpec(head, count, elevation, text=views, up_axis=up_axis)
     if head == "per-model":
         return ViewSpec("per-model", per_model=_per_model_file(rest, models, near, far),
                         text=views)
     if os.path.isdir(views):
-        cameras, _, sizes = read_colmap(views, near=near, far=far, bounds=bounds)
-        return ViewSpec("cameras", cameras=tuple(cameras), text=views, size=sizes[0])
+        cameras, _, sizes, fit = colmap_cameras(views, near, far)
+        return ViewSpec("cameras", cameras=file_cameras(cameras, fit, bounds), text=views,
+                        size=sizes[0])
     if os.path.exists(views):
-        cameras, _, size = read_transforms(views, near=near, far=far, bounds=bounds)
-        return ViewSpec("cameras", cameras=tuple(cameras), text=views, size=size)
+        cameras, _, size, fit = transforms_cameras(views, near, far)
+        return ViewSpec("cameras", cameras=file_cameras(cameras, fit, bounds), text=views,
+                        size=size)
     raise BatchError(f"views {views!r}: not orbit:N[:EL], sphere:N, hemisphere:N, "
                      f"per-model:FILE, nor an existing transforms.json or COLMAP folder")
 
@@ -131,10 +164,10 @@ def _float(text, what) -> float:
 
 def _cameras(items, what) -> tuple:
     items = tuple(items)
-    if not items or not all(isinstance(c, Camera) for c in items):
+    if not items or not all(isinstance(c, (Camera, Unfitted)) for c in items):
         raise BatchError(f"{what}: a non-empty list of hsr.Camera is needed")
     for cam in items:
-        cam.validate()
+        (cam.camera if isinstance(cam, Unfitted) else cam).validate()
     return items
 
 
@@ -149,7 +182,7 @@ def _per_model(mapping, models) -> dict:
 
 
 def _per_model_file(path, models, near, far) -> dict:
-    from ..scene.camera_files import read_colmap, read_transforms
+    from ..scene.camera_files import colmap_cameras, transforms_cameras
     from ..scene.files import read_regular
 
     try:
@@ -163,8 +196,9 @@ def _per_model_file(path, models, near, far) -> dict:
     mapping = {}
     for key, target in doc.items():
         target = os.path.join(folder, target)
-        mapping[key] = (read_colmap(target, near=near, far=far)[0] if os.path.isdir(target)
-                        else read_transforms(target, near=near, far=far)[0])
+        read = colmap_cameras if os.path.isdir(target) else transforms_cameras
+        cameras, _, _, fit = read(target, near, far)
+        mapping[key] = file_cameras(cameras, fit, None)
     return _per_model(mapping, models)
 
 

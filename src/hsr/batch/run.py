@@ -106,7 +106,7 @@ def local_cluster(workers: int | None = None, pixels: int = 0):
 def render_views(models, views, size=(512, 512), outputs=("color",), out="batch",
                  client=None, *, format="files", resume=False, workers=None,
                  progress=None, near=None, far=None, views_per_task=None, force=False,
-                 **render_options) -> BatchResult:
+                 up_axis=None, **render_options) -> BatchResult:
     """Render every model from every view, on a Dask cluster, writing the outputs to
     ``out`` (see docs/guide/batch.md for the layout).
 
@@ -122,7 +122,9 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
     before; a store is never written where another folder or a file is (see
     :mod:`hsr.scene.outputs`), and no input is, or lies inside, what the job writes.
     ``views_per_task``: views in one task (default: about 4 M pixels, at least four tasks
-    per worker thread).
+    per worker thread). ``near`` / ``far``: the planes of cameras from files; a file that
+    names none has them fitted to each model (:meth:`hsr.Camera.fitted`). ``up_axis``:
+    ``y`` or ``z`` for the view sets, None for each model's own (:func:`hsr.load`).
     ``render_options`` go to :func:`hsr.render` (algorithm, cull, shading, light, ...).
     Results are bit for bit ``hsr.render``'s with the same camera and options.
 
@@ -152,7 +154,7 @@ def render_views(models, views, size=(512, 512), outputs=("color",), out="batch"
             views_per_task, int) or not 1 <= views_per_task <= 100_000):
         raise BatchError(f"views_per_task must be an integer in 1..100000, got "
                          f"{views_per_task!r}")
-    spec = parse_views(views, models, near, far)
+    spec = parse_views(views, models, near, far, up_axis=up_axis)
     probe_options(render_options)
     out = os.fspath(out)
     _check_targets(models, views, stems, out, format, force or resume)
@@ -254,8 +256,7 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
         for k, group in enumerate(groups or [[]]):
             # Given cameras travel with their views only (the describing task: all of
             # them), never the whole job's.
-            placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
-                         else ("all", list(given)) if k == 0
+            placement = (_set_of(spec) if given is None else ("all", list(given)) if k == 0
                          else ("these", [given[v] for v in group]))
             task = client.submit(render_task, model, stems[model], group, placement, k == 0,
                                  size, outputs, out, fmt, options, pure=False)
@@ -279,6 +280,11 @@ def _run(client, models, stems, spec, size, outputs, out, fmt, resume, options, 
     return rows, busy
 
 
+def _set_of(spec) -> tuple:
+    """The placement of a view set: framed round each model on its worker."""
+    return ("set", spec.kind, spec.count, spec.elevation, spec.up_axis)
+
+
 def _run_partitioned(client, store_path, stems, spec, size, outputs, out, options,
                      views_per_task, progress, fmt, resume) -> BatchResult:
     """``render_views`` of one partitioned scene: sort-last on ``client`` (or here without
@@ -294,8 +300,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     stem = stems[store_path]
     given = (spec.per_model[store_path] if spec.kind == "per-model"
              else spec.cameras if spec.kind == "cameras" else None)
-    placement = (("set", spec.kind, spec.count, spec.elevation) if given is None
-                 else ("all", list(given)))
+    placement = _set_of(spec) if given is None else ("all", list(given))
     cameras = place_cameras(store, placement, size)
     per_task = views_per_task or max(1, (4 << 20) // (size[0] * size[1]))
     todo = _todo(out, stem, len(cameras), size, outputs, fmt, resume)

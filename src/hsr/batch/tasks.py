@@ -90,19 +90,26 @@ def one_line(exc: BaseException) -> str:
 
 
 def place_cameras(scene, placement, size, views=None) -> list:
-    """The cameras of a model: ``("set", kind, count, elevation)`` frames a view set around
-    the scene (the same cameras on every worker: the same function of the same bounds;
-    only ``views``, when given, are framed), ``("all", cameras)`` are all of them as
-    given. Returns the cameras of ``views`` (default all)."""
+    """The cameras of a model: ``("set", kind, count, elevation, up_axis)`` frames a view
+    set around the scene, turning about ``up_axis`` (None: the scene's own), the same
+    cameras on every worker (the same function of the same bounds; only ``views``, when
+    given, are framed); ``("all", cameras)`` / ``("these", cameras)`` are cameras as
+    given, those from a file without planes fitted to the scene
+    (:class:`~hsr.batch.plan.Unfitted`). Returns the cameras of ``views`` (default all)."""
     from ..scene import views as view_sets
+    from .plan import Unfitted, placed
 
-    if placement[0] == "all":
-        cameras = list(placement[1])
-        return cameras if views is None else [cameras[v] for v in views]
-    _, kind, count, elevation = placement
-    dirs = view_sets.directions(kind, count, elevation)
+    if placement[0] in ("all", "these"):
+        chosen = list(placement[1])
+        if placement[0] == "all" and views is not None:
+            chosen = [chosen[v] for v in views]
+        bounds = scene.bounds() if any(isinstance(c, Unfitted) for c in chosen) else None
+        return [placed(c, bounds) for c in chosen]
+    _, kind, count, elevation, up_axis = placement
+    up = view_sets.model_up(scene, up_axis)
+    dirs = view_sets.directions(kind, count, elevation, up_axis=up)
     bounds = scene.bounds()
-    return [view_sets.framed(bounds, dirs[v], size[0] / size[1])
+    return [view_sets.framed(bounds, dirs[v], size[0] / size[1], up_axis=up)
             for v in (range(count) if views is None else views)]
 
 
@@ -121,7 +128,7 @@ def render_task(path: str, stem: str, views: list, placement, describe: bool, si
         check_outside(scene.sources(), job_targets(out_dir, stem, fmt))
         # ("these", cameras): just this task's views' cameras, in order.
         cameras = place_cameras(scene, placement, size) if describe else None
-        mine = (placement[1] if placement[0] == "these"
+        mine = (place_cameras(scene, placement, size) if placement[0] == "these"
                 else [cameras[v] for v in views] if cameras is not None
                 else place_cameras(scene, placement, size, views))
     except Exception as exc:  # noqa: BLE001 - any failure of one model is its manifest row

@@ -11,6 +11,7 @@ from .options import (
     add_depth_func,
     add_file_planes,
     add_front_face,
+    add_up_axis,
     dask_client,
     key_values,
     rgb,
@@ -35,6 +36,7 @@ def add_parser(sub) -> None:
                    "(JSON: model -> camera file)")
     g.add_argument("--size", help="WxH in pixels, or N for NxN (default: a camera file's "
                    "size, else 512x512)")
+    add_up_axis(g, "orbit, sphere and hemisphere turn about it")
     g.add_argument("--outputs", default="color", help="comma-separated, from: "
                    + ", ".join(OUTPUTS))
     g.add_argument("--out", default="batch", metavar="DIR", help="output folder")
@@ -60,7 +62,7 @@ def add_parser(sub) -> None:
     add_cull(g)
     add_front_face(g)
     add_depth_func(g)
-    g.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
+    g.add_argument("--shading", default="auto", choices=list(SHADING_MODES),
                    help="how visible faces are coloured")
     g.add_argument("--light", default="studio", choices=list(LIGHTS), help="lights")
     g.add_argument("--background", default="0,0,0", help="background colour r,g,b (0-255)")
@@ -84,8 +86,9 @@ def run(args) -> int:
             format=args.format, resume=args.resume, force=args.force, workers=args.workers,
             views_per_task=args.views_per_task,
             progress=not args.quiet and sys.stderr.isatty(), near=args.near, far=args.far,
-            algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
-            depth_func=args.depth_func, shading=args.shading, light=args.light,
+            up_axis=args.up_axis, algorithm=args.algorithm, cull=args.cull,
+            front_face=args.front_face, depth_func=args.depth_func, shading=args.shading,
+            light=args.light,
             background=rgb(args.background, "--background"),
             options=key_values(args.option) or None)
     finally:

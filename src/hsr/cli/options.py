@@ -183,6 +183,13 @@ def add_file_planes(g) -> None:
                    "file's, else fitted to the scene)")
 
 
+def add_up_axis(group, what: str) -> None:
+    """``--up-axis y|z``: the model's up (default: what the file declares, else y)."""
+    group.add_argument("--up-axis", choices=["y", "z"], help=f"the model's up: y (glTF, "
+                       f"OpenGL) or z (CAD, scans, Blender, STL); {what} (default: what "
+                       f"the file declares: y for glTF, z for STL and 3MF, else y)")
+
+
 def add_scene_args(p):
     """Arguments shared by every command that renders, in groups: scene, camera, depth
     state, culling and polygons, appearance, run."""
@@ -206,9 +213,7 @@ def add_scene_args(p):
     g.add_argument("--target", help="point looked at x,y,z (default: centre of the model)")
     g.add_argument("--up", help="up vector x,y,z of a camera placed with --eye (default: "
                    "the --up-axis)")
-    g.add_argument("--up-axis", default="y", choices=["y", "z"], help="the model's up: y "
-                   "(glTF, OpenGL) or z (CAD, scans, Blender, STL); --view and the first "
-                   "look turn about it")
+    add_up_axis(g, "--view and the first look turn about it")
     g.add_argument("--camera", metavar="FILE[:INDEX]", help="camera INDEX (default 0) of a "
                    "NeRF transforms.json or a COLMAP text model folder")
     g.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
@@ -230,8 +235,9 @@ def add_scene_args(p):
     g.add_argument("--polygon-offset", metavar="FACTOR,UNITS",
                    help="glPolygonOffset for filled triangles")
     g = p.add_argument_group("appearance")
-    g.add_argument("--shading", default="flat", choices=list(SHADING_MODES),
-                   help="how visible faces are coloured")
+    g.add_argument("--shading", default="auto", choices=list(SHADING_MODES),
+                   help="how visible faces are coloured (auto: smooth where the file "
+                   "carries normals, else flat)")
     g.add_argument("--light", choices=list(LIGHTS),
                    help="studio: a key light from above-left-front and a fill, so shapes "
                    "read; headlight: one light along the view, the textbooks' (default: "

@@ -13,6 +13,7 @@ from .options import (
     add_depth_func,
     add_file_planes,
     add_front_face,
+    add_up_axis,
     check_threads,
     dask_client,
 )
@@ -40,6 +41,7 @@ def add_parser(sub) -> None:
     g.add_argument("--size", default="auto", metavar="R",
                    help="R x R pixels per view, or auto: about one pixel per face, "
                    f"{AUTO_SIZE[0]}..{AUTO_SIZE[1]} (default)")
+    add_up_axis(g, "orbit and the other view sets turn about it")
     g.add_argument("--max-views", type=int, default=2048, metavar="N",
                    help="auto starts no round that would pass N views")
     g.add_argument("--level", default="faces", choices=list(LEVELS),
@@ -100,7 +102,8 @@ def run(args) -> int:
         plan.add("-o", path)
     auto, fixed = split_auto(args.views or ["auto"])
     # The cameras once, before any connection: a bad --views fails at once.
-    cameras = cameras_for(scene, fixed, 1.0, args.near, args.far) if fixed else []
+    cameras = (cameras_for(scene, fixed, 1.0, args.near, args.far, args.up_axis)
+               if fixed else [])
     client = dask_client(args.scheduler, "prune") if args.scheduler else None
     options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
                    depth_func=args.depth_func)

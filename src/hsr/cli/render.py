@@ -181,7 +181,8 @@ def _render_orbit(args, scene, width, height, draw) -> int:
         if value is not None:
             raise CliError(f"--orbit places the cameras itself: it does not combine with {flag}")
     az0, elevation = floats(args.view_from, 2, "--view") if args.view_from else (0.0, 20.0)
-    cams = views.orbit(scene.bounds(), args.orbit, elevation, width / height, args.fov, az0)
+    cams = views.orbit(scene.bounds(), args.orbit, elevation, width / height, args.fov, az0,
+                       views.model_up(scene, args.up_axis))
     for k, cam in enumerate(cams):
         _save_outputs(args, draw(cam), f"_{k:03d}")
     if not args.quiet:

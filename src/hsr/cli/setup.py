@@ -106,8 +106,9 @@ def camera_from_args(args, scene, default_camera, aspect):
         raise CliError(f"--up {args.up} sets the up of a camera placed with --eye; to "
                        f"frame a model whose up is +Z (--view or the first look), give "
                        f"--up-axis z")
+    up_axis = views.model_up(scene, args.up_axis)
     up = (floats(args.up, 3, "--up") if args.up is not None
-          else tuple(views.up_vector(args.up_axis)))
+          else tuple(views.up_vector(up_axis)))
     if args.view_from is not None and args.eye is not None:
         raise CliError("--view frames the model: it does not combine with --eye")
     if args.view_from is None and args.eye is None and args.target is None \
@@ -129,8 +130,8 @@ def camera_from_args(args, scene, default_camera, aspect):
             # Frame the model's bounding sphere for this aspect ratio from --view, or by
             # default from the side that shows the most of its shape (hsr.first_look).
             az, el = (floats(args.view_from, 2, "--view") if args.view_from is not None
-                      else best_view(scene, args.fov, up_axis=args.up_axis))
-            cam = Camera.frame(bounds, views.direction(az, el, args.up_axis), up, args.fov,
+                      else best_view(scene, args.fov, up_axis=up_axis))
+            cam = Camera.frame(bounds, views.direction(az, el, up_axis), up, args.fov,
                                ortho_height=args.ortho, margin=views.MARGIN, aspect=aspect,
                                fit="points", points=points)
             if args.target is None:  # the framing's own aim (the middle of the picture)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .options import CliError
+from .options import CliError, add_up_axis
 
 
 def add_parser(sub) -> None:
@@ -21,6 +21,7 @@ def add_parser(sub) -> None:
                    "127.0.0.1 / localhost lets other machines in")
     v.add_argument("--port", type=int, default=8765, help="port to listen on")
     v.add_argument("--no-browser", action="store_true", help="do not open the browser")
+    add_up_axis(v, "the orbit turns about it")
 
 
 def run(args) -> int:
@@ -41,7 +42,8 @@ def run(args) -> int:
             from None
     first = args.scene if args.scene else (None if args.models else "cubes")
     try:
-        serve(args.models, args.host, args.port, not args.no_browser, first=first)
+        serve(args.models, args.host, args.port, not args.no_browser, first=first,
+              up_axis=args.up_axis or "auto")
     except KeyboardInterrupt:
         pass
     return 0

@@ -10,6 +10,7 @@ from .options import (
     add_cull,
     add_depth_func,
     add_file_planes,
+    add_up_axis,
     dask_client,
     load_models,
 )
@@ -26,6 +27,7 @@ def add_parser(sub) -> None:
                    "COLMAP folder; repeat to use several")
     p.add_argument("--size", help="WxH in pixels, or N for NxN (default: the camera "
                    "file's size, else 512x512)")
+    add_up_axis(p, "orbit, sphere and hemisphere turn about it")
     p.add_argument("--what", default="faces", metavar="faces|vertices|points:FILE.npy",
                    help="faces: pixel counts per face and view; vertices: the scene's "
                    "vertices seen by each view; points:FILE.npy: an (N, 3) array's points")
@@ -73,7 +75,8 @@ def run(args) -> int:
     plan = input_plan(args, scene, *view_inputs(args.views),
                       *([("the points file", points_file)] if points_file else []))
     plan.add("-o", args.out)
-    cameras = cameras_for(scene, args.views, width / height, args.near, args.far)
+    cameras = cameras_for(scene, args.views, width / height, args.near, args.far,
+                          args.up_axis)
     client = dask_client(args.scheduler, "visibility") if args.scheduler else None
     try:
         result = write_visibility(scene, cameras, (width, height), what, points, args.out,

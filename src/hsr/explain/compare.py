@@ -59,7 +59,7 @@ def _fmt(value):
     return f"{value:.1f}" if isinstance(value, float) else str(value)
 
 
-def compare_algorithms(scene, camera, width, height, names, *, state=None, shading="flat",
+def compare_algorithms(scene, camera, width, height, names, *, state=None, shading="auto",
                        background=(0, 0, 0), threads=None, options=None,
                        progress=False, look=None) -> Comparison:
     """Render with each algorithm in ``names`` (the z-buffer is always included as the

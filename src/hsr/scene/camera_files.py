@@ -102,6 +102,21 @@ def read_transforms(path: str | os.PathLike, near: float | None = None,
     camera-to-world in OpenGL axes (the camera looks down -Z, +Y up). Raises
     :class:`~hsr.errors.CameraError` naming the frame and key on anything missing or
     malformed."""
+    cameras, names, size, fit = transforms_cameras(path, near, far)
+    return fitted_where(cameras, fit, bounds), names, size
+
+
+def fitted_where(cameras: list, fit: list, bounds) -> list:
+    """``cameras`` with those marked in ``fit`` fitted to the box ``bounds`` (as they are
+    when ``bounds`` is None)."""
+    if bounds is None:
+        return list(cameras)
+    return [cam.fitted(bounds) if f else cam for cam, f in zip(cameras, fit)]
+
+
+def transforms_cameras(path, near: float | None = None, far: float | None = None) -> tuple:
+    """:func:`read_transforms` before any fitting: ``(cameras, file_paths, (w, h), fit)``,
+    ``fit[k]`` True where camera k's planes came from neither the call nor the file."""
     path = os.fspath(path)
     try:
         doc = json.loads(_read_text(path, "camera file"))
@@ -110,7 +125,7 @@ def read_transforms(path: str | os.PathLike, near: float | None = None,
     if not isinstance(doc, dict) or not isinstance(doc.get("frames"), list) \
             or not doc["frames"]:
         raise CameraError(f"{path}: a transforms.json needs a non-empty 'frames' list")
-    cameras, names, size = [], [], None
+    cameras, names, size, fits = [], [], None, []
     for k, frame in enumerate(doc["frames"]):
         where = f"{path}: frame {k}"
         if not isinstance(frame, dict):
@@ -148,10 +163,11 @@ def read_transforms(path: str | os.PathLike, near: float | None = None,
             cam = Camera.from_opencv(K, R, t, w, h, near=near_k, far=far_k)
         except CameraError as exc:
             raise CameraError(f"{where}: {exc}") from None
-        cameras.append(cam.fitted(bounds) if fit and bounds is not None else cam)
+        cameras.append(cam)
+        fits.append(fit)
         names.append(str(frame.get("file_path", f"{k:04d}")))
         size = size or (w, h)
-    return cameras, names, size
+    return cameras, names, size, fits
 
 
 def write_transforms(path: str | os.PathLike, cameras: list, width: int, height: int,
@@ -216,6 +232,13 @@ def read_colmap(folder: str | os.PathLike, near: float | None = None,
     SIMPLE_PINHOLE (f, cx, cy) and PINHOLE (fx, fy, cx, cy); a model with lens distortion
     is refused (hsr renders pinholes), naming it. Raises :class:`~hsr.errors.CameraError`
     with the file and line on anything malformed."""
+    cameras, names, sizes, fit = colmap_cameras(folder, near, far)
+    return fitted_where(cameras, fit, bounds), names, sizes
+
+
+def colmap_cameras(folder, near: float | None = None, far: float | None = None) -> tuple:
+    """:func:`read_colmap` before any fitting: ``(cameras, image_names, sizes, fit)``,
+    ``fit[k]`` True unless the call gave planes (COLMAP stores none)."""
     folder = os.fspath(folder)
     intrinsics = {}
     path = os.path.join(folder, "cameras.txt")
@@ -251,7 +274,7 @@ def read_colmap(folder: str | os.PathLike, near: float | None = None,
     lines = [(n, line) for n, line in enumerate(
         _read_text(path, "COLMAP images file").splitlines(), 1)
         if not line.startswith("#")]
-    cameras, names, sizes, ids = [], [], [], set()
+    cameras, names, sizes, ids, fits = [], [], [], set(), []
     k = 0
     while k < len(lines):
         lineno, line = lines[k]
@@ -283,9 +306,10 @@ def read_colmap(folder: str | os.PathLike, near: float | None = None,
                                      far=far_k)
         except CameraError as exc:
             raise CameraError(f"{where}: {exc}") from None
-        cameras.append(cam.fitted(bounds) if fit and bounds is not None else cam)
+        cameras.append(cam)
+        fits.append(fit)
         names.append(" ".join(parts[9:]))
         sizes.append((w, h))
     if not cameras:
         raise CameraError(f"{path}: no images")
-    return cameras, names, sizes
+    return cameras, names, sizes, fits

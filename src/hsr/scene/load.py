@@ -15,8 +15,10 @@ are made unique exactly as trimesh makes them, which is how the two are matched.
 
 from __future__ import annotations
 
+import copy
 import io
 import os
+from typing import Literal, cast
 
 import numpy as np
 
@@ -37,20 +39,38 @@ from .mesh import (
 from .obj import read_obj
 from .partitioned import PartitionedScene, open_partitioned
 
-__all__ = ["load", "load_scene", "scene_of"]
+__all__ = ["load", "load_scene", "scene_of", "UpAxisChoice"]
+
+UpAxisChoice = Literal["auto", "y", "z"]
 
 _GLTF_EXTENSIONS = (".gltf", ".glb")
+# The up axis a format declares: glTF 2.0 is +Y up (section 3.4); STL is written in the
+# printer's frame, +Z the build direction, and 3MF says so (core spec, section 3.1).
+# OBJ, PLY and OFF say nothing, so their meshes' up is unknown (None).
+DECLARED_UP = {".gltf": "y", ".glb": "y", ".stl": "z", ".3mf": "z"}
+UP_AXIS_CHOICES = ("auto", "y", "z")
 
 
-def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES) -> Mesh:
+def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES,
+         up_axis: UpAxisChoice = "auto") -> Mesh:
     """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh``, a
     ``trimesh.Scene`` holding one mesh, or a ``(vertices, faces)`` pair. Face order is kept
     exactly. Only regular files of at most ``max_bytes`` are read. A file or scene with
     several meshes or nodes is refused: :func:`load_scene` keeps each node as an instance.
 
     Raises :class:`MeshError` for anything missing, unreadable, malformed, too large or
-    invalid (bad indices, NaN or infinite coordinates used by a face, no faces), and for a
-    source of several meshes."""
+    invalid (bad indices, NaN or infinite coordinates used by a face, no faces), for a
+    source of several meshes and for an unknown ``up_axis``.
+
+    ``up_axis``: which world axis points up (:attr:`Mesh.up_axis`, which orients
+    :func:`hsr.first_look` and the view sets): ``"auto"`` takes what the format declares
+    (glTF +Y; STL and 3MF +Z) and leaves it unknown for the others; ``"y"`` or ``"z"``
+    says it. Coordinates are never changed."""
+    up = _up_choice(up_axis)
+    return _declared(_load(source, max_bytes), source, up)
+
+
+def _load(source, max_bytes: int) -> Mesh:
     if is_trimesh_scene(source):
         return _single(_scene_from_trimesh(source, None, "trimesh scene"), "the trimesh scene")
     if not isinstance(source, (str, os.PathLike)):
@@ -64,8 +84,8 @@ def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES)
     return _with_sources(from_trimesh(loaded, os.path.basename(path)), read)
 
 
-def load_scene(source: str | os.PathLike | SceneLike,
-               max_bytes: int = MAX_MESH_BYTES) -> Scene | PartitionedScene:
+def load_scene(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES,
+               up_axis: UpAxisChoice = "auto") -> Scene | PartitionedScene:
     """A :class:`Scene` from a glTF / GLB file (or any file trimesh reads as a scene), a
     ``trimesh.Scene``, or anything :func:`load` takes (one instance).
 
@@ -83,16 +103,49 @@ def load_scene(source: str | os.PathLike | SceneLike,
     A folder written by :func:`hsr.partition` opens as a
     :class:`~hsr.scene.partitioned.PartitionedScene`, reading only its metadata.
 
+    ``up_axis`` as for :func:`load`, for every mesh of the scene (a list: of each item).
+
     Raises :class:`MeshError` as :func:`load` does, and for a file without triangles."""
+    up = _up_choice(up_axis)
     if isinstance(source, (list, tuple)) and not _is_arrays_pair(source):
-        return _joined(source, max_bytes)
+        return _joined(source, max_bytes, up)
+    loaded = _load_scene(source, max_bytes)
+    if isinstance(loaded, PartitionedScene):
+        return loaded
+    for inst in loaded.instances:
+        inst.mesh = _declared(inst.mesh, source, up)
+    return loaded
+
+
+def _up_choice(up_axis) -> UpAxisChoice:
+    if not isinstance(up_axis, str) or up_axis not in UP_AXIS_CHOICES:
+        raise MeshError(f"up_axis must be one of {', '.join(UP_AXIS_CHOICES)}, got "
+                        f"{up_axis!r}")
+    return cast(UpAxisChoice, up_axis)
+
+
+def _declared(mesh: Mesh, source, up: str) -> Mesh:
+    """``mesh`` with its up axis: ``up`` when given, else the one the format of the file
+    ``source`` declares (a mesh given in memory keeps its own)."""
+    is_path = isinstance(source, (str, os.PathLike))
+    declared = (up if up != "auto" else None if not is_path
+                else DECLARED_UP.get(os.path.splitext(os.fspath(source))[1].lower()))
+    if declared is None or mesh.up_axis == declared:
+        return mesh
+    if not is_path:
+        mesh = copy.copy(mesh)  # never relabel the caller's own mesh
+    mesh.up_axis = declared
+    return mesh
+
+
+def _load_scene(source, max_bytes: int) -> Scene | PartitionedScene:
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source) \
             and os.path.lexists(os.path.join(source, "zarr.json")):
         return open_partitioned(source)  # a store, or the reason it is not one
     if is_trimesh_scene(source):
         return _scene_from_trimesh(source, None, "trimesh scene")
     if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):
-        return Scene([load(source, max_bytes)])
+        return Scene([_load(source, max_bytes)])
     path = os.fspath(source)
     loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
@@ -124,13 +177,13 @@ def _is_arrays_pair(source) -> bool:
         for a in source)
 
 
-def _joined(sources, max_bytes: int) -> Scene:
+def _joined(sources, max_bytes: int, up: UpAxisChoice = "auto") -> Scene:
     """One scene of every item's instances, in order (as the CLI's several MODELs)."""
     if not sources:
         raise MeshError("an empty list of models: give at least one path or mesh")
     scene = Scene()
     for item in sources:
-        loaded = load_scene(item, max_bytes)
+        loaded = load_scene(item, max_bytes, up)
         if isinstance(loaded, PartitionedScene):
             raise MeshError(f"{item}: a partitioned scene cannot join other models (hsr "
                             f"batch renders it on its own)")
@@ -167,7 +220,7 @@ def _single(scene: Scene, what: str) -> Mesh:
     normals = (None if mesh.corner_normals is None
                else mesh.corner_normals @ normal_matrix(inst.model).T)  # shading normalises
     return Mesh(positions, mesh.faces, mesh.corner_uv, normals, mesh.face_colors, mesh.texture,
-                mesh.name, mesh.corner_colors, mesh.sources)
+                mesh.name, mesh.corner_colors, mesh.sources, mesh.up_axis)
 
 
 def _read_with_trimesh(path: str, max_bytes: int):

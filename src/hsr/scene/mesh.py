@@ -45,6 +45,10 @@ class Mesh:
     name : a label used in messages.
     sources : the files the mesh was read from (the model, its .mtl, buffers and
         textures), which no hsr output may replace; empty for a mesh made in memory.
+    up_axis : the world axis that points up, ``"y"`` or ``"z"``, as the file declares it
+        (glTF: +Y; STL and 3MF: +Z, the build direction) or as :func:`hsr.load` was told;
+        None when unknown (views then take +Y, OpenGL's). Coordinates are never changed:
+        it orients the views (:func:`hsr.first_look`, :mod:`hsr.views`, the viewer).
 
     Raises :class:`~hsr.errors.MeshError` for arrays of the wrong shape or type, indices
     outside the vertices, NaN, infinite or huge (> 1e100) coordinates used by a face, no faces.
@@ -64,8 +68,12 @@ class Mesh:
     name: str = "mesh"
     corner_colors: np.ndarray | None = None
     sources: tuple = ()
+    up_axis: str | None = None
 
     def __post_init__(self):
+        if self.up_axis is not None and self.up_axis not in ("y", "z"):
+            raise MeshError(f"{self.name}: up_axis must be 'y', 'z' or None, got "
+                            f"{self.up_axis!r}")
         self.positions, self.faces, extent = _validate_arrays(self.positions, self.faces,
                                                               self.name)
         self._extent = ((self.positions,), extent)
@@ -356,6 +364,12 @@ class Scene:
             found.update(dict.fromkeys(os.path.abspath(p) for p in paths))
         return list(found)
 
+    def up_axis(self) -> str:
+        """The scene's up axis: the one its meshes declare (:attr:`Mesh.up_axis`) when they
+        agree, else ``"y"`` (OpenGL's, and glTF's)."""
+        declared = {inst.mesh.up_axis for inst in self.instances} - {None}
+        return "z" if declared == {"z"} else "y"
+
     def face_offsets(self) -> np.ndarray:
         """(n_instances + 1,) start of each instance's faces in the global face list."""
         return np.concatenate([[0], np.cumsum([i.mesh.n_faces for i in self.instances])]).astype(
@@ -542,8 +556,24 @@ def from_trimesh(tm, name: str) -> Mesh:
         corner_colors = np.asarray(visual.vertex_colors)[:, :3][faces]
     elif kind == "face":
         face_colors = np.asarray(visual.face_colors)[:, :3]
-    return Mesh(positions, faces, corner_uv=corner_uv, face_colors=face_colors,
-                texture=texture, name=name, corner_colors=corner_colors)
+    return Mesh(positions, faces, corner_uv=corner_uv, corner_normals=_file_normals(tm, faces),
+                face_colors=face_colors, texture=texture, name=name,
+                corner_colors=corner_colors)
+
+
+def _file_normals(tm, faces) -> np.ndarray | None:
+    """(F, 3, 3) corner normals where the file gave vertex normals (glTF NORMAL, PLY nx ny
+    nz), else None: trimesh keeps a file's normals in its cache (as its own PLY writer
+    reads them) and computes them only when asked."""
+    cache = getattr(tm, "_cache", None)
+    try:
+        given = "vertex_normals" in cache  # type: ignore[operator]
+    except TypeError:
+        return None
+    normals = np.asarray(tm.vertex_normals, dtype=np.float64) if given else None
+    if normals is None or normals.shape != (len(tm.vertices), 3):
+        return None
+    return normals[faces]
 
 
 def _image_rgb(image, name: str) -> np.ndarray:

@@ -14,7 +14,7 @@ a number of views outside 1..1000000.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -22,8 +22,9 @@ from numpy.typing import ArrayLike
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["DEFAULT_VIEW", "default", "directions", "model_points", "framed", "orbit", "sphere",
-           "hemisphere", "direction"]
+__all__ = ["DEFAULT_VIEW", "UP_AXES", "UpAxis", "check_up_axis", "model_up", "up_vector",
+           "default", "directions", "model_points", "framed", "orbit", "sphere", "hemisphere",
+           "direction"]
 
 DEFAULT_VIEW = (35.0, 25.0)  # azimuth, elevation in degrees: a three-quarter view
 MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower side
@@ -32,30 +33,42 @@ MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower 
 # The world axis that points up: +Y (glTF, OpenGL, most meshes) or +Z (CAD, scans,
 # Blender, STL). A Z-up model is seen as the same model turned to Y-up would be.
 UP_AXES = ("y", "z")
+UpAxis = Literal["y", "z"]
 
 
-def up_vector(up_axis: str = "y") -> np.ndarray:
+def up_vector(up_axis: UpAxis = "y") -> np.ndarray:
     """The unit up vector of ``up_axis`` (``"y"`` or ``"z"``)."""
-    return np.array([0.0, 1.0, 0.0]) if _axis(up_axis) == "y" else np.array([0.0, 0.0, 1.0])
+    return np.array([0.0, 1.0, 0.0] if check_up_axis(up_axis) == "y" else [0.0, 0.0, 1.0])
 
 
-def _axis(up_axis) -> str:
+def check_up_axis(up_axis) -> UpAxis:
+    """``up_axis`` checked: ``y`` or ``z`` (else :class:`~hsr.errors.CameraError`)."""
     if not isinstance(up_axis, str) or up_axis not in UP_AXES:
         raise CameraError(f"up_axis must be y or z, got {up_axis!r}")
-    return up_axis
+    return cast(UpAxis, up_axis)
+
+
+def model_up(model: Any, up_axis: str | None = None) -> UpAxis:
+    """``up_axis`` checked, or when None the up axis ``model`` declares (a Scene's
+    :meth:`~hsr.Scene.up_axis`, a Mesh's :attr:`~hsr.Mesh.up_axis`), else ``"y"``."""
+    if up_axis is not None:
+        return check_up_axis(up_axis)
+    declared = getattr(model, "up_axis", None)
+    declared = declared() if callable(declared) else declared
+    return check_up_axis(declared) if declared in UP_AXES else "y"
 
 
 def _oriented(vectors: np.ndarray, up_axis: str) -> np.ndarray:
     """Y-up ``vectors`` (..., 3) in the frame of ``up_axis``: for z, (x, y, z) ->
     (x, -z, y), the quarter turn about +X that takes +Y to +Z and the front (+Z) to -Y."""
-    if _axis(up_axis) == "y":
+    if check_up_axis(up_axis) == "y":
         return vectors
     out = np.empty_like(vectors)
     out[..., 0], out[..., 1], out[..., 2] = vectors[..., 0], -vectors[..., 2], vectors[..., 1]
     return out
 
 
-def direction(azimuth: float, elevation: float, up_axis: str = "y") -> np.ndarray:
+def direction(azimuth: float, elevation: float, up_axis: UpAxis = "y") -> np.ndarray:
     """Unit vector from the model's centre towards the eye: ``azimuth`` degrees about the
     up axis (from the front, +Z for Y-up and -Y for Z-up, towards +X), ``elevation``
     degrees above the horizon."""
@@ -65,7 +78,7 @@ def direction(azimuth: float, elevation: float, up_axis: str = "y") -> np.ndarra
 
 
 def framed(bounds: ArrayLike, toward: ArrayLike, aspect: float = 1.0,
-           fov_y: float = 45.0, up_axis: str = "y") -> Camera:
+           fov_y: float = 45.0, up_axis: UpAxis = "y") -> Camera:
     """A perspective camera on the line from the centre of ``bounds`` along ``toward`` (a
     direction to the eye) that sees the whole bounding sphere in an image of ``aspect``,
     with near and far hugging the sphere (:meth:`hsr.Camera.frame` with a 5% margin),
@@ -75,14 +88,15 @@ def framed(bounds: ArrayLike, toward: ArrayLike, aspect: float = 1.0,
 
 
 def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
-            view: tuple = DEFAULT_VIEW, up_axis: str = "y") -> Camera:
+            view: tuple = DEFAULT_VIEW, up_axis: UpAxis | None = None) -> Camera:
     """A model framed from ``view`` = (azimuth, elevation) in degrees, by default a
     three-quarter view from the front-right and above (35, 25: three faces of a box
     show, so the shape reads). ``model`` is a Mesh or Scene (the eye comes as close as
     its vertices allow with a 5% margin: the whole model, as large as it fits) or a
     (2, 3) box (as close as the box's corners allow). :func:`hsr.first_look` frames the
     same way from the view that shows the most of the model's shape, which is what
-    ``hsr render MODEL`` draws. ``up_axis``: ``"y"`` or ``"z"`` (see :func:`direction`).
+    ``hsr render MODEL`` draws. ``up_axis``: ``"y"`` or ``"z"`` (see :func:`direction`),
+    None for the model's own (:func:`model_up`).
     Raises :class:`~hsr.errors.CameraError` as the module
     says, and for a view that is not two finite numbers."""
     try:
@@ -94,6 +108,7 @@ def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
             from None
     if not (math.isfinite(azimuth) and math.isfinite(elevation)):
         raise CameraError(f"view must be finite degrees, got {view!r}")
+    up = model_up(model, up_axis)
     if getattr(model, "kind", None) == "hsr-partitioned-scene":
         # A store on disk: framed by the box its metadata keeps (no part is read).
         points, bounds = None, model.bounds()
@@ -103,8 +118,8 @@ def default(model: Any, aspect: float = 1.0, fov_y: float = 45.0,
         # transforming every face corner a second time).
         bounds = model if points is None else np.stack([points.min(axis=0),
                                                         points.max(axis=0)])
-    return Camera.frame(bounds, direction(azimuth, elevation, up_axis),
-                        tuple(up_vector(up_axis)), fov_y, margin=MARGIN, aspect=aspect,
+    return Camera.frame(bounds, direction(azimuth, elevation, up), tuple(up_vector(up)),
+                        fov_y, margin=MARGIN, aspect=aspect,
                         fit="box" if points is None else "points", points=points)
 
 
@@ -115,7 +130,7 @@ def model_points(model: Any) -> np.ndarray:
 
 
 def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0,
-               up_axis: str = "y") -> list:
+               up_axis: UpAxis = "y") -> list:
     """The unit directions (centre towards eye) of a view set: ``orbit`` (``n`` equal
     azimuth steps from ``azimuth`` at ``elevation``), ``sphere`` or ``hemisphere``.
     :func:`orbit`, :func:`sphere` and :func:`hemisphere` frame a camera along each; a
@@ -130,7 +145,7 @@ def directions(kind: str, n: int, elevation: float = 20.0, azimuth: float = 0.0,
 
 
 def orbit(bounds: ArrayLike, n: int, elevation: float = 20.0, aspect: float = 1.0,
-          fov_y: float = 45.0, azimuth: float = 0.0, up_axis: str = "y") -> list:
+          fov_y: float = 45.0, azimuth: float = 0.0, up_axis: UpAxis = "y") -> list:
     """``n`` cameras at equal azimuth steps (from the front towards +X, the first at
     ``azimuth``) at ``elevation`` about ``up_axis``. Raises
     :class:`~hsr.errors.CameraError` as the module says."""
@@ -139,7 +154,7 @@ def orbit(bounds: ArrayLike, n: int, elevation: float = 20.0, aspect: float = 1.
 
 
 def sphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0,
-           up_axis: str = "y") -> list:
+           up_axis: UpAxis = "y") -> list:
     """``n`` cameras spread evenly over the whole sphere (Fibonacci lattice). Raises
     :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y, up_axis)
@@ -147,7 +162,7 @@ def sphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0,
 
 
 def hemisphere(bounds: ArrayLike, n: int, aspect: float = 1.0, fov_y: float = 45.0,
-               up_axis: str = "y") -> list:
+               up_axis: UpAxis = "y") -> list:
     """``n`` cameras spread evenly over the upper hemisphere (above the horizon of
     ``up_axis``). Raises :class:`~hsr.errors.CameraError` as the module says."""
     return [framed(bounds, d, aspect, fov_y, up_axis)

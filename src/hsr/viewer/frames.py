@@ -25,7 +25,7 @@ class Library:
     loaded now, so a bad file fails at start) and each built-in scene (built on first
     use). Nothing else can be named: no path ever comes from a request."""
 
-    def __init__(self, models=(), builtin=True):
+    def __init__(self, models=(), builtin=True, up_axis="auto"):
         from ..scene import builtin as scenes
         from ..scene.load import load_scene
 
@@ -35,7 +35,7 @@ class Library:
             name = os.path.basename(os.fspath(path))
             if name in self._scenes:
                 name = os.fspath(path)
-            self._scenes[name] = load_scene(path)
+            self._scenes[name] = load_scene(path, up_axis=up_axis)
             self._paths[name] = os.fspath(path)
         self._builtin = dict(scenes.SCENES) if builtin else {}
         self.names = list(self._scenes) + [n for n in self._builtin if n not in self._scenes]
@@ -109,7 +109,7 @@ def render_request(scene, request: ViewRequest, bounds=None) -> tuple:
 
     start = time.perf_counter()
     bounds = scene.bounds() if bounds is None else bounds
-    camera = orbit_camera(bounds, request)
+    camera = orbit_camera(bounds, request, scene.up_axis())
     w, h = request.w, request.h
     options = _options(bounds, camera, request)
     buffer = request.buffer
@@ -220,7 +220,7 @@ def pick(scene, request: ViewRequest, names, bounds=None) -> dict:
     from ..render import render
 
     bounds = scene.bounds() if bounds is None else bounds
-    camera = orbit_camera(bounds, request)
+    camera = orbit_camera(bounds, request, scene.up_axis())
     options = _options(bounds, camera, request)
     frame = render(scene, camera, request.w, request.h, **options)
     x, y = request.x, request.y
@@ -250,7 +250,7 @@ def explain_image(scene, request: ViewRequest, bounds=None) -> np.ndarray:
     from ..geometry.state import RenderState
 
     bounds = scene.bounds() if bounds is None else bounds
-    camera = orbit_camera(bounds, request)
+    camera = orbit_camera(bounds, request, scene.up_axis())
     return explain(request.view, scene, camera, min(request.w, 480), min(request.h, 360),
                    RenderState(**request.state_fields())).image
 
@@ -260,7 +260,7 @@ def reproduce(scene, request: ViewRequest, path: str | None, bounds=None) -> dic
     that draw the current view (colour; the other buffers have their own options:
     ``--depth-out``, ``--ids-out``, ``--normals-out``)."""
     bounds = scene.bounds() if bounds is None else bounds
-    camera = orbit_camera(bounds, request)
+    camera = orbit_camera(bounds, request, scene.up_axis())
     # Shortest round-trip reprs: the command draws exactly this view.
     eye = ",".join(repr(float(v)) for v in camera.eye)
     target = ",".join(repr(float(v)) for v in camera.target)
@@ -269,8 +269,10 @@ def reproduce(scene, request: ViewRequest, path: str | None, bounds=None) -> dic
     args += ["--size", f"{request.w}x{request.h}", "--eye", eye, "--target", target,
              "--fov", repr(float(request.fov)), "--near", repr(float(camera.near)), "--far",
              repr(float(camera.far))]
+    if scene.up_axis() == "z":  # the command's camera up, as the page's
+        args += ["--up-axis", "z"]
     flags = {"algorithm": "zbuffer", "cull": "none", "front_face": "ccw",
-             "depth_func": "less", "polygon_mode": "fill", "shading": "flat",
+             "depth_func": "less", "polygon_mode": "fill", "shading": "auto",
              "transparency": "object"}
     for name, default in flags.items():
         if request.values[name] != default:

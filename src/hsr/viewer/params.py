@@ -61,7 +61,7 @@ def _controls():
         "polygon_mode": ("choice", "fill", ("fill", "line", "point"), "glPolygonMode"),
         "offset_factor": ("float", 0.0, (-100.0, 100.0), "glPolygonOffset factor"),
         "offset_units": ("float", 0.0, (-1000.0, 1000.0), "glPolygonOffset units"),
-        "shading": ("choice", "flat", tuple(SHADING_MODES), "how visible faces are coloured"),
+        "shading": ("choice", "auto", tuple(SHADING_MODES), "how visible faces are coloured"),
         "light": ("choice", "studio", tuple(LIGHTS), "lights"),
         "fog": ("choice", "none", ("none", "linear", "exp", "exp2"), "depth cueing"),
         "fog_density": ("float", 0.3, (0.0, 100.0), "exp / exp2 fog density (per radius)"),
@@ -154,18 +154,19 @@ def _value(name, kind, text, allowed):
     return value
 
 
-def _frame(bounds, az, el, fov, aspect):
+def _frame(bounds, az, el, fov, aspect, up_axis="y"):
     """Centre, radius, the direction towards the eye, its right and up axes, and the
-    distance at which the bounding sphere fits both fields of view (5% margin)."""
+    distance at which the bounding sphere fits both fields of view (5% margin); azimuth
+    and elevation turn about ``up_axis`` (:func:`hsr.views.direction`)."""
     from ..scene import views as view_sets
 
     lo, hi = np.asarray(bounds, dtype=np.float64)
     centre = (lo + hi) / 2
     radius = max(float(np.linalg.norm(hi - lo)) / 2, 1e-9)
-    toward = view_sets.direction(az, el)
+    toward = view_sets.direction(az, el, up_axis)
     half = math.radians(fov) / 2
     fit = radius / math.sin(min(half, math.atan(math.tan(half) * aspect))) * 1.05
-    right = np.cross(-toward, np.array([0.0, 1.0, 0.0]))
+    right = np.cross(-toward, view_sets.up_vector(up_axis))
     right /= np.linalg.norm(right)
     up = np.cross(right, -toward)
     return centre, radius, toward, right, up, fit
@@ -189,15 +190,18 @@ def orbit_of(bounds, camera, aspect=4 / 3) -> dict:
             "tx": round(tx, 6), "ty": round(ty, 6), "fov": fov}
 
 
-def orbit_camera(bounds, request: ViewRequest):
+def orbit_camera(bounds, request: ViewRequest, up_axis: str = "y"):
     """The camera of ``request`` around the bounding sphere of ``bounds`` (see the module),
-    near and far hugging the sphere."""
+    turning about ``up_axis`` (a Z-up model's own, so it stands up), near and far hugging
+    the sphere."""
+    from ..scene import views as view_sets
     from ..scene.camera import Camera
 
     centre, radius, toward, right, up, fit = _frame(bounds, request.az, request.el,
-                                                    request.fov, request.w / request.h)
+                                                    request.fov, request.w / request.h,
+                                                    up_axis)
     distance = fit * request.dist
-    up_world = np.array([0.0, 1.0, 0.0])
+    up_world = view_sets.up_vector(up_axis)
     target = centre + radius * (request.tx * right + request.ty * up)
     eye = target + toward * distance
     to_centre = float(np.linalg.norm(eye - centre))

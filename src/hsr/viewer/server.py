@@ -171,16 +171,18 @@ def make_app(library: Library):
 
 
 def serve(models=(), host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True,
-          first: str | None = None, announce=print) -> None:
+          first: str | None = None, announce=print, up_axis: str = "auto") -> None:
     """Serve ``models`` (and the built-in scenes) on ``host``:``port`` until interrupted;
-    ``first``: the scene shown first. Prints the URL and opens the browser. Raises
-    :class:`~hsr.errors.MissingExtraError` when the ``view`` extra is not installed."""
+    ``first``: the scene shown first; ``up_axis``: the models' up (``auto``: what each
+    file declares, see :func:`hsr.load`), which the orbit turns about. Prints the URL
+    and opens the browser. Raises :class:`~hsr.errors.MissingExtraError` when the
+    ``view`` extra is not installed."""
     from ..errors import require_extra
 
     require_extra("hsr view", "starlette", "uvicorn")
     import uvicorn
 
-    library = Library(models)
+    library = Library(models, up_axis=up_axis)
     if first is not None:
         library.names.remove(first)
         library.names.insert(0, first)

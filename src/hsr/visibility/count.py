@@ -54,13 +54,14 @@ def check_size(size) -> tuple:
 
 
 def cameras_for(scene: Scene, views: Any, aspect: float, near: float | None = None,
-                far: float | None = None) -> list:
+                far: float | None = None, up_axis: str | None = None) -> list:
     """The cameras of ``views``: a spec (``sphere:N``, ``hemisphere:N``,
     ``orbit:N[:ELEVATION]``: framed outside the scene's bounding sphere, as
     :mod:`hsr.views`), a transforms.json or COLMAP folder (interior viewpoints are
     welcome; their planes ``near`` / ``far`` when given, else the file's, else fitted to
     the scene), a :class:`hsr.Camera`, or a list mixing any of these (every set is used).
-    Raises :class:`VisibilityError` for anything else."""
+    View sets turn about ``up_axis`` (``y``, ``z``, or None: the scene's own,
+    :meth:`hsr.Scene.up_axis`). Raises :class:`VisibilityError` for anything else."""
     from ..batch.plan import BatchError, parse_views
     from ..scene import views as view_sets
 
@@ -74,7 +75,7 @@ def cameras_for(scene: Scene, views: Any, aspect: float, near: float | None = No
             cameras.append(item)
             continue
         if isinstance(item, (list, tuple)):
-            cameras += cameras_for(scene, item, aspect, near, far)
+            cameras += cameras_for(scene, item, aspect, near, far, up_axis)
             continue
         if isinstance(item, str) and item.startswith("per-model:"):
             raise VisibilityError("views: per-model is for hsr batch; give the cameras")
@@ -89,8 +90,9 @@ def cameras_for(scene: Scene, views: Any, aspect: float, near: float | None = No
             cameras += list(spec.cameras)
         else:
             bounds = scene.bounds() if bounds is None else bounds
-            dirs = view_sets.directions(spec.kind, spec.count, spec.elevation)
-            cameras += [view_sets.framed(bounds, d, aspect) for d in dirs]
+            up = view_sets.model_up(scene, up_axis)
+            dirs = view_sets.directions(spec.kind, spec.count, spec.elevation, up_axis=up)
+            cameras += [view_sets.framed(bounds, d, aspect, up_axis=up) for d in dirs]
     return cameras
 
 
