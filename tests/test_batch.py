@@ -381,3 +381,62 @@ def test_mesh_cache_loads_a_model_once_when_threads_ask_together(models_dir):
         t.join()
     assert len(got) == 4 and all(scene is got[0] for scene in got)
     assert len(cache.scenes) == 1
+
+
+def test_a_camera_file_without_planes_is_fitted_to_each_model(client, models_dir, tmp_path):
+    """hsr batch read a transforms.json that names no near/far with 0.1 and 100, and its
+    driver never loads the models to fit them: a scan in millimetres came out empty with
+    every view 'ok'. Now each worker fits the planes to its model, as --view does; and a
+    Z-up model's view set turns about +Z (its STL says so)."""
+    import trimesh
+
+    spot = hsr.load(os.path.join(models_dir, "spot.obj"))
+    models, scenes = [], []
+    for scale in (1e-3, 1e3):
+        mesh = hsr.Mesh(spot.positions * scale, spot.faces)
+        path = tmp_path / f"spot_{scale:g}.ply"
+        hsr.write_mesh(mesh, path)
+        models.append(str(path))
+        scenes.append(hsr.load_scene(path))
+    # Each model's camera, placed at its scale, written without planes.
+    cam = hsr.views.default(spot, SIZE[0] / SIZE[1])
+    rig = [hsr.Camera.look_at(np.asarray(cam.eye) * scale, np.asarray(cam.target) * scale,
+                              cam.up, cam.fov_y, cam.near, cam.far) for scale in (1e-3, 1e3)]
+    per_model = {}
+    for k, (model, placed) in enumerate(zip(models, rig)):
+        path = tmp_path / f"rig_{k}.json"
+        hsr.write_transforms(path, [placed], *SIZE)
+        doc = json.loads(path.read_text())
+        del doc["near"], doc["far"]  # as other tools write them
+        path.write_text(json.dumps(doc))
+        per_model[os.path.basename(model)] = path.name
+    (tmp_path / "per_model.json").write_text(json.dumps(per_model))
+    out = tmp_path / "out"
+    result = render_views(models, f"per-model:{tmp_path / 'per_model.json'}", SIZE, ("ids",),
+                          out, client)
+    assert not result.failed
+    for model, scene, placed in zip(models, scenes, rig):
+        stem = os.path.splitext(os.path.basename(model))[0]
+        ids = np.load(out / stem / "ids" / "0000.npy")
+        want = hsr.render(scene, placed.fitted(scene.bounds()), *SIZE).face_id
+        assert (want >= 0).sum() > 500 and np.array_equal(ids, want)
+    # The same through one camera file shared by the models (the 1e3 rig's camera).
+    shared = tmp_path / "rig_1.json"
+    result = render_views(models[1:], str(shared), SIZE, ("ids",), tmp_path / "one", client)
+    ids = np.load(tmp_path / "one" / "spot_1000" / "ids" / "0000.npy")
+    assert not result.failed and (ids >= 0).sum() > 500
+    # A Z-up tower (STL) orbited: every view stands it up (taller than wide).
+    box = trimesh.creation.box(extents=(1.0, 1.0, 4.0))
+    box.export(tmp_path / "tower.stl")
+    result = render_views([str(tmp_path / "tower.stl")], "orbit:3", (96, 96), ("ids",),
+                          tmp_path / "tower", client)
+    assert not result.failed
+    for v in range(3):
+        rows, cols = np.nonzero(np.load(tmp_path / "tower" / "tower" / "ids" / f"{v:04d}.npy")
+                                >= 0)
+        assert np.ptp(rows) > 1.8 * np.ptp(cols)
+    assert main(["batch", str(tmp_path / "tower.stl"), "--views", "orbit:2", "--size", "96",
+                 "--up-axis", "y", "--outputs", "ids", "--out", str(tmp_path / "lying"),
+                 "--scheduler", client.scheduler.address, "--quiet"]) == 0
+    rows, cols = np.nonzero(np.load(tmp_path / "lying" / "tower" / "ids" / "0000.npy") >= 0)
+    assert np.ptp(rows) < 1.8 * np.ptp(cols)

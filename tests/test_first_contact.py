@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import struct
 
 import numpy as np
@@ -312,3 +313,166 @@ def test_the_viewer_opens_a_model_at_its_first_look(models_dir):
     az, el = hsr.best_view(hsr.load(path))
     assert library.initial("spot.obj") == {"az": az, "el": el}
     assert (az, el) != hsr.views.DEFAULT_VIEW  # spot's face, not its flank
+
+
+def _sphere_files(tmp_path):
+    """An icosphere as a GLB that carries vertex normals and as an STL (which cannot)."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    # The sphere's true normals (its unit positions), exported as glTF NORMAL.
+    sphere.vertex_normals = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1,
+                                                             keepdims=True)
+    sphere.export(tmp_path / "ball.glb")
+    sphere.export(tmp_path / "ball.stl")
+    return str(tmp_path / "ball.glb"), str(tmp_path / "ball.stl")
+
+
+def test_smooth_shading_is_the_default_where_the_file_carries_normals(tmp_path):
+    """Every glTF viewer draws a file's normals smooth; hsr drew them flat (it did not
+    even read them). The expected colour is Lambert of the interpolated true normal of
+    the sphere (its position), at the reference rasteriser's barycentrics."""
+    from reference import reference_render
+
+    glb, stl = _sphere_files(tmp_path)
+    mesh = hsr.load(glb)
+    assert mesh.corner_normals is not None
+    truth = mesh.positions / np.linalg.norm(mesh.positions, axis=1, keepdims=True)
+    assert np.abs(mesh.corner_normals - truth[mesh.faces]).max() < 1e-6
+    cam = hsr.Camera.look_at((0.4, 0.3, 4), (0, 0, 0), (0, 1, 0), 35, 1, 10)
+    frame = hsr.render(glb, cam, 96, 96)  # shading "auto"
+    face, _, bary = reference_render(mesh, cam, 96, 96, with_barycentrics=True)
+    seen = face >= 0
+    assert np.array_equal(frame.face_id >= 0, seen)
+    normal = np.einsum("kc,kcj->kj", bary[seen], truth[mesh.faces[face[seen]]])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    forward = -np.asarray(cam.eye) / np.linalg.norm(cam.eye)
+    expected = 230 * np.abs(normal @ forward)
+    assert np.abs(frame.color[seen][:, 0] - expected).max() <= 1.5
+    flat = hsr.render(glb, cam, 96, 96, shading="flat").color[seen][:, 0].astype(float)
+    assert np.abs(flat - expected).max() > 10  # the flat look stays, and differs
+    # An STL has no vertex normals: drawn flat, as before.
+    assert hsr.load(stl).corner_normals is None
+    assert np.array_equal(hsr.render(stl, cam, 96, 96).color,
+                          hsr.render(stl, cam, 96, 96, shading="flat").color)
+
+
+def test_computed_normals_keep_creases_and_unlit_is_the_albedo():
+    """smooth / gouraud on a mesh without normals average the faces round a vertex within
+    30 degrees only: a cube keeps its edges (its corner normals are its face normals),
+    where welding every face round a vertex rounded it off."""
+    from hsr.appearance.shading import vertex_normals
+
+    cube = hsr.scenes.cube()
+    corners = vertex_normals(cube)
+    tri = cube.positions[cube.faces]
+    face_normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    face_normal /= np.linalg.norm(face_normal, axis=1, keepdims=True)
+    assert np.abs(corners - face_normal[:, None, :]).max() < 1e-12
+    rounded = vertex_normals(cube, crease_angle=180.0)  # the old welding
+    assert np.abs(rounded - face_normal[:, None, :]).max() > 0.3
+    cam = hsr.Camera.look_at((2, 1.5, 3), (0, 0, 0), (0, 1, 0), 40, 1, 10)
+    smooth = hsr.render(cube, cam, 64, 64, shading="smooth").color.astype(int)
+    flat = hsr.render(cube, cam, 64, 64, shading="flat").color.astype(int)
+    assert np.abs(smooth - flat).max() <= 1
+    colored = hsr.Mesh(cube.positions, cube.faces,
+                       face_colors=np.tile([200, 90, 30], (cube.n_faces, 1)))
+    unlit = hsr.render(colored, cam, 64, 64, shading="unlit")
+    assert {tuple(c) for c in unlit.color[unlit.face_id >= 0]} == {(200, 90, 30)}
+    with pytest.raises(hsr.RenderError, match="crease_angle"):
+        hsr.Look(crease_angle=200)
+
+
+def _tall_box_stl(tmp_path) -> str:
+    """A box 1 x 1 x 4, standing on +Z as a printer's STL does."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 4.0))
+    path = tmp_path / "tower.stl"
+    box.export(path)
+    return str(path)
+
+
+def test_the_up_axis_a_file_declares(tmp_path, models_dir):
+    """glTF is +Y up by its specification, STL +Z (the printer's build direction); OBJ
+    and PLY say nothing. The teapot STL lay on its side in the first look."""
+    glb, stl = _sphere_files(tmp_path)
+    assert hsr.load(glb).up_axis == "y" and hsr.load(stl).up_axis == "z"
+    spot = os.path.join(models_dir, "spot.obj")
+    assert hsr.load(spot).up_axis is None
+    assert hsr.load_scene(spot).up_axis() == "y"
+    assert hsr.load(spot, up_axis="z").up_axis == "z"
+    assert hsr.load_scene([spot, stl]).up_axis() == "z"  # the one declared
+    assert hsr.load_scene([glb, stl]).up_axis() == "y"  # they disagree: OpenGL's
+    mine = hsr.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    assert hsr.load(mine, up_axis="z").up_axis == "z" and mine.up_axis is None
+    with pytest.raises(hsr.MeshError, match="up_axis"):
+        hsr.load(spot, up_axis="x")
+    # The tower stands: its image is taller than wide, first look and command line alike.
+    tower = _tall_box_stl(tmp_path)
+    ids = hsr.render(tower, width=120, height=120).face_id
+    rows, cols = np.nonzero(ids >= 0)
+    assert np.ptp(rows) > 1.8 * np.ptp(cols)
+    from conftest import run_cli
+
+    code, err = run_cli(["render", tower, "--size", "120x120", "--ids-out",
+                         str(tmp_path / "ids.npy"), "-o", str(tmp_path / "t.png"), "--quiet"])
+    assert code == 0, err
+    rows, cols = np.nonzero(np.load(tmp_path / "ids.npy") >= 0)
+    assert np.ptp(rows) > 1.8 * np.ptp(cols)
+    code, err = run_cli(["render", tower, "--up-axis", "y", "--size", "120x120", "--ids-out",
+                         str(tmp_path / "ids.npy"), "-o", str(tmp_path / "t.png"), "--quiet"])
+    assert code == 0, err
+    rows, cols = np.nonzero(np.load(tmp_path / "ids.npy") >= 0)
+    assert np.ptp(rows) < 1.8 * np.ptp(cols)  # told Y is up: lying down
+
+
+def test_view_sets_turn_about_the_models_up(models_dir, tmp_path):
+    """hsr visibility, prune and batch framed their orbits about +Y whatever the model:
+    a Z-up model turned from spot sees, per view, what spot sees."""
+    from conftest import run_cli
+
+    spot = hsr.load(os.path.join(models_dir, "spot.obj"))
+    p = spot.positions
+    turned = hsr.Mesh(np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=1), spot.faces)
+    hsr.write_mesh(turned, tmp_path / "zup.ply")
+    want = np.asarray(hsr.visibility.face_visibility(spot, "orbit:3", 64))
+    got = hsr.visibility.face_visibility(hsr.load(tmp_path / "zup.ply", up_axis="z"),
+                                         "orbit:3", 64)
+    assert np.abs(got - want).sum() <= 0.002 * want.sum()
+    code, err = run_cli(["visibility", str(tmp_path / "zup.ply"), "--views", "orbit:3",
+                         "--up-axis", "z", "--size", "64", "-o", str(tmp_path / "v.npz"),
+                         "--quiet"])
+    assert code == 0, err
+    written = np.load(tmp_path / "v.npz")
+    per_face = np.bincount(written["face"], written["pixels"], minlength=len(want))
+    assert np.abs(per_face - want).sum() <= 0.002 * want.sum()
+    code, err = run_cli(["prune", str(tmp_path / "zup.ply"), "--views", "orbit:4",
+                         "--up-axis", "z", "--size", "64", "-o", str(tmp_path / "p.ply"),
+                         "--quiet"])
+    assert code == 0, err
+
+
+def test_the_viewer_orbits_a_z_up_model_about_z(tmp_path):
+    """The page's orbit turned about +Y whatever the model: a Z-up tower opened lying down.
+    Its camera's up is now +Z, the tower stands in the frame, and the page's 'reproduce'
+    command draws the same picture."""
+    from conftest import run_cli
+    from hsr.viewer.frames import Library, render_request, reproduce
+    from hsr.viewer.params import parse
+
+    tower = _tall_box_stl(tmp_path)
+    library = Library([tower], builtin=False)
+    view = library.initial("tower.stl")
+    request = parse({"scene": "tower.stl", "w": "96", "h": "96", "az": str(view["az"]),
+                     "el": str(view["el"])}, library.names)
+    frame, _, _ = render_request(library.get("tower.stl"), request)
+    rows, cols = np.nonzero(frame.face_id >= 0)
+    assert np.ptp(rows) > 1.8 * np.ptp(cols)
+    command = reproduce(library.get("tower.stl"), request, tower)["command"]
+    assert "--up-axis z" in command
+    args = shlex.split(command)[1:] + ["--ids-out", str(tmp_path / "ids.npy"), "-o",
+                                  str(tmp_path / "r.png"), "--quiet"]
+    code, err = run_cli(args)
+    assert code == 0, err
+    assert np.array_equal(np.load(tmp_path / "ids.npy"), frame.face_id)

@@ -41,8 +41,10 @@ __all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look"
 
 # ``auto``: ``smooth`` on meshes whose file carries normals (as every glTF viewer draws
 # them), ``flat`` on the others. ``smooth`` interpolates the normals and lights each pixel
-# (Phong's normal interpolation, 1975); ``gouraud`` lights the corners and interpolates.
-SHADING_MODES = ("auto", "flat", "smooth", "gouraud", "normal", "random", "depth")
+# (Phong's normal interpolation, 1975); ``gouraud`` lights the corners and interpolates;
+# ``unlit`` is the base colour alone (texture x factor x vertex colour, glTF's
+# KHR_materials_unlit): the albedo.
+SHADING_MODES = ("auto", "flat", "smooth", "gouraud", "unlit", "normal", "random", "depth")
 # Computed normals average only the faces round a vertex within this many degrees of the
 # corner's own face, so a cube keeps its edges (Blender's auto-smooth default).
 CREASE_ANGLE = 30.0
@@ -89,7 +91,7 @@ def lambert(rig: LightRig, normals, toward_eye) -> np.ndarray:
     lit = np.maximum(0.0, (normals @ rig.directions.T) * np.asarray(toward_eye)[..., None])
     return rig.ambient + lit @ rig.power
 _DEFAULT_BASE = np.array([230.0, 230.0, 230.0])
-LIT = ("flat", "smooth", "gouraud")  # the modes that light a base colour
+LIT = ("flat", "smooth", "gouraud", "unlit")  # the modes that colour by the base colour
 
 
 # Faces per block of :func:`_face_rgb`: its per-face arrays stay in L1 (64 x 11 doubles).
@@ -261,6 +263,10 @@ def face_colors(mode: str, scene, camera, workers, face_id=None,
         mode = "flat"
     if mode == "random":
         return face_random_colors(scene.n_faces)
+    if mode == "unlit":
+        return np.concatenate([np.broadcast_to(to_uint8(_face_base(inst.mesh)),
+                                               (inst.mesh.n_faces, 3))
+                               for inst in scene.instances])
     if face_id is None:
         visible = np.ones(scene.n_faces, dtype=np.bool_)
     else:
@@ -416,7 +422,8 @@ class ShadeContext:
         look = self.look
         return look.fog is not None or any(
             look.mode_of(inst.mesh) in ("smooth", "gouraud") or _textured(look, inst.mesh)
-            or (inst.mesh.corner_colors is not None and look.mode_of(inst.mesh) == "flat")
+            or (inst.mesh.corner_colors is not None
+                and look.mode_of(inst.mesh) in ("flat", "unlit"))
             for inst in self.scene.instances)
 
     def texture(self, k):
@@ -569,6 +576,8 @@ def _intensity(mode, rig, world, forward, bary, corner_normals) -> np.ndarray:
     length = np.linalg.norm(normal, axis=1)
     normal /= np.where(length > 0, length, 1.0)[:, None]
     toward_eye = np.where(normal @ forward > 0.0, -1.0, 1.0)
+    if mode == "unlit":
+        return np.ones(len(world))
     if mode == "flat":
         return lambert(rig, normal, toward_eye)
     if mode == "gouraud":
@@ -599,7 +608,7 @@ def shade_visible(ctx: ShadeContext, fragments, state, background):
     if state.polygon_mode != "fill" or not ctx.per_pixel:
         # Lines and points take a per-face colour (no fragment to shade between corners).
         mode = look.shading if state.polygon_mode == "fill" else (
-            look.shading if look.shading in ("flat", "normal", "random") else "flat")
+            look.shading if look.shading in ("flat", "unlit", "normal", "random") else "flat")
         covered = paint_faces(ctx.workers, face_id,
                               face_colors(mode, ctx.scene, ctx.camera, ctx.workers, face_id,
                                           look.light),
