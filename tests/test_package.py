@@ -39,3 +39,44 @@ def test_the_wheel_and_sdist_build_and_pass_twine(tmp_path):
     for field in ("License-Expression: MIT", "Keywords:", "Classifier: Topic",
                   "Author: the hsr developers", "Requires-Python: >=3.11"):
         assert field in meta, field
+
+
+def test_the_literal_types_name_what_the_code_accepts():
+    """Enum-like arguments are typed as Literal names an IDE completes (they were plain
+    str); each must equal what the code checks at run time, or one of them is lying."""
+    from typing import get_args
+
+    import hsr
+    from hsr import choices
+    from hsr.appearance.shading import LIGHTS, SHADING_MODES
+    from hsr.appearance.texture import FILTERS, WRAPS
+    from hsr.appearance.transparency import ORDERS
+    from hsr.scene.load import UP_AXIS_CHOICES
+    from hsr.scene.views import UP_AXES
+
+    pairs = [(choices.Algorithm, tuple(hsr.ALGORITHMS)), (choices.Shading, SHADING_MODES),
+             (choices.Light, LIGHTS), (choices.TextureFilter, FILTERS),
+             (choices.TextureWrap, WRAPS), (choices.Transparency, ORDERS),
+             (choices.Cull, tuple(m.value for m in hsr.CullMode)),
+             (choices.DepthFuncName, tuple(m.value for m in hsr.DepthFunc)),
+             (choices.FrontFaceName, tuple(m.value for m in hsr.FrontFace)),
+             (choices.PolygonModeName, tuple(m.value for m in hsr.PolygonMode)),
+             (choices.UpAxis, UP_AXES), (choices.UpAxisChoice, UP_AXIS_CHOICES)]
+    for literal, accepted in pairs:
+        assert set(get_args(literal)) == set(accepted), (literal, accepted)
+    for edges in get_args(choices.EdgeKind):
+        hsr.HiddenLine(edges=edges)
+    hints = hsr.render.__annotations__
+    assert hints["shading"] == "Shading" and hints["algorithm"] == "Algorithm"
+
+
+def test_import_hsr_loads_nothing_heavy():
+    """``import hsr`` took about a second (NumPy, Numba and trimesh at import); the public
+    names now load on first use, so the import itself pulls in none of them."""
+    code = ("import sys, hsr; heavy = [m for m in ('numpy', 'numba', 'trimesh', 'scipy') "
+            "if m in sys.modules]; print(heavy); hsr.Mesh; print('numba' in sys.modules); "
+            "print(sorted(set(hsr.__all__) - set(dir(hsr))))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[:3] == ["[]", "True", "[]"], done.stdout

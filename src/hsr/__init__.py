@@ -14,35 +14,103 @@ transparency) and :mod:`hsr.lines` (polygon modes, hidden lines, SVG) -> :func:`
 -> :mod:`hsr.explain` (views, compare, report) -> :mod:`hsr.cli`.
 """
 
-from . import batch, visibility
-from .algorithms import ALGORITHMS, bsp, raycast
-from .appearance.fog import Fog
-from .appearance.shading import Look
-from .appearance.viewpoint import best_view, first_look
-from .errors import CameraError, HsrError, HsrWarning, MeshError, OutputError, RenderError
-from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
-from .lines.raster import HiddenLine
-from .lines.vector import hidden_lines, write_lines_svg
-from .parallel import Workspace
-from .render import Frame, render
-from .scene import builtin as scenes
-from .scene import views
-from .scene.camera import Camera
-from .scene.camera_files import read_colmap, read_transforms, write_transforms
-from .scene.load import load, load_scene
-from .scene.mesh import Instance, Mesh, Scene
-from .scene.partition import partition
-from .scene.partitioned import PartitionedScene
-from .scene.write import write_mesh
-from .visibility import (
-    RayHits,
-    RayScene,
-    prune,
-    visibility_matrix,
-    visible_faces,
-    visible_points,
-    visible_vertices,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+# Public names -> the module that defines them. ``import hsr`` loads none of them (NumPy,
+# Numba and trimesh take about a second): each is imported on first use (PEP 562), so the
+# command line's --help, --version and error paths start at once.
+_LAZY = {
+    "batch": (".batch", None), "visibility": (".visibility", None),
+    "ALGORITHMS": (".algorithms", "ALGORITHMS"), "bsp": (".algorithms.bsp", None),
+    "raycast": (".algorithms.raycast", None),
+    "Fog": (".appearance.fog", "Fog"), "Look": (".appearance.shading", "Look"),
+    "best_view": (".appearance.viewpoint", "best_view"),
+    "first_look": (".appearance.viewpoint", "first_look"),
+    "CameraError": (".errors", "CameraError"), "HsrError": (".errors", "HsrError"),
+    "HsrWarning": (".errors", "HsrWarning"), "MeshError": (".errors", "MeshError"),
+    "OutputError": (".errors", "OutputError"), "RenderError": (".errors", "RenderError"),
+    "CullMode": (".geometry.state", "CullMode"), "DepthFunc": (".geometry.state", "DepthFunc"),
+    "FrontFace": (".geometry.state", "FrontFace"),
+    "PolygonMode": (".geometry.state", "PolygonMode"),
+    "RenderState": (".geometry.state", "RenderState"),
+    "HiddenLine": (".lines.raster", "HiddenLine"),
+    "hidden_lines": (".lines.vector", "hidden_lines"),
+    "write_lines_svg": (".lines.vector", "write_lines_svg"),
+    "Workspace": (".parallel", "Workspace"),
+    "Frame": (".render", "Frame"), "render": (".render", "render"),
+    "scenes": (".scene.builtin", None), "views": (".scene.views", None),
+    "Camera": (".scene.camera", "Camera"),
+    "read_colmap": (".scene.camera_files", "read_colmap"),
+    "read_transforms": (".scene.camera_files", "read_transforms"),
+    "write_transforms": (".scene.camera_files", "write_transforms"),
+    "load": (".scene.load", "load"), "load_scene": (".scene.load", "load_scene"),
+    "Instance": (".scene.mesh", "Instance"), "Mesh": (".scene.mesh", "Mesh"),
+    "Scene": (".scene.mesh", "Scene"), "partition": (".scene.partition", "partition"),
+    "PartitionedScene": (".scene.partitioned", "PartitionedScene"),
+    "write_mesh": (".scene.write", "write_mesh"),
+    "RayHits": (".visibility", "RayHits"), "RayScene": (".visibility", "RayScene"),
+    "prune": (".visibility", "prune"), "visibility_matrix": (".visibility", "visibility_matrix"),
+    "visible_faces": (".visibility", "visible_faces"),
+    "visible_points": (".visibility", "visible_points"),
+    "visible_vertices": (".visibility", "visible_vertices"),
+}
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'hsr' has no attribute {name!r}") from None
+    loaded = importlib.import_module(module, __name__)
+    value = loaded if attr is None else getattr(loaded, attr)
+    globals()[name] = value  # looked up once
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+if TYPE_CHECKING:  # the names as type checkers and IDEs see them
+    from . import batch, visibility
+    from .algorithms import ALGORITHMS, bsp, raycast
+    from .appearance.fog import Fog
+    from .appearance.shading import Look
+    from .appearance.viewpoint import best_view, first_look
+    from .errors import (
+        CameraError,
+        HsrError,
+        HsrWarning,
+        MeshError,
+        OutputError,
+        RenderError,
+    )
+    from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
+    from .lines.raster import HiddenLine
+    from .lines.vector import hidden_lines, write_lines_svg
+    from .parallel import Workspace
+    from .render import Frame, render
+    from .scene import builtin as scenes
+    from .scene import views
+    from .scene.camera import Camera
+    from .scene.camera_files import read_colmap, read_transforms, write_transforms
+    from .scene.load import load, load_scene
+    from .scene.mesh import Instance, Mesh, Scene
+    from .scene.partition import partition
+    from .scene.partitioned import PartitionedScene
+    from .scene.write import write_mesh
+    from .visibility import (
+        RayHits,
+        RayScene,
+        prune,
+        visibility_matrix,
+        visible_faces,
+        visible_points,
+        visible_vertices,
+    )
 
 __version__ = "0.1.0"
 

@@ -28,6 +28,7 @@ from .appearance.shading import (
 )
 from .appearance.transparency import check_order, transparent_mask, transparent_pass
 from .appearance.viewpoint import first_look
+from .choices import Algorithm, Light, Shading, TextureFilter, TextureWrap, Transparency
 from .errors import RenderError
 from .geometry.stage import prepare
 from .geometry.state import RenderState
@@ -199,14 +200,14 @@ class Frame:
 
 
 def render(scene: SceneLike, camera: Camera | None = None, width: int = 800, height: int = 600, *,
-           algorithm: str = "zbuffer", state: RenderState | None = None,
-           shading: str = "auto", background: ArrayLike = (0, 0, 0), counts: bool = False,
+           algorithm: Algorithm = "zbuffer", state: RenderState | None = None,
+           shading: Shading = "auto", background: ArrayLike = (0, 0, 0), counts: bool = False,
            into: Frame | None = None, threads: int | None = None,
            occlusion_cull: bool = False, options: dict | None = None,
            look: Look | None = None, fog: Fog | None = None, textures: bool = True,
-           texture_filter: str = "bilinear", texture_wrap: str = "repeat",
-           light: str | None = None,
-           hidden_line: HiddenLine | bool | None = None, transparency: str = "object",
+           texture_filter: TextureFilter = "bilinear", texture_wrap: TextureWrap = "repeat",
+           light: Light | None = None,
+           hidden_line: HiddenLine | bool | None = None, transparency: Transparency = "object",
            color: bool = True, workspace: Workspace | None = None,
            **state_fields) -> Frame:
     """Render ``scene`` (a Mesh, Scene, trimesh.Trimesh or (vertices, faces), a path or a

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numba import njit
 
+from ..choices import Light, Shading, TextureFilter, TextureWrap
 from ..errors import RenderError, check_choice
 from ..parallel import Workers
 from ..scene.images import load_texture
@@ -342,12 +343,12 @@ class Look:
     light, or a fog that is not an :class:`hsr.Fog`.
     """
 
-    shading: str = "auto"
+    shading: Shading = "auto"
     textures: bool = True
-    texture_filter: str = "bilinear"
-    texture_wrap: str = "repeat"
+    texture_filter: TextureFilter = "bilinear"
+    texture_wrap: TextureWrap = "repeat"
     fog: Fog | None = None
-    light: str = "headlight"
+    light: Light = "headlight"
     crease_angle: float = CREASE_ANGLE
 
     def __post_init__(self):

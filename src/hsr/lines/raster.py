@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..choices import EdgeKind
 from ..errors import RenderError, check_choice, check_rgb
 from ..geometry.conventions import GUARD_BAND_PIXELS
 from ..geometry.setup import ONE as _ONE
@@ -50,7 +51,7 @@ class HiddenLine:
     angle outside 0..180.
     """
 
-    edges: str = "all"
+    edges: EdgeKind = "all"
     crease_angle: float = 30.0
     polygon_offset: tuple = (1.0, 1.0)
     color: tuple | None = None

@@ -18,10 +18,11 @@ from __future__ import annotations
 import copy
 import io
 import os
-from typing import Literal, cast
+from typing import cast
 
 import numpy as np
 
+from ..choices import UpAxisChoice
 from ..errors import HsrError, MeshError
 from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver, glb_chunks, gltf_json
 from .files import MAX_MESH_BYTES, check_regular, read_regular
@@ -41,7 +42,7 @@ from .partitioned import PartitionedScene, open_partitioned
 
 __all__ = ["load", "load_scene", "scene_of", "UpAxisChoice"]
 
-UpAxisChoice = Literal["auto", "y", "z"]
+
 
 _GLTF_EXTENSIONS = (".gltf", ".glb")
 # The up axis a format declares: glTF 2.0 is +Y up (section 3.4); STL is written in the

@@ -14,11 +14,12 @@ a number of views outside 1..1000000.
 from __future__ import annotations
 
 import math
-from typing import Any, Literal, cast
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..choices import UpAxis
 from ..errors import CameraError
 from .camera import Camera
 
@@ -33,7 +34,6 @@ MARGIN = 1.05  # the sphere's silhouette fills at most 1 / 1.05 of the narrower 
 # The world axis that points up: +Y (glTF, OpenGL, most meshes) or +Z (CAD, scans,
 # Blender, STL). A Z-up model is seen as the same model turned to Y-up would be.
 UP_AXES = ("y", "z")
-UpAxis = Literal["y", "z"]
 
 
 def up_vector(up_axis: UpAxis = "y") -> np.ndarray:

@@ -201,7 +201,7 @@ def orbit_camera(bounds, request: ViewRequest, up_axis: str = "y"):
                                                     request.fov, request.w / request.h,
                                                     up_axis)
     distance = fit * request.dist
-    up_world = view_sets.up_vector(up_axis)
+    up_world = view_sets.up_vector(view_sets.check_up_axis(up_axis))
     target = centre + radius * (request.tx * right + request.ty * up)
     eye = target + toward * distance
     to_centre = float(np.linalg.norm(eye - centre))

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from ..choices import Algorithm
 from ..errors import HsrError
 from ..parallel import progress_bar
 from ..scene.camera import Camera
@@ -97,7 +98,7 @@ def cameras_for(scene: Scene, views: Any, aspect: float, near: float | None = No
 
 
 def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
-                    client: Any = None, algorithm: str = "zbuffer",
+                    client: Any = None, algorithm: Algorithm = "zbuffer",
                     threads: int | None = None, near: float | None = None,
                     far: float | None = None,
                     progress: bool | None = None, cull_objects: bool | str = True,

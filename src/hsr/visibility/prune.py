@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..choices import Algorithm
 from ..scene.mesh import Mesh, Scene, SceneLike, _kept, as_scene
 from ..scene.partitioned import PartitionedScene
 from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
@@ -316,7 +317,7 @@ def _cut_mesh(mesh: Mesh, mine: np.ndarray) -> Mesh:
 
 def verify(original: SceneLike, pruned: SceneLike, kept: ArrayLike, count: int = 100,
            size: int | tuple = 512, *, seed: int = 0,
-           algorithm: str = "zbuffer", threads: int | None = None, **options) -> dict:
+           algorithm: Algorithm = "zbuffer", threads: int | None = None, **options) -> dict:
     """Render ``count`` random viewpoints from outside the original's bounding sphere
     (directions uniform on the sphere from ``seed``: not the decision's views) of the
     original and the pruned scene, and count the pixels whose visible surface differs
