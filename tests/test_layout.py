@@ -9,8 +9,8 @@ import os
 SRC = os.path.join(os.path.dirname(__file__), "..", "src", "hsr")
 
 # Stage of each package along the data path; modules at the root are the public face
-# (render, cli) or helpers every stage may use (errors, parallel).
-STAGES = {"errors": 0, "parallel": 0, "scene": 1, "geometry": 2, "raster": 3,
+# (render, cli) or helpers every stage may use (errors, parallel, choices).
+STAGES = {"errors": 0, "parallel": 0, "choices": 0, "scene": 1, "geometry": 2, "raster": 3,
           "algorithms": 4, "appearance": 5, "lines": 5, "render": 6, "__init__": 6,
           "explain": 7, "batch": 7, "visibility": 7, "viewer": 7, "cli": 8, "__main__": 9}
 

@@ -80,3 +80,13 @@ def test_import_hsr_loads_nothing_heavy():
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split("\n")[:3] == ["[]", "True", "[]"], done.stdout
+
+
+def test_hsr_render_is_the_function_whatever_was_imported_first():
+    """With lazy names, importing the submodule hsr.render (as hsr.visibility does) bound
+    ``hsr.render`` to the module: ``hsr.render(scene)`` raised 'module is not callable'."""
+    code = ("import hsr.visibility, hsr; import hsr.render; s, c = hsr.scenes.get('cubes'); "
+            "print(hsr.render(s, c, 8, 6).face_id.shape)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0 and done.stdout.strip() == "(6, 8)", done.stderr[-500:]

@@ -17,6 +17,8 @@ transparency) and :mod:`hsr.lines` (polygon modes, hidden lines, SVG) -> :func:`
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING
 
 # Public names -> the module that defines them. ``import hsr`` loads none of them (NumPy,
@@ -57,6 +59,20 @@ _LAZY = {
     "visible_points": (".visibility", "visible_points"),
     "visible_vertices": (".visibility", "visible_vertices"),
 }
+
+
+class _Package(types.ModuleType):
+    """The package's module type: importing the submodule ``hsr.render`` binds the name
+    ``render`` to that module, but the public ``hsr.render`` is its function (as the eager
+    ``from .render import render`` made it)."""
+
+    def __setattr__(self, name, value):
+        if name == "render" and isinstance(value, types.ModuleType):
+            value = value.render
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str):

@@ -34,7 +34,7 @@ from .texture import FILTERS, WRAPS, sample
 if TYPE_CHECKING:
     from ..geometry.stage import ScreenTriangles
     from ..scene.camera import Camera
-    from ..scene.mesh import Scene
+    from ..scene.mesh import Mesh, Scene
 
 __all__ = ["SHADING_MODES", "LIGHTS", "LightRig", "light_rig", "lambert", "Look", "ShadeContext",
            "shade_fragments", "face_colors", "paint_faces", "shade_depth", "face_random_colors",
@@ -365,7 +365,7 @@ class Look:
                 or not 0.0 <= angle <= 180.0):
             raise RenderError(f"crease_angle must be a number in 0..180 degrees, got {angle!r}")
 
-    def mode_of(self, mesh) -> str:
+    def mode_of(self, mesh: Mesh) -> str:
         """The shading mode ``mesh`` is drawn with (``auto`` resolved for it)."""
         if self.shading == "auto":
             return "smooth" if mesh.corner_normals is not None else "flat"

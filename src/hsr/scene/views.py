@@ -41,7 +41,7 @@ def up_vector(up_axis: UpAxis = "y") -> np.ndarray:
     return np.array([0.0, 1.0, 0.0] if check_up_axis(up_axis) == "y" else [0.0, 0.0, 1.0])
 
 
-def check_up_axis(up_axis) -> UpAxis:
+def check_up_axis(up_axis: object) -> UpAxis:
     """``up_axis`` checked: ``y`` or ``z`` (else :class:`~hsr.errors.CameraError`)."""
     if not isinstance(up_axis, str) or up_axis not in UP_AXES:
         raise CameraError(f"up_axis must be y or z, got {up_axis!r}")
