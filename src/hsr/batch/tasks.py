@@ -105,8 +105,8 @@ def place_cameras(scene, placement, size, views=None) -> list:
             chosen = [chosen[v] for v in views]
         bounds = scene.bounds() if any(isinstance(c, Unfitted) for c in chosen) else None
         return [placed(c, bounds) for c in chosen]
-    _, kind, count, elevation, up_axis = placement
-    up = view_sets.model_up(scene, up_axis)
+    _, kind, count, elevation, *up_axis = placement
+    up = view_sets.model_up(scene, up_axis[0] if up_axis else None)
     dirs = view_sets.directions(kind, count, elevation, up_axis=up)
     bounds = scene.bounds()
     return [view_sets.framed(bounds, dirs[v], size[0] / size[1], up_axis=up)

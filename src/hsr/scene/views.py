@@ -23,7 +23,7 @@ from ..choices import UpAxis
 from ..errors import CameraError
 from .camera import Camera
 
-__all__ = ["DEFAULT_VIEW", "UP_AXES", "UpAxis", "check_up_axis", "model_up", "up_vector",
+__all__ = ["DEFAULT_VIEW", "UP_AXES", "check_up_axis", "model_up", "up_vector",
            "default", "directions", "model_points", "framed", "orbit", "sphere", "hemisphere",
            "direction"]
 
