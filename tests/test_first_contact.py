@@ -491,6 +491,7 @@ def test_real_sample_files_look_as_their_authors_meant(models_dir, name, tmp_pat
     reference rasteriser's barycentrics, trimesh's texture coordinates, Pillow's texels),
     its up axis is the one its format declares, and its first look frames it whole."""
     import trimesh
+
     from reference import reference_render
 
     path = os.path.join(models_dir, name)

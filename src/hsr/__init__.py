@@ -58,6 +58,8 @@ _LAZY = {
     "visible_faces": (".visibility", "visible_faces"),
     "visible_points": (".visibility", "visible_points"),
     "visible_vertices": (".visibility", "visible_vertices"),
+    "visible_regions": (".visibility.regions", "visible_regions"),
+    "Regions": (".visibility.regions", "Regions"),
 }
 
 
@@ -127,6 +129,7 @@ if TYPE_CHECKING:  # the names as type checkers and IDEs see them
         visible_points,
         visible_vertices,
     )
+    from .visibility.regions import Regions, visible_regions
 
 __version__ = "0.1.0"
 
@@ -138,5 +141,5 @@ __all__ = [
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
     "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
     "visible_vertices", "visible_points", "visibility_matrix", "first_look", "best_view",
-    "partition", "PartitionedScene",
+    "partition", "PartitionedScene", "visible_regions", "Regions",
 ]

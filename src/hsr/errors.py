@@ -33,7 +33,7 @@ class MissingExtraError(HsrError):
 
 # The extra of pyproject.toml that installs each optional module.
 EXTRAS = {"distributed": "dask", "zarr": "dask", "starlette": "view", "uvicorn": "view",
-          "OpenEXR": "exr"}
+          "OpenEXR": "exr", "shapely": "regions"}
 
 
 def require_extra(what: str, *modules: str) -> None:

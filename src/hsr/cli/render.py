@@ -26,6 +26,10 @@ def add_parser(sub) -> None:
                    "--algorithm bsp or newell: the ordered polygons (exact, no rasterization)")
     rl.add_argument("--lines", action="store_true",
                    help="--svg draws visible edges, cut exactly where they become hidden")
+    rl.add_argument("--fill", action="store_true",
+                   help="--svg draws each face's exact visible region, filled with its flat "
+                   "colour (hsr.visible_regions: nothing hidden underneath; with --lines the "
+                   "edges on top)"),
     rl.add_argument("--hidden-layer", action="store_true",
                    help="--svg --lines also draws the hidden parts, dashed")
     rl.add_argument("--hidden-line", action="store_true",
@@ -78,6 +82,10 @@ def run(args) -> int:
         raise CliError("--lines writes an SVG: give --svg FILE")
     if args.hidden_layer and not args.lines:
         raise CliError("--hidden-layer goes with --svg FILE --lines")
+    if args.fill and not args.svg:
+        raise CliError("--fill writes an SVG: give --svg FILE")
+    if args.fill and args.hidden_layer:
+        raise CliError("--hidden-layer draws what --fill hides: use --svg FILE --lines")
     hidden_line = hidden_line_args(args)
     if args.algorithm in ("newell", "bsp") and not args.quiet and sys.stderr.isatty():
         options.setdefault("progress", True)
@@ -97,7 +105,9 @@ def run(args) -> int:
         print("hsr: warning: the view covers no pixel of the scene (is it behind the "
               "camera, or outside --near/--far?)", file=sys.stderr)
     _save_outputs(args, frame, "")
-    if args.svg and args.lines:
+    if args.svg and args.fill:
+        _write_regions(args, scene, camera, width, height, state, background, hidden_line)
+    elif args.svg and args.lines:
         from ..lines.vector import hidden_lines, write_lines_svg
 
         drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
@@ -205,6 +215,33 @@ def _algorithm_summary(stats) -> str:
     if "bsp_nodes" in stats:
         parts.append(f"{stats['bsp_nodes']} BSP nodes, {stats['splits']} splits")
     return "".join("; " + p for p in parts)
+
+
+def _write_regions(args, scene, camera, width, height, state, background, hidden_line):
+    """``--svg FILE --fill``: the exact visible regions, flat-shaded, edges on top with
+    ``--lines``."""
+    from ..appearance.shading import face_colors
+    from ..parallel import Workers
+    from ..visibility.regions import visible_regions, write_regions_svg
+
+    if args.shading == "depth":
+        raise CliError("--fill draws flat colours: use --shading flat, normal or random")
+    fields = {name: getattr(state, name) for name in ("depth_test", "depth_func",
+              "depth_mask", "clear_depth", "cull", "front_face", "polygon_mode",
+              "polygon_offset")}
+    regions = visible_regions(scene, camera, width, height, threads=args.threads, **fields)
+    with Workers(args.threads) as workers:
+        colors = face_colors(args.shading, scene, camera, workers, light=args.light)
+    drawing = None
+    if args.lines:
+        from ..lines.vector import hidden_lines
+
+        drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
+    write_regions_svg(args.svg, regions, colors, background, drawing,
+                      hidden_line.line_color(background))
+    if not args.quiet:
+        print(f"wrote {args.svg}: the visible regions of {len(regions)} faces "
+              f"({len(regions.piece_row)} convex pieces, {regions.area.sum():.1f} px^2)")
 
 
 def _write_svg(args, frame, scene, camera, width, height, background):

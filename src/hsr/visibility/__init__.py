@@ -27,8 +27,10 @@ from .queries import (
     visible_vertices,
 )
 from .rays import RayError, RayHits, RayScene
+from .regions import Regions, RegionsError, visible_regions
 
-__all__ = ["VisibilityError", "VisibilityWarning", "Decision", "cameras_for",
+__all__ = ["VisibilityError", "VisibilityWarning", "Decision", "cameras_for", "Regions",
+           "RegionsError", "visible_regions",
            "face_visibility", "object_visibility", "decide", "auto_size", "grow_rings",
            "keep_faces", "prune", "subset_scene", "verify", "RayScene", "RayHits",
            "RayError", "visible_faces", "visible_vertices", "visible_points",

@@ -63,14 +63,25 @@ def _scene(scene, partitioned: bool = False):
 
 
 def visible_faces(scene: SceneLike, camera: Camera, width: int, height: int,
-                  **render_options) -> tuple:
+                  exact: bool = False, **render_options) -> tuple:
     """``(face_ids, pixel_counts)``: the global ids (ascending, int64) of the faces that
     own at least one pixel centre of ``camera``'s ``width`` x ``height`` image, and how
     many (int64): exactly what :func:`hsr.render` shows, with the same
     ``render_options`` (``cull``, ``depth_func``, ``algorithm``, ...).
 
-    Raises what :func:`hsr.render` raises."""
+    ``exact=True``: ``(face_ids, areas)``, every face with a visible part however small
+    (no pixel centre needed) and its visible area in px^2 (float64), from
+    :func:`hsr.visible_regions` (``render_options``: its depth state).
+
+    Raises what :func:`hsr.render` (or :func:`hsr.visible_regions`) raises."""
     from ..render import render
+
+    if exact:
+        from .regions import visible_regions
+
+        regions = visible_regions(_scene(scene), _camera(camera), width, height,
+                                  **render_options)
+        return regions.face_id, regions.area
 
     frame = render(_scene(scene), _camera(camera), width, height, color=False,
                    **render_options)

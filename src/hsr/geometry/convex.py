@@ -1,0 +1,127 @@
+"""Convex polygons in the plane, for the exact visible regions: clipping by a half-plane
+(Sutherland & Hodgman 1974, one plane at a time) and the difference of two convex
+polygons as disjoint convex pieces (each edge line of the subtracted polygon splits off
+the part outside it, the rest goes on to the next edge).
+
+A polygon is ``n`` vertices in the first rows of a (MAX_VERTICES, 2) float64 array, in
+either orientation: the functions that need it take it from the polygon itself.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+MAX_VERTICES = 64  # a triangle cut by every edge of many hiders stays far below this
+
+
+@njit(cache=True, nogil=True)
+def clip_half_plane(src, n, a, b, c, dst) -> int:
+    """Write into ``dst`` the part of polygon ``src[:n]`` where ``a x + b y + c >= 0``
+    (closed: a vertex on the line is kept, an edge is cut only where the sign strictly
+    changes, so no vertex is emitted twice); returns its vertex count, 0 when less than a
+    triangle is left. The parts of one polygon on either side of a line share the
+    points on it and no area."""
+    m = 0
+    if n == 0:
+        return 0
+    px, py = src[n - 1, 0], src[n - 1, 1]
+    dp = a * px + b * py + c
+    for k in range(n):
+        qx, qy = src[k, 0], src[k, 1]
+        dq = a * qx + b * qy + c
+        if (dp > 0.0 and dq < 0.0) or (dp < 0.0 and dq > 0.0):
+            t = dp / (dp - dq)
+            m = _emit(dst, m, px + t * (qx - px), py + t * (qy - py))
+        if dq >= 0.0:
+            m = _emit(dst, m, qx, qy)
+        px, py, dp = qx, qy, dq
+    if m >= 2 and dst[m - 1, 0] == dst[0, 0] and dst[m - 1, 1] == dst[0, 1]:
+        m -= 1
+    return m if m >= 3 else 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _emit(dst, m, x, y) -> int:
+    """Append (x, y) unless it repeats the last vertex (or there is no room)."""
+    if m >= MAX_VERTICES or (m > 0 and dst[m - 1, 0] == x and dst[m - 1, 1] == y):
+        return m
+    dst[m, 0] = x
+    dst[m, 1] = y
+    return m + 1
+
+
+@njit(cache=True, nogil=True)
+def signed_area(poly, n) -> float:
+    """Shoelace area of ``poly[:n]`` (positive counter-clockwise in the x-right y-up
+    sense)."""
+    s = 0.0
+    for k in range(n):
+        j = k + 1 if k + 1 < n else 0
+        s += poly[k, 0] * poly[j, 1] - poly[j, 0] * poly[k, 1]
+    return 0.5 * s
+
+
+@njit(cache=True, nogil=True)
+def bounds_overlap(p, n, q, m) -> bool:
+    """True unless the boxes of ``p[:n]`` and ``q[:m]`` are apart."""
+    pminx = pmaxx = p[0, 0]
+    pminy = pmaxy = p[0, 1]
+    for k in range(1, n):
+        pminx = min(pminx, p[k, 0])
+        pmaxx = max(pmaxx, p[k, 0])
+        pminy = min(pminy, p[k, 1])
+        pmaxy = max(pmaxy, p[k, 1])
+    qminx = qmaxx = q[0, 0]
+    qminy = qmaxy = q[0, 1]
+    for k in range(1, m):
+        qminx = min(qminx, q[k, 0])
+        qmaxx = max(qmaxx, q[k, 0])
+        qminy = min(qminy, q[k, 1])
+        qmaxy = max(qmaxy, q[k, 1])
+    return not (pmaxx <= qminx or qmaxx <= pminx or pmaxy <= qminy or qmaxy <= pminy)
+
+
+@njit(cache=True, nogil=True)
+def edge_lines(poly, n, lines) -> int:
+    """``lines[k] = (a, b, c)``, (a, b) a unit vector, with ``a x + b y + c > 0`` outside
+    edge k of the convex polygon ``poly[:n]`` (whatever its orientation). First merges
+    vertices that rounding left within 1e-12 of the polygon's size of the one before (a
+    cut at a corner repeats it): an edge that short has no direction. Returns the number
+    of edges, 0 when the polygon is a sliver (under three vertices left, or a vertex
+    outside another edge's line by more than 1e-9 of its size: not convex to rounding),
+    which then bounds nothing."""
+    extent = 0.0
+    for k in range(n):
+        extent = max(extent, abs(poly[k, 0] - poly[0, 0]), abs(poly[k, 1] - poly[0, 1]))
+    if extent == 0.0:
+        return 0
+    m = 0
+    for k in range(n):
+        if m > 0 and (abs(poly[k, 0] - poly[m - 1, 0]) <= 1e-12 * extent
+                      and abs(poly[k, 1] - poly[m - 1, 1]) <= 1e-12 * extent):
+            continue
+        poly[m, 0] = poly[k, 0]
+        poly[m, 1] = poly[k, 1]
+        m += 1
+    while m > 1 and (abs(poly[m - 1, 0] - poly[0, 0]) <= 1e-12 * extent
+                     and abs(poly[m - 1, 1] - poly[0, 1]) <= 1e-12 * extent):
+        m -= 1
+    if m < 3:
+        return 0
+    sign = 1.0 if signed_area(poly, m) > 0.0 else -1.0
+    for k in range(m):
+        j = k + 1 if k + 1 < m else 0
+        ex, ey = poly[j, 0] - poly[k, 0], poly[j, 1] - poly[k, 1]
+        length = math.sqrt(ex * ex + ey * ey)
+        # Inside a counter-clockwise polygon is left of each edge: outside is (ey, -ex).
+        a, b = ey * sign / length, -ex * sign / length
+        c = -(a * poly[k, 0] + b * poly[k, 1])
+        for v in range(m):
+            if a * poly[v, 0] + b * poly[v, 1] + c > 1e-9 * extent:
+                return 0
+        lines[k, 0] = a
+        lines[k, 1] = b
+        lines[k, 2] = c
+    return m

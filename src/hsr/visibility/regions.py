@@ -1,0 +1,493 @@
+"""Exact visible regions: hidden-surface removal in object space, as geometry.
+
+For every face, the part of its projection that nothing covers, in the pixel geometry of
+images (x right, y down; pixel (x, y) covers [x, x+1) x [y, y+1)), independent of any
+pixel grid: computed once, it scales to any size.
+
+Method. The geometry stage gives each face's projection, clipped exactly at the near and
+far planes and culled as the state says, as window-space triangles whose depth is an
+affine function of (x, y) (a plane stays a plane under the projective map). A triangle
+T_j hides a point of triangle T_i where it covers the point and its depth there is less:
+the convex polygon T_j cut by the half-plane where z_j < z_i (the difference of two affine
+functions). So
+
+    visible(T_i) = T_i - union over j of (T_j  cut by  z_j < z_i)
+
+which cuts faces that pass through each other exactly along their intersection line and
+needs no depth order: cycles need no special case. Coplanar faces tie as OpenGL breaks
+ties: with ``less`` the face submitted first keeps the overlap, with ``lequal`` the last.
+
+Each difference keeps the visible part as disjoint convex pieces: a piece that meets a
+hider is split by the hider's edge lines, the part outside each edge kept and the rest
+passed to the next edge (what is left is inside the hider). Candidates come from a grid of
+cells over the image, nearest first, so a face buried under a near one stops early. All in
+float64, in Numba kernels; shapely (``hsr[regions]``) only merges a face's pieces into
+polygons with holes when :attr:`Regions.polygons` is read.
+
+A region's boundary belongs to neither face: areas are exact (to float64 rounding), and a
+point on a shared edge or vertex lies in no region's interior. Pieces thinner than
+rounding (area under :data:`MIN_PIECE_AREA` px^2, slivers left where two hiders share an
+edge) are dropped, so a face is reported only with a visible area above it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ..errors import HsrError, RenderError
+from ..geometry.convex import (
+    MAX_VERTICES,
+    bounds_overlap,
+    clip_half_plane,
+    edge_lines,
+    signed_area,
+)
+from ..scene.camera import Camera
+from ..scene.mesh import SceneLike
+
+__all__ = ["Regions", "RegionsError", "visible_regions", "write_regions_svg", "MIN_PIECE_AREA"]
+
+MIN_PIECE_AREA = 1e-9  # px^2: a piece smaller than this is rounding, not surface
+GRID = 2.0 ** -30  # px: the snapping grid of the polygons merged from the pieces
+# Two planes whose depths differ by less than this (relative) over a triangle are one.
+_TIE = 1e-12
+_MAX_PIECES = 4096  # convex pieces of one triangle's visible part at a time
+_CELL_TRIANGLES = 4.0  # about this many triangles' boxes per grid cell
+
+
+class RegionsError(HsrError):
+    """A scene, camera or state the exact regions cannot answer."""
+
+
+@dataclass
+class Regions:
+    """The visible regions of one view, one row per face with a visible part.
+
+    face_id, object_id : (R,) int64, the face (global, submission order) and its instance.
+    area : (R,) float64, visible area in px^2.
+    fraction : (R,) float64, visible area over the face's projected area inside the view.
+    piece_row : (P,) int64, the row each convex piece belongs to; piece_start : (P + 1,)
+        int64 offsets into vertices : (V, 2) float64 image coordinates (x right, y down).
+    width, height : the view in pixels (the regions lie in [0, W] x [0, H]).
+    """
+
+    face_id: np.ndarray
+    object_id: np.ndarray
+    area: np.ndarray
+    fraction: np.ndarray
+    piece_row: np.ndarray
+    piece_start: np.ndarray
+    vertices: np.ndarray
+    width: int
+    height: int
+    stats: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.face_id)
+
+    def __repr__(self) -> str:
+        return (f"<hsr.Regions {self.width}x{self.height}: {len(self)} faces visible, "
+                f"{len(self.piece_row)} convex pieces, {self.area.sum():.6g} px^2>")
+
+    def pieces(self, row: int) -> list:
+        """The convex pieces of row ``row`` as (K, 2) vertex arrays."""
+        chosen = np.flatnonzero(self.piece_row == row)
+        return [self.vertices[self.piece_start[p]:self.piece_start[p + 1]] for p in chosen]
+
+    @property
+    def polygons(self) -> list:
+        """One shapely (Multi)Polygon per row: its pieces merged, holes and all (needs
+        shapely: ``pip install 'hsr[regions]'``)."""
+        from ..errors import require_extra
+
+        require_extra("Regions.polygons", "shapely")
+        import shapely
+
+        if not len(self.piece_row):
+            return []
+        piece_of_vertex = np.repeat(np.arange(len(self.piece_row)), np.diff(self.piece_start))
+        parts = shapely.polygons(shapely.linearrings(self.vertices, indices=piece_of_vertex))
+        order = np.argsort(self.piece_row, kind="stable")
+        bounds = np.searchsorted(self.piece_row[order], np.arange(len(self) + 1))
+        # Snap-rounded overlay (GEOS OverlayNG on a 2^-30 px grid): robust where pieces
+        # meet along edges computed twice with different rounding.
+        parts = shapely.make_valid(parts)
+        return [shapely.union_all(parts[order[bounds[r]:bounds[r + 1]]], grid_size=GRID)
+                for r in range(len(self))]
+
+    def scaled(self, factor: float) -> Regions:
+        """These regions at ``factor`` times the size, without recomputing them."""
+        factor = float(factor)
+        return Regions(self.face_id, self.object_id, self.area * factor * factor,
+                       self.fraction, self.piece_row, self.piece_start,
+                       self.vertices * factor, round(self.width * factor),
+                       round(self.height * factor), dict(self.stats))
+
+
+def visible_regions(scene: SceneLike, camera: Camera, width: int, height: int,
+                    threads: int | None = None, **state_fields: Any) -> Regions:
+    """The exact visible region of every face of ``scene`` seen by ``camera`` in a
+    ``width`` x ``height`` view (see the module). ``state_fields`` as :func:`hsr.render`
+    takes them: ``cull``, ``front_face``, ``depth_func`` (``less`` or ``lequal``); faces
+    crossing the camera's near or far plane are clipped exactly.
+
+    Raises :class:`RegionsError` for any other depth state (no depth test or writes,
+    another depth function or clear depth, polygon modes, polygon offset), an empty
+    scene or a transparent instance, and what :func:`hsr.render` raises for a bad scene,
+    camera or size."""
+    from ..geometry.stage import prepare
+    from ..geometry.state import RenderState
+    from ..geometry.viewport import check_size
+    from ..parallel import Workers
+    from ..scene.load import scene_of
+
+    scene = scene_of(scene)
+    if scene.n_faces == 0:
+        raise RegionsError("visible_regions: the scene has no faces")
+    if any(inst.opacity < 1.0 for inst in scene.instances):
+        raise RegionsError("visible_regions: a transparent instance has no single visible "
+                           "face; set every opacity to 1")
+    check_size(width, height)
+    camera.validate()
+    try:
+        state = RenderState(**state_fields)
+    except TypeError as exc:
+        raise RegionsError(f"visible_regions: {exc}") from None
+    func = state.depth_func.value
+    if (func not in ("less", "lequal") or not state.depth_test or not state.depth_mask
+            or state.polygon_mode.value != "fill" or state.polygon_offset != (0.0, 0.0)
+            or state.clear_depth != 1.0):
+        raise RegionsError("visible_regions: exact regions need filled faces under the "
+                           "depth test less or lequal, with depth writes, clear depth 1 "
+                           "and no polygon offset")
+    stats: dict = {}
+    view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
+    with Workers(threads) as workers:
+        try:
+            screen = prepare(scene, view_proj, width, height, state, stats, workers)
+        except RenderError as exc:
+            raise RegionsError(str(exc)) from None
+        return _regions(scene, screen.xy_window, screen.depth_window, screen.face_id,
+                        width, height, func == "lequal", stats, workers)
+
+
+def _planes(xy: np.ndarray, depth: np.ndarray) -> tuple:
+    """(T, 3) coefficients (a, b, c) of depth = a x + b y + c over each triangle, and
+    (T,) twice its signed area (0 for a triangle seen edge-on)."""
+    x, y = xy[..., 0], xy[..., 1]
+    e1x, e1y = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0]
+    e2x, e2y = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
+    dz1, dz2 = depth[:, 1] - depth[:, 0], depth[:, 2] - depth[:, 0]
+    det = e1x * e2y - e2x * e1y
+    safe = np.where(det != 0.0, det, 1.0)
+    a = (dz1 * e2y - dz2 * e1y) / safe
+    b = (e1x * dz2 - e2x * dz1) / safe
+    c = depth[:, 0] - a * x[:, 0] - b * y[:, 0]
+    return np.stack([a, b, c], axis=1), det
+
+
+def _grid(box: np.ndarray, width: int, height: int) -> tuple:
+    """Cells over the image and the triangles whose box meets each, nearest first:
+    (cell size, columns, rows, cell_start (C + 1,), cell_tris)."""
+    n = max(len(box), 1)
+    cell = max(1.0, math.sqrt(width * height * _CELL_TRIANGLES / n))
+    ncx, ncy = int(math.ceil(width / cell)), int(math.ceil(height / cell))
+    cx0 = np.clip(np.floor(box[:, 0] / cell), 0, ncx - 1).astype(np.int64)
+    cx1 = np.clip(np.floor(box[:, 2] / cell), 0, ncx - 1).astype(np.int64)
+    cy0 = np.clip(np.floor(box[:, 1] / cell), 0, ncy - 1).astype(np.int64)
+    cy1 = np.clip(np.floor(box[:, 3] / cell), 0, ncy - 1).astype(np.int64)
+    inside = (box[:, 2] >= 0) & (box[:, 0] <= width) & (box[:, 3] >= 0) & (box[:, 1] <= height)
+    nx, ny = cx1 - cx0 + 1, cy1 - cy0 + 1
+    count = np.where(inside, nx * ny, 0)
+    tri = np.repeat(np.arange(len(box)), count)
+    k = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
+    cells = (cy0[tri] + k // nx[tri]) * ncx + cx0[tri] + k % nx[tri]
+    return cell, ncx, ncy, cells, tri
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _regions_range(lo, hi, xy, planes, zmin, zmax, box, tri_face, cell_start, cell_tris,
+                   cell, ncx, ncy, later_wins, width, height):
+    """Visible convex pieces of triangles ``lo:hi`` (see the module): (piece triangle
+    (P,), piece vertex ends (P,), vertices (V, 2), overflowed)."""
+    cap_p, cap_v = 256, 1024
+    piece_tri = np.empty(cap_p, np.int64)
+    piece_end = np.empty(cap_p, np.int64)
+    verts = np.empty((cap_v, 2))
+    n_p = 0
+    n_v = 0
+    stamp = np.full(len(xy), -1, np.int64)
+    cur = np.empty((_MAX_PIECES, MAX_VERTICES, 2))
+    cur_n = np.empty(_MAX_PIECES, np.int64)
+    nxt = np.empty((_MAX_PIECES, MAX_VERTICES, 2))
+    nxt_n = np.empty(_MAX_PIECES, np.int64)
+    tri = np.empty((MAX_VERTICES, 2))
+    tmp = np.empty((MAX_VERTICES, 2))
+    rest = np.empty((MAX_VERTICES, 2))
+    hider = np.empty((MAX_VERTICES, 2))
+    lines = np.empty((MAX_VERTICES, 3))
+    overflow = False
+    for i in range(lo, hi):
+        for k in range(3):
+            tri[k, 0] = xy[i, k, 0]
+            tri[k, 1] = xy[i, k, 1]
+        # The triangle inside the view [0, W] x [0, H].
+        n = clip_half_plane(tri, 3, 1.0, 0.0, 0.0, tmp)
+        n = clip_half_plane(tmp, n, -1.0, 0.0, float(width), tri)
+        n = clip_half_plane(tri, n, 0.0, 1.0, 0.0, tmp)
+        n = clip_half_plane(tmp, n, 0.0, -1.0, float(height), tri)
+        if n == 0:
+            continue
+        cur[0, :n] = tri[:n]
+        cur_n[0] = n
+        count = 1
+        ai, bi, ci = planes[i, 0], planes[i, 1], planes[i, 2]
+        gx0 = min(max(int(math.floor(box[i, 0] / cell)), 0), ncx - 1)
+        gx1 = min(max(int(math.floor(box[i, 2] / cell)), 0), ncx - 1)
+        gy0 = min(max(int(math.floor(box[i, 1] / cell)), 0), ncy - 1)
+        gy1 = min(max(int(math.floor(box[i, 3] / cell)), 0), ncy - 1)
+        for gy in range(gy0, gy1 + 1):
+            if count == 0:
+                break
+            for gx in range(gx0, gx1 + 1):
+                if count == 0:
+                    break
+                g = gy * ncx + gx
+                for e in range(cell_start[g], cell_start[g + 1]):
+                    j = cell_tris[e]
+                    if stamp[j] == i:
+                        continue
+                    stamp[j] = i
+                    if tri_face[j] == tri_face[i] or zmin[j] > zmax[i]:
+                        continue
+                    if (box[j, 2] <= box[i, 0] or box[i, 2] <= box[j, 0]
+                            or box[j, 3] <= box[i, 1] or box[i, 3] <= box[j, 1]):
+                        continue
+                    # d = z_i - z_j, affine: > 0 where j is nearer.
+                    big = 0.0
+                    scale = 1.0
+                    for k in range(3):
+                        d = ai * xy[j, k, 0] + bi * xy[j, k, 1] + ci - (
+                            planes[j, 0] * xy[j, k, 0] + planes[j, 1] * xy[j, k, 1]
+                            + planes[j, 2])
+                        big = max(big, abs(d))
+                        scale = max(scale, abs(planes[j, 2]))
+                    for k in range(3):
+                        hider[k, 0] = xy[j, k, 0]
+                        hider[k, 1] = xy[j, k, 1]
+                    if big <= _TIE * scale:
+                        # One plane: OpenGL's tie rule (less: the first drawn stays).
+                        hides = (tri_face[j] > tri_face[i]) if later_wins else (
+                            tri_face[j] < tri_face[i])
+                        if not hides:
+                            continue
+                        hn = 3
+                    else:
+                        hn = clip_half_plane(hider, 3, ai - planes[j, 0], bi - planes[j, 1],
+                                             ci - planes[j, 2], tmp)
+                        if hn == 0:
+                            continue
+                        hider[:hn] = tmp[:hn]
+                    hn = edge_lines(hider, hn, lines)
+                    if hn == 0:
+                        continue  # a sliver: it hides no area
+                    m = 0
+                    for p in range(count):
+                        pn = cur_n[p]
+                        if not bounds_overlap(cur[p], pn, hider, hn):
+                            if m == _MAX_PIECES:
+                                overflow = True
+                                break
+                            nxt[m, :pn] = cur[p, :pn]
+                            nxt_n[m] = pn
+                            m += 1
+                            continue
+                        rn = pn
+                        rest[:rn] = cur[p, :rn]
+                        for h in range(hn):
+                            if m == _MAX_PIECES:
+                                overflow = True
+                                break
+                            on = clip_half_plane(rest, rn, lines[h, 0], lines[h, 1],
+                                                 lines[h, 2], nxt[m])
+                            if on > 0 and abs(signed_area(nxt[m], on)) > 0.0:
+                                nxt_n[m] = on
+                                m += 1
+                            rn = clip_half_plane(rest, rn, -lines[h, 0], -lines[h, 1],
+                                                 -lines[h, 2], tmp)
+                            rest[:rn] = tmp[:rn]
+                            if rn == 0:
+                                break
+                        if overflow:
+                            break
+                    if overflow:
+                        return piece_tri[:n_p], piece_end[:n_p], verts[:n_v], True
+                    cur, nxt = nxt, cur
+                    cur_n, nxt_n = nxt_n, cur_n
+                    count = m
+                    if count == 0:
+                        break
+        for p in range(count):
+            pn = cur_n[p]
+            if abs(signed_area(cur[p], pn)) <= MIN_PIECE_AREA:
+                continue
+            if n_p == cap_p:
+                cap_p *= 2
+                grown = np.empty(cap_p, np.int64)
+                grown[:n_p] = piece_tri[:n_p]
+                piece_tri = grown
+                grown = np.empty(cap_p, np.int64)
+                grown[:n_p] = piece_end[:n_p]
+                piece_end = grown
+            while n_v + pn > cap_v:
+                cap_v *= 2
+                grown_v = np.empty((cap_v, 2))
+                grown_v[:n_v] = verts[:n_v]
+                verts = grown_v
+            verts[n_v:n_v + pn] = cur[p, :pn]
+            n_v += pn
+            piece_tri[n_p] = i
+            piece_end[n_p] = n_v
+            n_p += 1
+    return piece_tri[:n_p], piece_end[:n_p], verts[:n_v], overflow
+
+
+def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins, stats,
+             workers) -> Regions:
+    xy = np.array(xy_window, dtype=np.float64).reshape(-1, 3, 2)
+    xy[..., 1] = height - xy[..., 1]  # image geometry: y down from the top edge
+    depth = np.asarray(depth_window, dtype=np.float64).reshape(-1, 3)
+    tri_face = np.asarray(face_id, dtype=np.int64)
+    planes, det = _planes(xy, depth)
+    keep = det != 0.0  # a face seen edge-on covers no area
+    xy, depth, planes, tri_face = xy[keep], depth[keep], planes[keep], tri_face[keep]
+    box = np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
+    zmin, zmax = depth.min(axis=1), depth.max(axis=1)
+    cell, ncx, ncy, cells, tris = _grid(box, width, height)
+    order = np.lexsort((zmin[tris], cells))  # by cell, nearest first within a cell
+    cell_tris = tris[order]
+    cell_start = np.searchsorted(cells[order], np.arange(ncx * ncy + 1))
+    parts = workers.run_range(_regions_range, len(xy), xy, planes, zmin, zmax, box, tri_face,
+                              cell_start, cell_tris, cell, ncx, ncy, later_wins, width,
+                              height, min_chunk=256)
+    if any(part[3] for part in parts):
+        raise RegionsError(f"visible_regions: a face's visible part broke into more than "
+                           f"{_MAX_PIECES} convex pieces")
+    piece_tri = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, np.int64)
+    vertices = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 2))
+    ends, offset = [], 0
+    for p in parts:
+        ends.append(p[1] + offset)
+        offset += len(p[2])
+    piece_start = np.concatenate([[0]] + ends).astype(np.int64)
+    piece_area = _piece_areas(vertices, piece_start)
+    piece_face = tri_face[piece_tri]
+    faces, piece_row = np.unique(piece_face, return_inverse=True)
+    area = np.bincount(piece_row, piece_area, minlength=len(faces))
+    whole = _projected_areas(xy, tri_face, faces, width, height)
+    object_id = (np.searchsorted(scene.face_offsets(), faces, side="right") - 1).astype(
+        np.int64)
+    stats.update(pieces=len(piece_tri), cells=ncx * ncy)
+    return Regions(faces.astype(np.int64), object_id, area, area / whole,
+                   piece_row.astype(np.int64), piece_start, vertices, width, height, stats)
+
+
+def _piece_areas(vertices: np.ndarray, piece_start: np.ndarray) -> np.ndarray:
+    """Absolute shoelace area of each piece."""
+    if len(piece_start) <= 1:
+        return np.zeros(0)
+    x, y = vertices[:, 0], vertices[:, 1]
+    idx = np.arange(len(vertices))
+    piece = np.repeat(np.arange(len(piece_start) - 1), np.diff(piece_start))
+    nxt = np.where(idx + 1 == piece_start[piece + 1], piece_start[piece], idx + 1)
+    cross = x * y[nxt] - x[nxt] * y
+    return np.abs(0.5 * np.bincount(piece, cross, minlength=len(piece_start) - 1))
+
+
+def _projected_areas(xy, tri_face, faces, width, height) -> np.ndarray:
+    """Each face's projected area inside the view (its clipped triangles are disjoint)."""
+    if not len(faces):
+        return np.zeros(0)
+    clipped = _view_areas(xy, float(width), float(height))
+    row = np.minimum(np.searchsorted(faces, tri_face), len(faces) - 1)
+    mine = faces[row] == tri_face  # hidden faces have no row
+    return np.bincount(row[mine], clipped[mine], minlength=len(faces))
+
+
+@njit(cache=True, nogil=True)
+def _view_areas(xy, width, height):
+    out = np.zeros(len(xy))
+    a = np.empty((MAX_VERTICES, 2))
+    b = np.empty((MAX_VERTICES, 2))
+    for i in range(len(xy)):
+        for k in range(3):
+            a[k, 0] = xy[i, k, 0]
+            a[k, 1] = xy[i, k, 1]
+        n = clip_half_plane(a, 3, 1.0, 0.0, 0.0, b)
+        n = clip_half_plane(b, n, -1.0, 0.0, width, a)
+        n = clip_half_plane(a, n, 0.0, 1.0, 0.0, b)
+        n = clip_half_plane(b, n, 0.0, -1.0, height, a)
+        out[i] = abs(signed_area(a, n)) if n else 0.0
+    return out
+
+
+def write_regions_svg(path, regions: Regions, colors, background=(0, 0, 0),
+                      lines=None, line_color=(0, 0, 0)) -> None:
+    """Write ``regions`` as SVG: one filled ``<path>`` per face with a visible part (holes
+    by the even-odd rule), coloured ``colors[face_id]`` (an (N, 3) uint8 table indexed by
+    face id, as :func:`hsr.appearance.shading.face_colors` gives), carrying its face as
+    ``data-face``; no region overlaps another, so nothing hidden lies underneath. With
+    ``lines`` (a :class:`hsr.lines.vector.LineDrawing` of the same view) its visible
+    polylines are drawn on top. The viewBox is the image: it scales without
+    recomputation. Raises :class:`~hsr.errors.OutputError` when the file cannot be
+    written and :class:`RegionsError` for colours that do not cover the faces."""
+    from ..lines.svg import write_svg
+
+    colors = np.asarray(colors)
+    if colors.ndim != 2 or colors.shape[1] != 3 or (
+            len(regions) and colors.shape[0] <= int(regions.face_id.max())):
+        raise RegionsError(f"colors must be an (N, 3) table indexed by face id, N > "
+                           f"{int(regions.face_id.max()) if len(regions) else 0}; got shape "
+                           f"{colors.shape}")
+    w, h = regions.width, regions.height
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
+             f'viewBox="0 0 {w} {h}">',
+             f'<rect width="{w}" height="{h}" fill="{_rgb(background)}"/>',
+             '<g id="regions" stroke="none" fill-rule="evenodd">']
+    for face, shape in zip(regions.face_id, regions.polygons):
+        d = " ".join(_ring_path(ring) for ring in _rings(shape))
+        parts.append(f'<path d="{d}" fill="{_rgb(colors[face])}" data-face="{int(face)}"/>')
+    parts.append("</g>")
+    if lines is not None:
+        parts.append(f'<g id="lines" fill="none" stroke="{_rgb(line_color)}" '
+                     f'stroke-linecap="round" stroke-linejoin="round">')
+        parts.extend('<path d="M' + " L".join(f"{x:.6f} {y:.6f}" for x, y in line) + '"/>'
+                     for line in lines.visible_polylines)
+        parts.append("</g>")
+    parts.append("</svg>")
+    write_svg(path, parts)
+
+
+def _rgb(color) -> str:
+    return f"rgb({int(color[0])},{int(color[1])},{int(color[2])})"
+
+
+def _rings(shape) -> list:
+    """Every ring (exteriors and holes) of a shapely (Multi)Polygon or collection."""
+    rings = []
+    for geom in getattr(shape, "geoms", [shape]):
+        if geom.geom_type == "Polygon" and not geom.is_empty:
+            rings.append(np.asarray(geom.exterior.coords))
+            rings += [np.asarray(hole.coords) for hole in geom.interiors]
+        elif hasattr(geom, "geoms"):
+            rings += _rings(geom)
+    return rings
+
+
+def _ring_path(ring: np.ndarray) -> str:
+    return "M" + " L".join(f"{x:.6f} {y:.6f}" for x, y in ring[:-1]) + " Z"
