@@ -48,6 +48,9 @@ def add_parser(sub) -> None:
                    help="remove single faces, or whole objects (glTF nodes)")
     g.add_argument("--min-pixels", type=int, default=1, metavar="P",
                    help="keep a face seen on at least P pixels over all views")
+    g.add_argument("--exact", action="store_true", help="decide by each face's exact "
+                   "visible area (hsr.visible_regions), so no visible face is removed "
+                   "however small; --min-pixels is then an area in px^2 (1: any)")
     g.add_argument("--keep-neighbors", type=int, metavar="K",
                    help="also keep faces within K edge-rings of a kept face (default: 2 "
                    "with auto views, else 0)")
@@ -107,6 +110,12 @@ def run(args) -> int:
     client = dask_client(args.scheduler, "prune") if args.scheduler else None
     options = dict(algorithm=args.algorithm, cull=args.cull, front_face=args.front_face,
                    depth_func=args.depth_func)
+    if args.exact:
+        if args.algorithm != "zbuffer" or store is not None:
+            raise CliError("--exact computes visible regions: it takes neither --algorithm "
+                           "nor a partitioned scene (yet)")
+        options = dict(options, exact=True)
+        del options["algorithm"]
     try:
         decision = decide(scene, cameras + (["auto"] if auto else []), args.size,
                           level=args.level, keep_neighbors=args.keep_neighbors,

@@ -31,6 +31,9 @@ def add_parser(sub) -> None:
     p.add_argument("--what", default="faces", metavar="faces|vertices|points:FILE.npy",
                    help="faces: pixel counts per face and view; vertices: the scene's "
                    "vertices seen by each view; points:FILE.npy: an (N, 3) array's points")
+    p.add_argument("--exact", action="store_true", help="faces: exact visible areas (px^2) "
+                   "from each face's visible region (hsr.visible_regions): every face "
+                   "with a visible part counts, however small")
     p.add_argument("--quality", action="store_true", help="faces: also the mean cosine "
                    "and distance per face and view")
     p.add_argument("--tolerance", type=float, default=1e-4, help="vertices and points: the "
@@ -64,12 +67,16 @@ def run(args) -> int:
         # Vertices and points are answered by rays (hsr.visible_points), which have no
         # raster algorithm, culling or depth function: refused, never silently ignored.
         for flag, given in (("--scheduler", args.scheduler), ("--quality", args.quality),
+                            ("--exact", args.exact),
                             ("--algorithm", args.algorithm != "zbuffer"),
                             ("--cull", args.cull != "none"),
                             ("--depth-func", args.depth_func != "less")):
             if given:
                 raise CliError(f"{flag} goes with --what faces ({what} are seen by rays, "
                                f"which take no {flag})")
+    if args.exact and (args.quality or args.algorithm != "zbuffer"):
+        raise CliError("--exact computes visible regions: it takes neither --quality nor "
+                       "--algorithm (yet)")
     points = read_points(points_file) if what == "points" else None
     scene, _ = load_models(args.models, "visibility")
     plan = input_plan(args, scene, *view_inputs(args.views),
@@ -83,7 +90,8 @@ def run(args) -> int:
                                   quality=args.quality, tolerance=args.tolerance,
                                   client=client, progress=not args.quiet and
                                   sys.stderr.isatty(), cull=args.cull,
-                                  depth_func=args.depth_func, algorithm=args.algorithm)
+                                  depth_func=args.depth_func, exact=args.exact,
+                                  **({} if args.exact else {"algorithm": args.algorithm}))
     finally:
         if client is not None:
             client.close()

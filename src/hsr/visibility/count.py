@@ -102,7 +102,7 @@ def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
                     threads: int | None = None, near: float | None = None,
                     far: float | None = None,
                     progress: bool | None = None, cull_objects: bool | str = True,
-                    **render_options) -> np.ndarray:
+                    exact: bool = False, **render_options) -> np.ndarray:
     """(n_faces,) int64: for each face of ``scene`` (global face ids, submission order),
     the number of pixels where it is visible, summed over ``views`` (see
     :func:`cameras_for`) rendered at ``size`` (``R`` or ``(W, H)``) with ``algorithm``
@@ -113,6 +113,9 @@ def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     ``cull_objects``: with the z-buffer and a depth test where the nearest surface wins,
     skip the objects a view cannot show where that pays (``"always"``: wherever it can;
     :func:`count_view_culled`: the counts are the same, faster when parts are hidden).
+    ``exact=True``: (n_faces,) float64 visible areas in px^2 instead, from
+    :func:`hsr.visible_regions` (every face with a visible part counts, however small;
+    ``render_options`` are its depth state: cull, front_face, depth_func).
 
     A partitioned scene (:func:`hsr.partition`'s store, or its path) is rendered sort-last
     (:func:`hsr.batch.render_partitioned`, on ``client`` when given) and counted after
@@ -133,6 +136,12 @@ def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     _check_opaque(scene)
     width, height = check_size(size)
     cameras = cameras_for(scene, views, width / height, near, far)
+    if exact:
+        if algorithm != "zbuffer":
+            raise VisibilityError("exact=True computes visible regions: it takes no "
+                                  "algorithm")
+        return exact_areas(scene, cameras, width, height, render_options, client, threads,
+                           progress)
     options = dict(render_options, algorithm=algorithm)
     if not (isinstance(cull_objects, (bool, np.bool_)) or cull_objects == "always"):
         raise VisibilityError(f"cull_objects must be True, False or 'always', got "
@@ -218,8 +227,9 @@ def object_visibility(scene: SceneLike, views: Any, size: int | tuple = 512,
 
 
 def per_object(scene: Scene, face_counts: np.ndarray) -> np.ndarray:
-    """Face counts summed per instance."""
-    return np.add.reduceat(face_counts, scene.face_offsets()[:-1]).astype(np.int64)
+    """Face counts summed per instance (int64; float64 for exact areas)."""
+    sums = np.add.reduceat(face_counts, scene.face_offsets()[:-1])
+    return sums if np.issubdtype(sums.dtype, np.floating) else sums.astype(np.int64)
 
 
 @njit(cache=True, nogil=True)
@@ -470,6 +480,47 @@ def _on_dask(client, scene, cameras, width, height, options, progress) -> np.nda
 
     with progress_bar(progress, len(cameras), "visibility") as bar:
         spread_views(client, count_views, scene, cameras, (width, height, options), take, bar)
+    return total
+
+
+def exact_areas(scene, cameras, width, height, state, client=None, threads=None,
+                progress=None) -> np.ndarray:
+    """(n_faces,) float64: visible areas (px^2) summed over ``cameras``
+    (:func:`hsr.visible_regions` with the depth ``state`` fields), here or on ``client``."""
+    from .regions import visible_regions
+
+    allowed = {"cull", "front_face", "depth_func", "depth_test", "depth_mask",
+               "clear_depth", "polygon_mode", "polygon_offset", "depth_range"}
+    unknown = sorted(set(state) - allowed)
+    if unknown:
+        raise VisibilityError(f"exact=True computes visible regions: it takes no "
+                              f"{', '.join(unknown)}")
+    visible_regions(scene, cameras[0], 1, 1, threads=1, **state)  # bad state: now
+    total = np.zeros(scene.n_faces)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    with progress_bar(progress, len(cameras), "visibility") as bar:
+        if client is not None:
+            def take(_, areas):
+                total[:] += areas
+
+            spread_views(client, area_views, scene, cameras, (width, height, state, 1), take,
+                         bar)
+            return total
+        for camera in cameras:
+            total += area_views(scene, [camera], width, height, state, threads)
+            bar.update(1)
+    return total
+
+
+def area_views(scene, cameras, width, height, state, threads=1) -> np.ndarray:
+    """A Dask task (or a loop here): the summed visible areas of a group of views."""
+    from .regions import visible_regions
+
+    total = np.zeros(scene.n_faces)
+    for camera in cameras:
+        regions = visible_regions(scene, camera, width, height, threads=threads, **state)
+        np.add.at(total, regions.face_id, regions.area)
     return total
 
 

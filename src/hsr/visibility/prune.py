@@ -197,17 +197,23 @@ def unsettled(decision: Decision) -> str:
 
 def keep_faces(scene: Scene, counts: ArrayLike, level: str = "faces", keep_neighbors: int = 0,
                min_pixels: int = 1) -> np.ndarray:
-    """(n_faces,) bool: the faces to keep, from per-face pixel ``counts``."""
+    """(n_faces,) bool: the faces to keep, from per-face pixel ``counts`` (or exact areas,
+    float: then every face with a visible area is kept, or with ``min_pixels`` above 1
+    those with at least that many px^2)."""
     _check_rule(level, keep_neighbors, min_pixels)
     counts = np.asarray(counts)
     if counts.shape != (scene.n_faces,):
         raise VisibilityError(f"counts must have shape ({scene.n_faces},), got {counts.shape}")
     offsets = scene.face_offsets()
+    # Exact areas (float): any visible area keeps a face unless a larger threshold (in
+    # px^2) is asked for, so that a face under a pixel is never removed.
+    exact = np.issubdtype(counts.dtype, np.floating)
     if level == "objects":
-        seen = per_object(scene, counts) >= min_pixels
+        sums = per_object(scene, counts)
+        seen = (sums > 0) if exact and min_pixels == 1 else sums >= min_pixels
         keep = np.repeat(seen, np.diff(offsets))
     else:
-        keep = counts >= min_pixels
+        keep = (counts > 0) if exact and min_pixels == 1 else counts >= min_pixels
         if keep_neighbors:
             for k, inst in enumerate(scene.instances):
                 part = slice(offsets[k], offsets[k + 1])

@@ -331,7 +331,7 @@ def view_group_columns(scene, cameras, width, height, options, quality) -> list:
 def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
                       client: Any = None, quality: bool = False,
                       near: float | None = None, far: float | None = None,
-                      progress: bool | None = None,
+                      progress: bool | None = None, exact: bool = False,
                       **render_options) -> VisibilityMatrix:
     """The faces x views table of visible pixel counts (a :class:`VisibilityMatrix`,
     ``.counts`` a ``scipy.sparse.csr_matrix``), for ``views`` as
@@ -342,7 +342,9 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     are :func:`~hsr.visibility.face_visibility`. ``quality``: also the mean cosine and
     mean distance per (face, view) (see :class:`VisibilityMatrix`), for texturing's view
     selection. ``client``: a ``distributed.Client``; one task per group of views, only
-    the sparse columns come back.
+    the sparse columns come back. ``exact=True``: ``.counts`` holds visible areas in px^2
+    (float64) from :func:`hsr.visible_regions`, every face with a visible part however
+    small (``render_options``: its depth state; ``quality`` is not offered with it yet).
 
     Raises :class:`~hsr.visibility.VisibilityError` for bad views or size, and what
     :func:`hsr.render` raises for bad render options."""
@@ -363,7 +365,14 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     cameras = cameras_for(scene, views, width / height, near, far)
     if progress is None:
         progress = sys.stderr.isatty()
-    if isinstance(scene, PartitionedScene):
+    if exact:
+        if quality or isinstance(scene, PartitionedScene):
+            raise VisibilityError("exact=True takes neither quality=True nor a "
+                                  "partitioned scene (yet)")
+        _check_opaque(scene)
+        columns = _exact_columns(scene, cameras, width, height, render_options, client,
+                                 progress)
+    elif isinstance(scene, PartitionedScene):
         # Sort-last: the counts are taken from the composited frames (hsr.batch.sortlast).
         frames = render_partitioned(scene, cameras, width, height,
                                     outputs=("normals", "distance") if quality else (),
@@ -382,7 +391,7 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
         cols = np.repeat(np.arange(len(columns)), [len(c[0]) for c in columns])
         return scipy.sparse.csr_matrix((data, (rows, cols)), shape=(n_faces, len(columns)))
 
-    counts = matrix(1, np.int64)
+    counts = matrix(1, np.float64 if exact else np.int64)
     if not quality:
         return VisibilityMatrix(counts, cameras)
     # Means: the sums over each (face, view)'s pixels divided by its count, on the same
@@ -393,8 +402,46 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     return VisibilityMatrix(counts, cameras, cosine, distance)
 
 
+def _exact_columns(scene, cameras, width, height, state, client, progress) -> list:
+    """(face ids, areas) of each view's visible regions, here or on ``client``."""
+    from ..parallel import progress_bar
+    from .count import spread_views
+    from .regions import visible_regions
+
+    state = dict(state)
+    algorithm = state.pop("algorithm", "zbuffer")
+    if algorithm != "zbuffer":
+        raise VisibilityError("exact=True computes visible regions: it takes no algorithm")
+    visible_regions(scene, cameras[0], 1, 1, threads=1, **state)  # a bad state: now
+    columns: list = [None] * len(cameras)
+    with progress_bar(progress, len(cameras), "visibility") as bar:
+        if client is not None:
+            def take(first, group):
+                columns[first:first + len(group)] = group
+
+            spread_views(client, region_columns, scene, cameras, (width, height, state),
+                         take, bar)
+        else:
+            for k, camera in enumerate(cameras):
+                columns[k] = region_columns(scene, [camera], width, height, state)[0]
+                bar.update(1)
+    return columns
+
+
+def region_columns(scene, cameras, width, height, state) -> list:
+    """A Dask task: (face ids, areas) of each view's visible regions."""
+    from .regions import visible_regions
+
+    out = []
+    for camera in cameras:
+        regions = visible_regions(scene, camera, width, height, threads=1, **state)
+        out.append((regions.face_id, regions.area))
+    return out
+
+
 def write_visibility(scene, cameras, size, what: str, points, out: str, *, quality=False,
-                     tolerance=1e-4, client=None, progress=None, **render_options) -> str:
+                     tolerance=1e-4, client=None, progress=None, exact=False,
+                     **render_options) -> str:
     """``hsr visibility``: compute ``what`` (``faces``, ``vertices`` or ``points``) for
     every camera and write ``out``; returns the summary line.
 
@@ -402,16 +449,20 @@ def write_visibility(scene, cameras, size, what: str, points, out: str, *, quali
     with ``cosine`` and ``distance`` when ``quality``) and ``shape``; or ``visible``
     (N, views) bool for vertices and points, with ``pixels`` (views, N, 2) in hsr's
     window convention for points. ``.csv``: one row per visible pair: ``face,view,pixels``
-    (``,cosine,distance``), ``vertex,view``, or ``point,view,x,y``."""
+    (``,cosine,distance``), ``vertex,view``, or ``point,view,x,y``. ``exact``: faces
+    with their visible ``area`` (px^2, float64) in place of ``pixels``."""
     width, height = size
     ext = os.path.splitext(out)[1].lower()
     n_views = len(cameras)
     if what == "faces":
         vm = visibility_matrix(scene, cameras, size, client=client, quality=quality,
-                               progress=progress, **render_options)
+                               progress=progress, exact=exact, **render_options)
         coo = vm.counts.tocoo()
-        columns = {"face": coo.row.astype(np.int64), "view": coo.col.astype(np.int64),
-                   "pixels": coo.data.astype(np.int64)}
+        columns = {"face": coo.row.astype(np.int64), "view": coo.col.astype(np.int64)}
+        if exact:
+            columns["area"] = coo.data.astype(np.float64)
+        else:
+            columns["pixels"] = coo.data.astype(np.int64)
         if quality:
             columns["cosine"] = vm.cosine.tocoo().data
             columns["distance"] = vm.distance.tocoo().data
@@ -451,7 +502,8 @@ def _write_table(out, ext, columns, shape, visible, pixels) -> None:
         if ext == ".npz":
             names = list(columns)
             row, col = columns[names[0]], columns["view"]
-            data = columns["pixels"] if "pixels" in columns else np.ones(len(row), np.uint8)
+            data = (columns["pixels"] if "pixels" in columns else columns["area"]
+                    if "area" in columns else np.ones(len(row), np.uint8))
             arrays = dict(format=np.asarray("coo"), row=row, col=col, data=data,
                           shape=np.asarray(shape, dtype=np.int64))
             if visible is None:

@@ -195,7 +195,7 @@ def _grid(box: np.ndarray, width: int, height: int) -> tuple:
     """Cells over the image and the triangles whose box meets each, nearest first:
     (cell size, columns, rows, cell_start (C + 1,), cell_tris)."""
     n = max(len(box), 1)
-    cell = max(1.0, math.sqrt(width * height * _CELL_TRIANGLES / n))
+    cell = max(1.0 / 64, math.sqrt(width * height * _CELL_TRIANGLES / n))
     ncx, ncy = int(math.ceil(width / cell)), int(math.ceil(height / cell))
     cx0 = np.clip(np.floor(box[:, 0] / cell), 0, ncx - 1).astype(np.int64)
     cx1 = np.clip(np.floor(box[:, 2] / cell), 0, ncx - 1).astype(np.int64)
