@@ -63,24 +63,23 @@ def signed_area(poly, n) -> float:
     return 0.5 * s
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _box(p, n):
+    """(min x, min y, max x, max y) of ``p[:n]``."""
+    x0 = x1 = p[0, 0]
+    y0 = y1 = p[0, 1]
+    for k in range(1, n):
+        x0, x1 = min(x0, p[k, 0]), max(x1, p[k, 0])
+        y0, y1 = min(y0, p[k, 1]), max(y1, p[k, 1])
+    return x0, y0, x1, y1
+
+
 @njit(cache=True, nogil=True)
 def bounds_overlap(p, n, q, m) -> bool:
     """True unless the boxes of ``p[:n]`` and ``q[:m]`` are apart."""
-    pminx = pmaxx = p[0, 0]
-    pminy = pmaxy = p[0, 1]
-    for k in range(1, n):
-        pminx = min(pminx, p[k, 0])
-        pmaxx = max(pmaxx, p[k, 0])
-        pminy = min(pminy, p[k, 1])
-        pmaxy = max(pmaxy, p[k, 1])
-    qminx = qmaxx = q[0, 0]
-    qminy = qmaxy = q[0, 1]
-    for k in range(1, m):
-        qminx = min(qminx, q[k, 0])
-        qmaxx = max(qmaxx, q[k, 0])
-        qminy = min(qminy, q[k, 1])
-        qmaxy = max(qmaxy, q[k, 1])
-    return not (pmaxx <= qminx or qmaxx <= pminx or pmaxy <= qminy or qmaxy <= pminy)
+    px0, py0, px1, py1 = _box(p, n)
+    qx0, qy0, qx1, qy1 = _box(q, m)
+    return not (px1 <= qx0 or qx1 <= px0 or py1 <= qy0 or qy1 <= py0)
 
 
 @njit(cache=True, nogil=True)
