@@ -378,3 +378,47 @@ def test_exact_counts_are_region_areas_here_on_dask_and_on_the_command_line(mode
     assert kept == int(np.count_nonzero(want > 0))
     raster = hsr.visibility.face_visibility(spot, cameras, 48)
     assert kept > np.count_nonzero(raster)  # faces between pixel centres kept too
+
+
+def test_the_pdf_draws_the_regions_in_the_images_colours(tmp_path):
+    """hsr render --fill --pdf: poppler (pdftoppm, another program) rasterises the PDF at
+    one pixel per point; away from region edges each pixel has the PNG's colour."""
+    import shutil
+    import subprocess
+
+    from PIL import Image
+
+    from conftest import need, run_cli
+
+    need(shutil.which("pdftoppm") is not None, "pdftoppm (poppler-utils) is not installed")
+    code, err = run_cli(["render", "--scene", "penetration", "--size", "160x120",
+                         "--shading", "flat", "--fill", "--pdf", str(tmp_path / "r.pdf"),
+                         "-o", str(tmp_path / "r.png"), "--ids-out",
+                         str(tmp_path / "ids.npy"), "--quiet"])
+    assert code == 0, err
+    subprocess.run(["pdftoppm", "-png", "-r", "72", "-singlefile", str(tmp_path / "r.pdf"),
+                    str(tmp_path / "page")], check=True, timeout=60)
+    page = np.asarray(Image.open(tmp_path / "page.png").convert("RGB")).astype(int)
+    image = np.asarray(Image.open(tmp_path / "r.png")).astype(int)
+    ids = np.load(tmp_path / "ids.npy")
+    assert page.shape == image.shape
+    # Pixels a whole pixel away from every region's boundary: no edge anti-aliasing.
+    scene, camera = hsr.scenes.get("penetration")
+    edges = shapely.union_all([p.boundary for p in visible_regions(scene, camera, 160,
+                                                                   120).polygons])
+    ys, xs = np.mgrid[0:120, 0:160]
+    same = (shapely.distance(edges, shapely.points(xs.ravel() + 0.5, ys.ravel() + 0.5))
+            > 1.0).reshape(ids.shape)
+    assert same.sum() > 0.8 * ids.size and (ids[same] >= 0).sum() > 2000
+    assert np.abs(page[same] - image[same]).max() <= 2
+
+
+def test_the_command_line_refuses_what_regions_cannot_honour(tmp_path):
+    from conftest import run_cli
+
+    code, err = run_cli(["render", "--scene", "cubes", "--depth-func", "greater",
+                         "--clear-depth", "0", "--svg", str(tmp_path / "r.svg"), "--fill"])
+    assert code == 2 and len(err) == 1 and "less or lequal" in err[0], err
+    assert not (tmp_path / "r.svg").exists()
+    code, err = run_cli(["render", "--scene", "cubes", "--pdf", str(tmp_path / "r.pdf")])
+    assert code == 2 and err == ["hsr: error: --pdf writes the visible regions: give --fill"]

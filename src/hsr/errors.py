@@ -33,7 +33,8 @@ class MissingExtraError(HsrError):
 
 # The extra of pyproject.toml that installs each optional module.
 EXTRAS = {"distributed": "dask", "zarr": "dask", "starlette": "view", "uvicorn": "view",
-          "OpenEXR": "exr", "shapely": "regions"}
+          "OpenEXR": "exr", "shapely": "regions",
+          "matplotlib": "plot"}
 
 
 def require_extra(what: str, *modules: str) -> None:

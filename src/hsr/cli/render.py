@@ -26,6 +26,7 @@ def add_parser(sub) -> None:
                    "--algorithm bsp or newell: the ordered polygons (exact, no rasterization)")
     rl.add_argument("--lines", action="store_true",
                    help="--svg draws visible edges, cut exactly where they become hidden")
+    rl.add_argument("--pdf", help="with --fill: the same drawing as PDF (matplotlib)")
     rl.add_argument("--fill", action="store_true",
                    help="--svg draws each face's exact visible region, filled with its flat "
                    "colour (hsr.visible_regions: nothing hidden underneath; with --lines the "
@@ -66,11 +67,11 @@ def run(args) -> int:
     from ..scene.files import check_output
 
     if args.output is None:
-        args.output = None if args.svg else "render.png"
+        args.output = None if args.svg or args.pdf else "render.png"
     if args.output:
         check_output(args.output)
     for path, kinds in ((args.depth_out, (".npy", ".exr", ".png")), (args.ids_out, (".npy",)),
-                        (args.svg, (".svg",)), (args.error_map, None),
+                        (args.svg, (".svg",)), (args.pdf, (".pdf",)), (args.error_map, None),
                         (args.normals_out, (".npy", ".exr", ".png"))):
         if path:
             check_output(path, kinds)
@@ -78,12 +79,14 @@ def run(args) -> int:
                 require_extra(f"writing {path}", "OpenEXR")
     scene, camera, width, height, state, background, options = setup(args)
     _plan_outputs(args, scene)
-    if args.lines and not args.svg:
+    if args.lines and not (args.svg or (args.pdf and args.fill)):
         raise CliError("--lines writes an SVG: give --svg FILE")
     if args.hidden_layer and not args.lines:
         raise CliError("--hidden-layer goes with --svg FILE --lines")
-    if args.fill and not args.svg:
-        raise CliError("--fill writes an SVG: give --svg FILE")
+    if args.fill and not (args.svg or args.pdf):
+        raise CliError("--fill writes an SVG or a PDF: give --svg FILE or --pdf FILE")
+    if args.pdf and not args.fill:
+        raise CliError("--pdf writes the visible regions: give --fill")
     if args.fill and args.hidden_layer:
         raise CliError("--hidden-layer draws what --fill hides: use --svg FILE --lines")
     hidden_line = hidden_line_args(args)
@@ -105,7 +108,7 @@ def run(args) -> int:
         print("hsr: warning: the view covers no pixel of the scene (is it behind the "
               "camera, or outside --near/--far?)", file=sys.stderr)
     _save_outputs(args, frame, "")
-    if args.svg and args.fill:
+    if args.fill:
         _write_regions(args, scene, camera, width, height, state, background, hidden_line)
     elif args.svg and args.lines:
         from ..lines.vector import hidden_lines, write_lines_svg
@@ -129,7 +132,7 @@ def run(args) -> int:
         # The raster geometry stage's counts (the ray caster runs none).
         counts = "".join(f", {s[key]} {key}" for key in ("degenerate", "culled", "clipped")
                          if key in s)
-        print(f"wrote {args.output or args.svg} ({width}x{height}, {args.algorithm}): "
+        print(f"wrote {args.output or args.svg or args.pdf} ({width}x{height}, {args.algorithm}): "
               f"{s['triangles_in']} triangles{counts}, "
               f"{s['pixels_covered']} pixels covered, {s['timings_ms']['total']:.1f} ms"
               + _algorithm_summary(s))
@@ -144,7 +147,7 @@ def _plan_outputs(args, scene) -> None:
     plan = input_plan(args, scene)
     flags = (("-o", args.output), ("--depth-out", args.depth_out), ("--normals-out",
              args.normals_out), ("--ids-out", args.ids_out), ("--svg", args.svg),
-             ("--error-map", args.error_map))
+             ("--pdf", args.pdf), ("--error-map", args.error_map))
     suffixes = ([f"_{k:03d}" for k in range(args.orbit)]
                 if args.orbit is not None and 1 <= args.orbit <= 100_000 else [""])
     for flag, path in flags:
@@ -186,7 +189,8 @@ def _render_orbit(args, scene, width, height, draw) -> int:
     if not 1 <= args.orbit <= 100_000:
         raise CliError(f"--orbit must be 1..100000 views, got {args.orbit}")
     for flag, value in (("--eye", args.eye), ("--target", args.target), ("--camera",
-                        args.camera), ("--svg", args.svg), ("--error-map", args.error_map),
+                        args.camera), ("--svg", args.svg), ("--pdf", args.pdf),
+                        ("--error-map", args.error_map),
                         ("--ortho", args.ortho)):
         if value is not None:
             raise CliError(f"--orbit places the cameras itself: it does not combine with {flag}")
@@ -222,7 +226,7 @@ def _write_regions(args, scene, camera, width, height, state, background, hidden
     ``--lines``."""
     from ..appearance.shading import face_colors
     from ..parallel import Workers
-    from ..visibility.regions import visible_regions, write_regions_svg
+    from ..visibility.regions import visible_regions, write_regions_pdf, write_regions_svg
 
     if args.shading == "depth":
         raise CliError("--fill draws flat colours: use --shading flat, normal or random")
@@ -237,10 +241,17 @@ def _write_regions(args, scene, camera, width, height, state, background, hidden
         from ..lines.vector import hidden_lines
 
         drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
-    write_regions_svg(args.svg, regions, colors, background, drawing,
-                      hidden_line.line_color(background))
+    written = []
+    if args.svg:
+        write_regions_svg(args.svg, regions, colors, background, drawing,
+                          hidden_line.line_color(background))
+        written.append(args.svg)
+    if args.pdf:
+        write_regions_pdf(args.pdf, regions, colors, background, drawing,
+                          hidden_line.line_color(background))
+        written.append(args.pdf)
     if not args.quiet:
-        print(f"wrote {args.svg}: the visible regions of {len(regions)} faces "
+        print(f"wrote {' and '.join(written)}: the visible regions of {len(regions)} faces "
               f"({len(regions.piece_row)} convex pieces, {regions.area.sum():.1f} px^2)")
 
 

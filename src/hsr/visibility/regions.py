@@ -50,7 +50,8 @@ from ..geometry.convex import (
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike
 
-__all__ = ["Regions", "RegionsError", "visible_regions", "write_regions_svg", "MIN_PIECE_AREA"]
+__all__ = ["Regions", "RegionsError", "visible_regions", "write_regions_svg",
+           "write_regions_pdf", "MIN_PIECE_AREA"]
 
 MIN_PIECE_AREA = 1e-9  # px^2: a piece smaller than this is rounding, not surface
 GRID = 2.0 ** -30  # px: the snapping grid of the polygons merged from the pieces
@@ -448,12 +449,7 @@ def write_regions_svg(path, regions: Regions, colors, background=(0, 0, 0),
     written and :class:`RegionsError` for colours that do not cover the faces."""
     from ..lines.svg import write_svg
 
-    colors = np.asarray(colors)
-    if colors.ndim != 2 or colors.shape[1] != 3 or (
-            len(regions) and colors.shape[0] <= int(regions.face_id.max())):
-        raise RegionsError(f"colors must be an (N, 3) table indexed by face id, N > "
-                           f"{int(regions.face_id.max()) if len(regions) else 0}; got shape "
-                           f"{colors.shape}")
+    colors = _checked_colors(regions, colors)
     w, h = regions.width, regions.height
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
              f'viewBox="0 0 {w} {h}">',
@@ -471,6 +467,60 @@ def write_regions_svg(path, regions: Regions, colors, background=(0, 0, 0),
         parts.append("</g>")
     parts.append("</svg>")
     write_svg(path, parts)
+
+
+def write_regions_pdf(path, regions: Regions, colors, background=(0, 0, 0),
+                      lines=None, line_color=(0, 0, 0)) -> None:
+    """:func:`write_regions_svg` as PDF, one point per pixel, through matplotlib's PDF
+    backend (no pyplot state; needs ``pip install 'hsr[plot]'``). Raises
+    :class:`~hsr.errors.OutputError` when the file cannot be written."""
+    from ..errors import OutputError, require_extra
+
+    require_extra("writing a PDF", "matplotlib")
+    from matplotlib.backends.backend_pdf import FigureCanvasPdf
+    from matplotlib.figure import Figure
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    from ..scene.outputs import staged
+
+    colors = _checked_colors(regions, colors)
+    w, h = regions.width, regions.height
+    figure = Figure(figsize=(w / 72.0, h / 72.0), dpi=72)
+    axes = figure.add_axes((0.0, 0.0, 1.0, 1.0))
+    axes.set_xlim(0, w)
+    axes.set_ylim(h, 0)  # image rows go down
+    axes.set_axis_off()
+    figure.patch.set_facecolor(tuple(float(c) / 255.0 for c in background[:3]))
+    for face, shape in zip(regions.face_id, regions.polygons):
+        rings = _rings(shape)
+        if not rings:
+            continue
+        vertices = np.concatenate(rings)
+        codes = np.concatenate([[Path.MOVETO] + [Path.LINETO] * (len(r) - 2)
+                                + [Path.CLOSEPOLY] for r in rings])
+        axes.add_patch(PathPatch(Path(vertices, codes), facecolor=colors[face] / 255.0,
+                                 edgecolor="none", linewidth=0))
+    if lines is not None:
+        for line in lines.visible_polylines:
+            line = np.asarray(line)
+            axes.plot(line[:, 0], line[:, 1], color=np.asarray(line_color) / 255.0,
+                      linewidth=0.75, solid_capstyle="round")
+    try:
+        with staged(path) as tmp:
+            FigureCanvasPdf(figure).print_pdf(tmp)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _checked_colors(regions: Regions, colors) -> np.ndarray:
+    colors = np.asarray(colors)
+    if colors.ndim != 2 or colors.shape[1] != 3 or (
+            len(regions) and colors.shape[0] <= int(regions.face_id.max())):
+        raise RegionsError(f"colors must be an (N, 3) table indexed by face id, N > "
+                           f"{int(regions.face_id.max()) if len(regions) else 0}; got shape "
+                           f"{colors.shape}")
+    return colors
 
 
 def _rgb(color) -> str:
