@@ -491,7 +491,8 @@ def write_regions_pdf(path, regions: Regions, colors, background=(0, 0, 0),
     axes.set_xlim(0, w)
     axes.set_ylim(h, 0)  # image rows go down
     axes.set_axis_off()
-    figure.patch.set_facecolor(tuple(float(c) / 255.0 for c in background[:3]))
+    red, green, blue = (float(c) / 255.0 for c in background[:3])
+    figure.patch.set_facecolor((red, green, blue))
     for face, shape in zip(regions.face_id, regions.polygons):
         rings = _rings(shape)
         if not rings:
