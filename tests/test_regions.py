@@ -422,3 +422,50 @@ def test_the_command_line_refuses_what_regions_cannot_honour(tmp_path):
     assert not (tmp_path / "r.svg").exists()
     code, err = run_cli(["render", "--scene", "cubes", "--pdf", str(tmp_path / "r.pdf")])
     assert code == 2 and err == ["hsr: error: --pdf writes the visible regions: give --fill"]
+
+
+def test_exact_quality_terms_agree_with_the_pixels_on_well_sampled_faces(models_dir):
+    """visibility_matrix(exact=True, quality=True): the area means of cosine and distance
+    equal the renderer's per-pixel means (normals and distance buffers) wherever a face
+    covers many pixels."""
+    import os
+
+    spot = hsr.load(os.path.join(models_dir, "spot.obj"))
+    pixels = hsr.visibility_matrix(spot, "orbit:2", 384, quality=True)
+    exact = hsr.visibility_matrix(spot, "orbit:2", 384, quality=True, exact=True)
+    counts = pixels.counts.toarray()
+    well = counts >= 20
+    assert well.sum() > 300
+    assert np.abs(pixels.cosine.toarray()[well] - exact.cosine.toarray()[well]).max() < 0.01
+    ratio = pixels.distance.toarray()[well] / exact.distance.toarray()[well]
+    assert np.abs(ratio - 1).max() < 0.005
+    assert np.median(np.abs(counts[well] / exact.counts.toarray()[well] - 1)) < 0.1
+
+
+def test_a_shared_model_partitions_and_agrees_with_the_z_buffer_at_1024(models_dir):
+    """spot at 64 x 64 partitions its projection; at 1024 x 768 every pixel centre more
+    than 1/128 px from a region boundary (past the z-buffer's 1/256 px vertex snapping)
+    lies in the region of the face the z-buffer shows."""
+    import os
+
+    spot = hsr.Scene([hsr.load(os.path.join(models_dir, "spot.obj"))])
+    camera = hsr.first_look(spot, 1.0)
+    small = visible_regions(spot, camera, 64, 64)
+    _check_partition(small, _projected_union(spot, camera, 64, 64), 64, 64)
+    camera = hsr.first_look(spot, 1024 / 768)
+    regions = visible_regions(spot, camera, 1024, 768)
+    frame = hsr.render(spot, camera, 1024, 768)
+    ys, xs = np.mgrid[0:768, 0:1024]
+    points = shapely.points(xs.ravel() + 0.5, ys.ravel() + 0.5)
+    polygons = regions.polygons
+    owner = np.full(points.size, -1)
+    inside_point, inside_region = shapely.STRtree(polygons).query(points,
+                                                                  predicate="within")
+    owner[inside_point] = regions.face_id[inside_region]
+    edges = [p.boundary for p in polygons]
+    near_point, _ = shapely.STRtree(edges).query(points, predicate="dwithin",
+                                                 distance=1.0 / 128)
+    far = np.ones(points.size, bool)
+    far[near_point] = False
+    assert np.array_equal(owner[far], frame.face_id.ravel()[far])
+    assert far.mean() > 0.9

@@ -74,9 +74,8 @@ def run(args) -> int:
             if given:
                 raise CliError(f"{flag} goes with --what faces ({what} are seen by rays, "
                                f"which take no {flag})")
-    if args.exact and (args.quality or args.algorithm != "zbuffer"):
-        raise CliError("--exact computes visible regions: it takes neither --quality nor "
-                       "--algorithm (yet)")
+    if args.exact and args.algorithm != "zbuffer":
+        raise CliError("--exact computes visible regions: it takes no --algorithm")
     points = read_points(points_file) if what == "points" else None
     scene, _ = load_models(args.models, "visibility")
     plan = input_plan(args, scene, *view_inputs(args.views),

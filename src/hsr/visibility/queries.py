@@ -344,7 +344,8 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     selection. ``client``: a ``distributed.Client``; one task per group of views, only
     the sparse columns come back. ``exact=True``: ``.counts`` holds visible areas in px^2
     (float64) from :func:`hsr.visible_regions`, every face with a visible part however
-    small (``render_options``: its depth state; ``quality`` is not offered with it yet).
+    small (``render_options``: its depth state), and the quality terms are means over the
+    visible area (:meth:`hsr.Regions.quality`).
 
     Raises :class:`~hsr.visibility.VisibilityError` for bad views or size, and what
     :func:`hsr.render` raises for bad render options."""
@@ -366,12 +367,11 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     if progress is None:
         progress = sys.stderr.isatty()
     if exact:
-        if quality or isinstance(scene, PartitionedScene):
-            raise VisibilityError("exact=True takes neither quality=True nor a "
-                                  "partitioned scene (yet)")
+        if isinstance(scene, PartitionedScene):
+            raise VisibilityError("exact=True does not take a partitioned scene (yet)")
         _check_opaque(scene)
-        columns = _exact_columns(scene, cameras, width, height, render_options, client,
-                                 progress)
+        columns = _exact_columns(scene, cameras, width, height, render_options, quality,
+                                 client, progress)
     elif isinstance(scene, PartitionedScene):
         # Sort-last: the counts are taken from the composited frames (hsr.batch.sortlast).
         frames = render_partitioned(scene, cameras, width, height,
@@ -402,8 +402,10 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     return VisibilityMatrix(counts, cameras, cosine, distance)
 
 
-def _exact_columns(scene, cameras, width, height, state, client, progress) -> list:
-    """(face ids, areas) of each view's visible regions, here or on ``client``."""
+def _exact_columns(scene, cameras, width, height, state, quality, client,
+                   progress) -> list:
+    """(face ids, areas[, area-weighted cosine and distance sums]) of each view's visible
+    regions, here or on ``client``."""
     from ..parallel import progress_bar
     from .count import spread_views
     from .regions import visible_regions
@@ -419,23 +421,31 @@ def _exact_columns(scene, cameras, width, height, state, client, progress) -> li
             def take(first, group):
                 columns[first:first + len(group)] = group
 
-            spread_views(client, region_columns, scene, cameras, (width, height, state),
-                         take, bar)
+            spread_views(client, region_columns, scene, cameras,
+                         (width, height, state, quality), take, bar)
         else:
             for k, camera in enumerate(cameras):
-                columns[k] = region_columns(scene, [camera], width, height, state)[0]
+                columns[k] = region_columns(scene, [camera], width, height, state,
+                                            quality)[0]
                 bar.update(1)
     return columns
 
 
-def region_columns(scene, cameras, width, height, state) -> list:
-    """A Dask task: (face ids, areas) of each view's visible regions."""
+def region_columns(scene, cameras, width, height, state, quality=False) -> list:
+    """A Dask task: (face ids, areas[, cosine sums, distance sums]) of each view's
+    visible regions, the sums weighted by area (so the matrix's division by the areas
+    gives the means)."""
     from .regions import visible_regions
 
-    out = []
+    out: list = []
     for camera in cameras:
         regions = visible_regions(scene, camera, width, height, threads=1, **state)
-        out.append((regions.face_id, regions.area))
+        if quality:
+            cosine, distance = regions.quality(scene, camera)
+            out.append((regions.face_id, regions.area, cosine * regions.area,
+                        distance * regions.area))
+        else:
+            out.append((regions.face_id, regions.area))
     return out
 
 

@@ -121,6 +121,39 @@ class Regions:
         return [shapely.union_all(parts[order[bounds[r]:bounds[r + 1]]], grid_size=GRID)
                 for r in range(len(self))]
 
+    def quality(self, scene: SceneLike, camera: Camera) -> tuple:
+        """(cosine, distance), (R,) float64 each: per row, the mean over its visible area of
+        the cosine between the face's normal (as wound) and the direction to the eye, and
+        of the distance from the eye (world units), as
+        :class:`~hsr.visibility.VisibilityMatrix` has them per pixel. Each convex piece
+        counts with its area at its centroid, carried back onto the face's plane along
+        its ray; ``scene`` and ``camera`` are the ones the regions were computed for."""
+        from ..scene.load import scene_of
+
+        triangles = scene_of(scene).world_triangles()
+        cx, cy, piece_area = _piece_centroids(self.vertices, self.piece_start)
+        view_proj = camera.projection_matrix(self.width / self.height) @ camera.view_matrix
+        inv = np.linalg.inv(view_proj)
+        ndc = np.stack([2.0 * cx / self.width - 1.0, 1.0 - 2.0 * cy / self.height], axis=1)
+        ones = np.ones(len(ndc))
+        near = np.c_[ndc, -ones, ones] @ inv.T
+        far = np.c_[ndc, ones, ones] @ inv.T
+        origin = near[:, :3] / near[:, 3:]
+        direction = far[:, :3] / far[:, 3:] - origin
+        tri = triangles[self.face_id[self.piece_row]]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        t = (np.einsum("ij,ij->i", normal, tri[:, 0] - origin)
+             / np.einsum("ij,ij->i", normal, direction))
+        point = origin + t[:, None] * direction
+        back = -direction / np.linalg.norm(direction, axis=1, keepdims=True)
+        cosine = np.einsum("ij,ij->i", normal, back)
+        distance = np.linalg.norm(point - np.asarray(camera.eye, dtype=np.float64), axis=1)
+        rows = len(self)
+        area = np.bincount(self.piece_row, piece_area, minlength=rows)
+        return (np.bincount(self.piece_row, piece_area * cosine, minlength=rows) / area,
+                np.bincount(self.piece_row, piece_area * distance, minlength=rows) / area)
+
     def scaled(self, factor: float) -> Regions:
         """These regions at ``factor`` times the size, without recomputing them."""
         factor = float(factor)
@@ -396,6 +429,21 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
     stats.update(pieces=len(piece_tri), cells=ncx * ncy)
     return Regions(faces.astype(np.int64), object_id, area, area / whole,
                    piece_row.astype(np.int64), piece_start, vertices, width, height, stats)
+
+
+def _piece_centroids(vertices: np.ndarray, piece_start: np.ndarray) -> tuple:
+    """(x, y, area) of each piece's centroid (the shoelace moments)."""
+    x, y = vertices[:, 0], vertices[:, 1]
+    idx = np.arange(len(vertices))
+    n_pieces = len(piece_start) - 1
+    piece = np.repeat(np.arange(n_pieces), np.diff(piece_start))
+    nxt = np.where(idx + 1 == piece_start[piece + 1], piece_start[piece], idx + 1)
+    cross = x * y[nxt] - x[nxt] * y
+    twice = np.bincount(piece, cross, minlength=n_pieces)
+    safe = np.where(twice != 0.0, twice, 1.0)
+    cx = np.bincount(piece, (x + x[nxt]) * cross, minlength=n_pieces) / (3.0 * safe)
+    cy = np.bincount(piece, (y + y[nxt]) * cross, minlength=n_pieces) / (3.0 * safe)
+    return cx, cy, np.abs(0.5 * twice)
 
 
 def _piece_areas(vertices: np.ndarray, piece_start: np.ndarray) -> np.ndarray:
