@@ -134,6 +134,22 @@ def test_built_in_scenes_partition_and_are_owned_by_the_first_hit(name):
     assert _check_owners(scene, camera, regions, 128, 96, 2000) >= 1800
 
 
+def _owners_at_centres(regions, width, height, margin) -> tuple:
+    """(face of the region holding each pixel centre or -1, centres within ``margin`` px
+    of a region boundary), both flat in row order (shapely's R-tree queries)."""
+    ys, xs = np.mgrid[0:height, 0:width]
+    points = shapely.points(xs.ravel() + 0.5, ys.ravel() + 0.5)
+    polygons = regions.polygons
+    owner = np.full(points.size, -1)
+    inside_point, inside_region = shapely.STRtree(polygons).query(points, predicate="within")
+    owner[inside_point] = regions.face_id[inside_region]
+    near_point, _ = shapely.STRtree([p.boundary for p in polygons]).query(
+        points, predicate="dwithin", distance=margin)
+    near = np.zeros(points.size, bool)
+    near[near_point] = True
+    return owner, near
+
+
 def test_every_pixel_centre_is_the_reference_rasterisers_face():
     """At each pixel centre away from a region boundary, the region holding it is the face
     the float64 reference rasteriser shows (the z-buffer snaps vertices to its sub-pixel
@@ -142,13 +158,7 @@ def test_every_pixel_centre_is_the_reference_rasterisers_face():
     width, height = 96, 72
     regions = visible_regions(scene, camera, width, height)
     face, _ = reference_render(scene, camera, width, height)
-    ys, xs = np.mgrid[0:height, 0:width]
-    px, py = xs.ravel() + 0.5, ys.ravel() + 0.5
-    owner = np.full(px.size, -1)
-    near_edge = np.zeros(px.size, bool)
-    for fid, poly in zip(regions.face_id, regions.polygons):
-        owner[shapely.contains_xy(poly, px, py)] = fid
-        near_edge |= shapely.distance(poly.boundary, shapely.points(px, py)) < 1e-6
+    owner, near_edge = _owners_at_centres(regions, width, height, 1e-6)
     assert np.array_equal(owner[~near_edge], face.ravel()[~near_edge])
     frame = hsr.render(scene, camera, width, height)
     assert (owner == frame.face_id.ravel()).mean() > 0.995
@@ -455,17 +465,7 @@ def test_a_shared_model_partitions_and_agrees_with_the_z_buffer_at_1024(models_d
     camera = hsr.first_look(spot, 1024 / 768)
     regions = visible_regions(spot, camera, 1024, 768)
     frame = hsr.render(spot, camera, 1024, 768)
-    ys, xs = np.mgrid[0:768, 0:1024]
-    points = shapely.points(xs.ravel() + 0.5, ys.ravel() + 0.5)
-    polygons = regions.polygons
-    owner = np.full(points.size, -1)
-    inside_point, inside_region = shapely.STRtree(polygons).query(points,
-                                                                  predicate="within")
-    owner[inside_point] = regions.face_id[inside_region]
-    edges = [p.boundary for p in polygons]
-    near_point, _ = shapely.STRtree(edges).query(points, predicate="dwithin",
-                                                 distance=1.0 / 128)
-    far = np.ones(points.size, bool)
-    far[near_point] = False
+    owner, near = _owners_at_centres(regions, 1024, 768, 1.0 / 128)
+    far = ~near
     assert np.array_equal(owner[far], frame.face_id.ravel()[far])
     assert far.mean() > 0.9
