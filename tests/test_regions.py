@@ -297,7 +297,8 @@ def test_the_filled_svg_is_the_regions_in_the_images_colours(tmp_path):
         assert {tuple(c) for c in image[inside]} == {color}
     code, err = run_cli(["render", "--scene", "cubes", "--fill", "-o",
                          str(tmp_path / "x.png")])
-    assert code == 2 and err == ["hsr: error: --fill writes an SVG: give --svg FILE"]
+    assert code == 2 and err == ["hsr: error: --fill writes an SVG or a PDF: give --svg FILE "
+                                 "or --pdf FILE"]
 
 
 def _no_face_missed(scene, camera, size, factor=16):
