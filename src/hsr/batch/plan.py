@@ -54,8 +54,11 @@ class Unfitted:
 def file_cameras(cameras, fit, bounds) -> tuple:
     """Cameras read from a file: fitted to ``bounds`` where ``fit`` says so, or, with no
     bounds known yet (a batch job's models load on the workers), marked :class:`Unfitted`."""
-    return tuple((Unfitted(c) if bounds is None else c.fitted(bounds)) if f else c
-                 for c, f in zip(cameras, fit))
+    from ..scene.camera_files import fitted_where
+
+    if bounds is not None:
+        return tuple(fitted_where(cameras, fit, bounds))
+    return tuple(Unfitted(c) if f else c for c, f in zip(cameras, fit))
 
 
 def placed(camera, bounds) -> Camera:

@@ -53,6 +53,16 @@ def _emit(dst, m, x, y) -> int:
 
 
 @njit(cache=True, nogil=True)
+def clip_to_view(poly, n, width, height, scratch) -> int:
+    """Clip ``poly[:n]`` in place to the view [0, width] x [0, height] (``scratch``: a
+    buffer of the same shape); returns the vertex count left."""
+    n = clip_half_plane(poly, n, 1.0, 0.0, 0.0, scratch)
+    n = clip_half_plane(scratch, n, -1.0, 0.0, width, poly)
+    n = clip_half_plane(poly, n, 0.0, 1.0, 0.0, scratch)
+    return clip_half_plane(scratch, n, 0.0, -1.0, height, poly)
+
+
+@njit(cache=True, nogil=True)
 def signed_area(poly, n) -> float:
     """Shoelace area of ``poly[:n]`` (positive counter-clockwise in the x-right y-up
     sense)."""

@@ -487,15 +487,7 @@ def exact_areas(scene, cameras, width, height, state, client=None, threads=None,
                 progress=None) -> np.ndarray:
     """(n_faces,) float64: visible areas (px^2) summed over ``cameras``
     (:func:`hsr.visible_regions` with the depth ``state`` fields), here or on ``client``."""
-    from .regions import visible_regions
-
-    allowed = {"cull", "front_face", "depth_func", "depth_test", "depth_mask",
-               "clear_depth", "polygon_mode", "polygon_offset", "depth_range"}
-    unknown = sorted(set(state) - allowed)
-    if unknown:
-        raise VisibilityError(f"exact=True computes visible regions: it takes no "
-                              f"{', '.join(unknown)}")
-    visible_regions(scene, cameras[0], 1, 1, threads=1, **state)  # bad state: now
+    state = exact_state(scene, cameras[0], state)
     total = np.zeros(scene.n_faces)
     if progress is None:
         progress = sys.stderr.isatty()
@@ -513,15 +505,48 @@ def exact_areas(scene, cameras, width, height, state, client=None, threads=None,
     return total
 
 
-def area_views(scene, cameras, width, height, state, threads=1) -> np.ndarray:
-    """A Dask task (or a loop here): the summed visible areas of a group of views."""
+def exact_state(scene, camera, state: dict) -> dict:
+    """The depth state ``state`` (render options) of an exact (regions) count, checked now
+    (one 1 x 1 view): no algorithm and no appearance option, only the fields
+    :func:`hsr.visible_regions` takes."""
     from .regions import visible_regions
 
+    state = {k: v for k, v in state.items() if not (k == "algorithm" and v == "zbuffer")}
+    allowed = {"cull", "front_face", "depth_func", "depth_test", "depth_mask",
+               "clear_depth", "polygon_mode", "polygon_offset", "depth_range"}
+    unknown = sorted(set(state) - allowed)
+    if unknown:
+        raise VisibilityError(f"exact=True computes visible regions: it takes no "
+                              f"{', '.join(unknown)}")
+    visible_regions(scene, camera, 1, 1, threads=1, **state)
+    return state
+
+
+def area_views(scene, cameras, width, height, state, threads=1) -> np.ndarray:
+    """A Dask task (or a loop here): the summed visible areas of a group of views."""
     total = np.zeros(scene.n_faces)
+    for ids, areas in region_columns(scene, cameras, width, height, state, threads=threads):
+        np.add.at(total, ids, areas)
+    return total
+
+
+def region_columns(scene, cameras, width, height, state, quality=False,
+                   threads=1) -> list:
+    """A Dask task: (face ids, areas[, cosine sums, distance sums]) of each view's
+    visible regions, the sums weighted by area (so the matrix's division by the areas
+    gives the means)."""
+    from .regions import visible_regions
+
+    out: list = []
     for camera in cameras:
         regions = visible_regions(scene, camera, width, height, threads=threads, **state)
-        np.add.at(total, regions.face_id, regions.area)
-    return total
+        if quality:
+            cosine, distance = regions.quality(scene, camera)
+            out.append((regions.face_id, regions.area, cosine * regions.area,
+                        distance * regions.area))
+        else:
+            out.append((regions.face_id, regions.area))
+    return out
 
 
 def spread_views(client, task, scene, cameras, args, take, bar) -> None:

@@ -407,14 +407,9 @@ def _exact_columns(scene, cameras, width, height, state, quality, client,
     """(face ids, areas[, area-weighted cosine and distance sums]) of each view's visible
     regions, here or on ``client``."""
     from ..parallel import progress_bar
-    from .count import spread_views
-    from .regions import visible_regions
+    from .count import exact_state, region_columns, spread_views
 
-    state = dict(state)
-    algorithm = state.pop("algorithm", "zbuffer")
-    if algorithm != "zbuffer":
-        raise VisibilityError("exact=True computes visible regions: it takes no algorithm")
-    visible_regions(scene, cameras[0], 1, 1, threads=1, **state)  # a bad state: now
+    state = exact_state(scene, cameras[0], state)
     columns: list = [None] * len(cameras)
     with progress_bar(progress, len(cameras), "visibility") as bar:
         if client is not None:
@@ -429,24 +424,6 @@ def _exact_columns(scene, cameras, width, height, state, quality, client,
                                             quality)[0]
                 bar.update(1)
     return columns
-
-
-def region_columns(scene, cameras, width, height, state, quality=False) -> list:
-    """A Dask task: (face ids, areas[, cosine sums, distance sums]) of each view's
-    visible regions, the sums weighted by area (so the matrix's division by the areas
-    gives the means)."""
-    from .regions import visible_regions
-
-    out: list = []
-    for camera in cameras:
-        regions = visible_regions(scene, camera, width, height, threads=1, **state)
-        if quality:
-            cosine, distance = regions.quality(scene, camera)
-            out.append((regions.face_id, regions.area, cosine * regions.area,
-                        distance * regions.area))
-        else:
-            out.append((regions.face_id, regions.area))
-    return out
 
 
 def write_visibility(scene, cameras, size, what: str, points, out: str, *, quality=False,

@@ -44,6 +44,7 @@ from ..geometry.convex import (
     MAX_VERTICES,
     bounds_overlap,
     clip_half_plane,
+    clip_to_view,
     edge_lines,
     signed_area,
 )
@@ -271,10 +272,7 @@ def _regions_range(lo, hi, xy, planes, zmin, zmax, box, tri_face, cell_start, ce
             tri[k, 0] = xy[i, k, 0]
             tri[k, 1] = xy[i, k, 1]
         # The triangle inside the view [0, W] x [0, H].
-        n = clip_half_plane(tri, 3, 1.0, 0.0, 0.0, tmp)
-        n = clip_half_plane(tmp, n, -1.0, 0.0, float(width), tri)
-        n = clip_half_plane(tri, n, 0.0, 1.0, 0.0, tmp)
-        n = clip_half_plane(tmp, n, 0.0, -1.0, float(height), tri)
+        n = clip_to_view(tri, 3, float(width), float(height), tmp)
         if n == 0:
             continue
         cur[0, :n] = tri[:n]
@@ -431,14 +429,21 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
                    piece_row.astype(np.int64), piece_start, vertices, width, height, stats)
 
 
-def _piece_centroids(vertices: np.ndarray, piece_start: np.ndarray) -> tuple:
-    """(x, y, area) of each piece's centroid (the shoelace moments)."""
+def _shoelace(vertices: np.ndarray, piece_start: np.ndarray) -> tuple:
+    """(piece of each vertex, index of the next vertex round its piece, x_k y_k+1 -
+    x_k+1 y_k): the terms of every piece's shoelace sums."""
     x, y = vertices[:, 0], vertices[:, 1]
     idx = np.arange(len(vertices))
-    n_pieces = len(piece_start) - 1
-    piece = np.repeat(np.arange(n_pieces), np.diff(piece_start))
+    piece = np.repeat(np.arange(len(piece_start) - 1), np.diff(piece_start))
     nxt = np.where(idx + 1 == piece_start[piece + 1], piece_start[piece], idx + 1)
-    cross = x * y[nxt] - x[nxt] * y
+    return piece, nxt, x * y[nxt] - x[nxt] * y
+
+
+def _piece_centroids(vertices: np.ndarray, piece_start: np.ndarray) -> tuple:
+    """(x, y, area) of each piece's centroid (the shoelace moments)."""
+    n_pieces = len(piece_start) - 1
+    piece, nxt, cross = _shoelace(vertices, piece_start)
+    x, y = vertices[:, 0], vertices[:, 1]
     twice = np.bincount(piece, cross, minlength=n_pieces)
     safe = np.where(twice != 0.0, twice, 1.0)
     cx = np.bincount(piece, (x + x[nxt]) * cross, minlength=n_pieces) / (3.0 * safe)
@@ -450,11 +455,7 @@ def _piece_areas(vertices: np.ndarray, piece_start: np.ndarray) -> np.ndarray:
     """Absolute shoelace area of each piece."""
     if len(piece_start) <= 1:
         return np.zeros(0)
-    x, y = vertices[:, 0], vertices[:, 1]
-    idx = np.arange(len(vertices))
-    piece = np.repeat(np.arange(len(piece_start) - 1), np.diff(piece_start))
-    nxt = np.where(idx + 1 == piece_start[piece + 1], piece_start[piece], idx + 1)
-    cross = x * y[nxt] - x[nxt] * y
+    piece, _, cross = _shoelace(vertices, piece_start)
     return np.abs(0.5 * np.bincount(piece, cross, minlength=len(piece_start) - 1))
 
 
@@ -477,10 +478,7 @@ def _view_areas(xy, width, height):
         for k in range(3):
             a[k, 0] = xy[i, k, 0]
             a[k, 1] = xy[i, k, 1]
-        n = clip_half_plane(a, 3, 1.0, 0.0, 0.0, b)
-        n = clip_half_plane(b, n, -1.0, 0.0, width, a)
-        n = clip_half_plane(a, n, 0.0, 1.0, 0.0, b)
-        n = clip_half_plane(b, n, 0.0, -1.0, height, a)
+        n = clip_to_view(a, 3, width, height, b)
         out[i] = abs(signed_area(a, n)) if n else 0.0
     return out
 
