@@ -1,7 +1,9 @@
 """Exact visible regions (hsr.visible_regions) against what a user would otherwise run on
 the same view, in the same run: hsr.render (pixels), hidden_lines (the exact edge engine)
 and a plain shapely baseline (faces nearest first, each differenced against the running
-union: right only where faces do not pass through each other).
+union: right only where faces do not pass through each other), and the first step of
+Gordon & Chen's front-to-back BSP method (building the BSP tree and walking it, before any
+coverage clipping): the pieces it cuts are what that method would then clip.
 
     python benchmarks/bench_regions.py [--baseline-faces 20000] [CASE ...]
 
@@ -62,6 +64,14 @@ def shapely_baseline(scene, camera, width, height):
     return regions
 
 
+def bsp_walk(scene, camera):
+    """Gordon-Chen's first step: the BSP tree (hsr's, as algorithm="bsp" builds it) and its
+    front-to-back order; returns the ordered pieces."""
+    from hsr.algorithms import bsp_tree
+
+    return bsp_tree.front_to_back(bsp_tree.build(scene), camera)
+
+
 def cpu_name() -> str:
     try:
         with open("/proc/cpuinfo") as fh:
@@ -87,12 +97,16 @@ def main(argv=None):
     hsr.hidden_lines(warm, cam, 64, 48)
     print(f"CPU: {cpu_name()}, {os.cpu_count()} cores")
     print(f"{'case':28} {'faces':>8} {'regions s':>9} {'visible':>8} {'pieces':>8} "
-          f"{'x render':>9} {'x lines':>8} {'x shapely':>9} {'peak GB':>7}")
+          f"{'x render':>9} {'x lines':>8} {'x shapely':>9} {'x BSP':>6} {'BSP pieces':>10} "
+          f"{'peak GB':>7}")
+    print("(peak: the high-water mark of the process after each case's regions)")
     for spec in args.cases:
         label, scene, camera, width, height = case(spec)
         regions, t_regions = timed(lambda: hsr.visible_regions(scene, camera, width, height))
+        peak = peak_gb()  # the process's high-water mark so far: the BSP build raises it
         _, t_render = timed(lambda: hsr.render(scene, camera, width, height))
         _, t_lines = timed(lambda: hsr.hidden_lines(scene, camera, width, height))
+        tree, t_bsp = timed(lambda: bsp_walk(scene, camera))
         if scene.n_faces <= args.baseline_faces:
             _, t_base = timed(lambda: shapely_baseline(scene, camera, width, height))
             base = f"{t_regions / t_base:9.3f}"
@@ -100,7 +114,8 @@ def main(argv=None):
             base = f"{'-':>9}"
         print(f"{label + f' {width}x{height}':28} {scene.n_faces:8d} {t_regions / 1e3:9.2f} "
               f"{len(regions):8d} {len(regions.piece_row):8d} {t_regions / t_render:9.1f} "
-              f"{t_regions / t_lines:8.2f} {base} {peak_gb():7.2f}", flush=True)
+              f"{t_regions / t_lines:8.2f} {base} {t_regions / t_bsp:6.2f} {len(tree):10d} "
+              f"{peak:7.2f}", flush=True)
     return 0
 
 
