@@ -259,6 +259,39 @@ def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progre
     return hidden_edge, hidden_t, ends, cell
 
 
+def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None) -> tuple:
+    """The visible parts of any world segments (E, 2, 3) among ``screen``'s triangles
+    (lines and points of a plot, not a mesh's edges): ``(segment (K,), t (K, 2) where
+    each piece starts and ends on its segment (0 and 1 exactly at the segment's ends; in
+    between, a fraction along the projected segment), pieces (K, 2, 3) window x, y up,
+    depth)``, sorted by segment and t. ``own_faces`` (E, 2): faces that never hide their segment (-1: none).
+    A segment of zero length is a point: one piece when visible, none when hidden."""
+    width, height = screen.width, screen.height
+    ends_world = np.asarray(ends_world, dtype=np.float64).reshape(-1, 2, 3)
+    keep, ends, t_kept = clip_segments(ends_world, view_proj, width, height, guard=0)
+    if cell is None:
+        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
+    tri_xy = np.ascontiguousarray(screen.xy_window)
+    start, items, nx, ny = _grid(tri_xy, width, height, cell)
+    bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
+    own = np.ascontiguousarray(np.asarray(own_faces, dtype=np.int64)[keep])
+    results = workers.run(_hidden_intervals, bounds, ends, own, tri_xy,
+                          np.ascontiguousarray(screen.depth_window), screen.face_id, start,
+                          items, nx, ny, cell)
+    hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
+    hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
+    degenerate = np.all(ends[:, 0, :2] == ends[:, 1, :2], axis=1)
+    vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
+    if degenerate.any():  # a point: visible whole or not at all
+        whole = ~degenerate[vis_edge] | (vis_t[:, 0] <= 0.0) & (vis_t[:, 1] >= 1.0)
+        vis_edge, vis_t = vis_edge[whole], vis_t[whole]
+    pieces = _pieces(ends, vis_edge, vis_t)
+    # Back to the caller's segments and their parameters (clipping kept t_kept of each).
+    span = t_kept[vis_edge]
+    t = span[:, :1] + vis_t * (span[:, 1:] - span[:, :1])
+    return np.flatnonzero(keep)[vis_edge], t, pieces
+
+
 def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
                  settings: HiddenLine | None = None, state: RenderState | None = None,
                  threads: int | None = None, with_hidden: bool = True,
