@@ -264,8 +264,9 @@ def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None)
     (lines and points of a plot, not a mesh's edges): ``(segment (K,), t (K, 2) where
     each piece starts and ends on its segment (0 and 1 exactly at the segment's ends; in
     between, a fraction along the projected segment), pieces (K, 2, 3) window x, y up,
-    depth)``, sorted by segment and t. ``own_faces`` (E, 2): faces that never hide their segment (-1: none).
-    A segment of zero length is a point: one piece when visible, none when hidden."""
+    depth)``, sorted by segment and t. ``own_faces`` (E, 2): faces that never hide their
+    segment (-1: none). A segment of zero length is a point: one piece when visible, none
+    when hidden."""
     width, height = screen.width, screen.height
     ends_world = np.asarray(ends_world, dtype=np.float64).reshape(-1, 2, 3)
     keep, ends, t_kept = clip_segments(ends_world, view_proj, width, height, guard=0)

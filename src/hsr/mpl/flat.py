@@ -90,9 +90,10 @@ class Flattened:
                 n_poly = len(poly_fill)
                 tris.append(poly[idx])
                 tri_poly.append(np.full(len(idx), n_poly))
-                edges.append(np.stack([poly, np.roll(poly, -1, axis=0)], axis=1))
-                edge_own.append(_outline_owners(idx, len(poly), n_tri))
-                edge_poly.append(np.full(len(poly), n_poly))
+                m = len(poly) if fill.closed else len(poly) - 1
+                edges.append(np.stack([poly, np.roll(poly, -1, axis=0)], axis=1)[:m])
+                edge_own.append(_outline_owners(idx, len(poly), n_tri)[:m])
+                edge_poly.append(np.full(m, n_poly))
                 poly_fill.append(f)
                 poly_index.append(p)
                 n_tri += len(idx)
@@ -236,8 +237,10 @@ def _flat_classes():
     return FlatPaths, FlatLines
 
 
-def _like(new, old, figure) -> None:
-    """Clip and figure of the original artist, set before the new one joins the axes."""
+def _like(new, old, figure, kind: str) -> None:
+    """Clip and figure of the original artist, set before the new one joins the axes, and
+    an id (``hsr3d-fill``, ``-edge``, ``-line``, ``-marker``) that SVG output keeps."""
+    new.set_gid(f"hsr3d-{kind}")
     new.set_clip_on(old.get_clip_on())
     new.set_clip_box(old.get_clip_box())
     new.set_clip_path(old.get_clip_path())
@@ -301,7 +304,7 @@ def flat_artists(ax) -> tuple:
                             antialiaseds=fill.artist.get_antialiased()
                             if hasattr(fill.artist, "get_antialiased") else True)
             art.set_transform(IdentityTransform())
-            _like(art, fill.artist, figure)
+            _like(art, fill.artist, figure, "fill")
             added.append((art, _FILL))
 
     # Outlines of polygons, then lines: visible pieces joined where they continue.
@@ -322,7 +325,7 @@ def flat_artists(ax) -> tuple:
                             linestyles=fill.artist.get_linestyle()
                             if hasattr(fill.artist, "get_linestyle") else "solid")
             art.set_transform(IdentityTransform())
-            _like(art, fill.artist, figure)
+            _like(art, fill.artist, figure, "edge")
             added.append((art, _EDGE))
     is_seg = (item >= seen.n_edges) & (item < seen.n_edges + seen.n_segments)
     if is_seg.any():
@@ -342,7 +345,7 @@ def flat_artists(ax) -> tuple:
             if hasattr(group.artist, "get_dash_capstyle"):
                 art.set_capstyle(group.artist.get_solid_capstyle())
                 art.set_joinstyle(group.artist.get_solid_joinstyle())
-            _like(art, group.artist, figure)
+            _like(art, group.artist, figure, "line")
             added.append((art, _LINE))
 
     # Markers whose centre is visible, in mplot3d's order (far to near).
@@ -361,7 +364,7 @@ def flat_artists(ax) -> tuple:
                         facecolors=marks.face_rgba[idx], edgecolors=marks.edge_rgba[idx],
                         linewidths=marks.widths[idx])
         art.set_transform(IdentityTransform())
-        _like(art, marks.artist, figure)
+        _like(art, marks.artist, figure, "marker")
         added.append((art, _MARK))
     for g, group in enumerate(got.lines):
         if not group.markers:
@@ -372,6 +375,6 @@ def flat_artists(ax) -> tuple:
         art.update_from(group.artist)
         art.set_linestyle("None")
         art.set_transform(IdentityTransform())
-        _like(art, group.artist, figure)
+        _like(art, group.artist, figure, "marker")
         added.append((art, _MARK))
     return replaced, added

@@ -27,6 +27,7 @@ class Fill:
     face_rgba: np.ndarray
     edge_rgba: np.ndarray
     edge_width: np.ndarray
+    closed: bool = True  # an open path's outline has no closing edge (an open PathPatch)
 
 
 @dataclass
@@ -90,8 +91,8 @@ def _poly_collection(ax, artist) -> Fill | str:
     invalid = np.broadcast_to(np.asarray(artist._invalid_vertices, bool), faces.shape[:2])
     face = to_rgba_array(_per_item(artist._facecolor3d, n)) if n else np.zeros((0, 4))
     edges = artist._edgecolor3d
-    edge = to_rgba_array(_per_item(edges if len(edges) else artist._facecolor3d, n)) if n \
-        else np.zeros((0, 4))
+    # No edge colours: mplot3d strokes nothing (its _edgecolors2d stays empty).
+    edge = to_rgba_array(_per_item(edges, n)) if n and len(edges) else np.zeros((n, 4))
     width = _per_item(np.atleast_1d(artist.get_linewidth()).astype(float), n)
     polygons, keep = [], []
     for i in range(n):
@@ -106,10 +107,14 @@ def _poly_collection(ax, artist) -> Fill | str:
 def _patch(ax, artist) -> Fill | str:
     from matplotlib.colors import to_rgba
 
-    if getattr(artist, "_code3d", None) is not None:
-        codes = np.asarray(artist._code3d)
-        if np.count_nonzero(codes == 1) > 1:  # Path.MOVETO: several subpaths
+    closed = True  # a Patch3D's vertices are its closed polygon
+    if hasattr(artist, "_code3d"):  # a PathPatch3D: closed only by CLOSEPOLY
+        from matplotlib.path import Path
+
+        codes = np.asarray(artist._code3d if artist._code3d is not None else [])
+        if np.count_nonzero(codes == Path.MOVETO) > 1:
             return "patches of several subpaths are not supported yet"
+        closed = bool(len(codes)) and codes[-1] == Path.CLOSEPOLY
     points = np.array([tuple(p) for p in artist._segment3d], dtype=np.float64)
     if len(points) < 3 or not np.all(np.isfinite(points)):
         return Fill(artist, [], np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0))
@@ -117,7 +122,7 @@ def _patch(ax, artist) -> Fill | str:
         np.array([[0.0, 0.0, 0.0, 0.0]])
     edge = np.array([to_rgba(artist.get_edgecolor())])
     return Fill(artist, [to_box(ax, points)], face, edge,
-                np.array([float(artist.get_linewidth())]))
+                np.array([float(artist.get_linewidth())]), closed)
 
 
 def _line3d(ax, artist) -> Lines:

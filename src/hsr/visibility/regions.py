@@ -518,7 +518,7 @@ def write_regions_svg(path, regions: Regions, colors, background=(0, 0, 0),
 def write_regions_pdf(path, regions: Regions, colors, background=(0, 0, 0),
                       lines=None, line_color=(0, 0, 0)) -> None:
     """:func:`write_regions_svg` as PDF, one point per pixel, through matplotlib's PDF
-    backend (no pyplot state; needs ``pip install 'hsr[plot]'``). Raises
+    backend (no pyplot state; needs ``pip install 'hsr[mpl]'``). Raises
     :class:`~hsr.errors.OutputError` when the file cannot be written."""
     from ..errors import OutputError, require_extra
 
