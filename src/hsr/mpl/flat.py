@@ -16,6 +16,7 @@ import warnings
 import numpy as np
 
 from ..errors import HsrWarning
+from ..geometry.merge import merge_pieces
 from .gather import Gathered, gather
 from .view import camera_for
 
@@ -23,32 +24,27 @@ from .view import camera_for
 _FILL, _EDGE, _LINE, _MARK = 0.0, 0.1, 0.2, 0.3
 
 
-def _triangulate(polygon: np.ndarray) -> np.ndarray:
-    """(k, 3) vertex indices of a polygon: a fan for triangles and quads (what Agg fills of
-    a convex projected quad), else ear-free constrained Delaunay in the polygon's best-fit
-    plane (shapely) for a planar one, a fan for a non-planar one."""
-    n = len(polygon)
-    fan = np.stack([np.zeros(n - 2, np.int64), np.arange(1, n - 1), np.arange(2, n)], axis=1)
-    if n <= 4:
-        return fan
+def _delaunay(polygon: np.ndarray) -> np.ndarray | None:
+    """(k, 3) vertex indices triangulating a planar polygon of more than four vertices
+    (constrained Delaunay in its best-fit plane, shapely), or None for a non-planar one
+    (fanned, as Agg fills the projection of a convex one)."""
     centre = polygon.mean(axis=0)
     _, sing, basis = np.linalg.svd(polygon - centre)
     if sing[2] > 1e-9 * max(sing[0], 1e-300):
-        return fan
+        return None
     import shapely
 
     uv = (polygon - centre) @ basis[:2].T
     shape = shapely.make_valid(shapely.Polygon(uv))
-    tris = shapely.get_parts(shapely.constrained_delaunay_triangles(shape))
     out = []
-    for tri in tris:
+    for tri in shapely.get_parts(shapely.constrained_delaunay_triangles(shape)):
         corners = np.asarray(tri.exterior.coords)[:3]
-        # Delaunay corners are the polygon's own vertices (or crossings of its edges).
+        # Corners are the polygon's own vertices (or where its edges cross: the nearest).
         d = np.linalg.norm(uv[None, :, :] - corners[:, None, :], axis=2)
         out.append(np.argmin(d, axis=1))
-    out = np.asarray(out, dtype=np.int64).reshape(-1, 3)
-    keep = (out[:, 0] != out[:, 1]) & (out[:, 1] != out[:, 2]) & (out[:, 0] != out[:, 2])
-    return out[keep]
+    idx = np.asarray(out, dtype=np.int64).reshape(-1, 3)
+    keep = (idx[:, 0] != idx[:, 1]) & (idx[:, 1] != idx[:, 2]) & (idx[:, 0] != idx[:, 2])
+    return idx[keep]
 
 
 def _outline_owners(idx: np.ndarray, n: int, first_tri: int) -> np.ndarray:
@@ -62,6 +58,44 @@ def _outline_owners(idx: np.ndarray, n: int, first_tri: int) -> np.ndarray:
             elif (u - v) % n == 1:
                 owner[v] = first_tri + k
     return owner
+
+
+def _fill_geometry(fill) -> tuple:
+    """Triangles (T, 3) vertex indices and their polygons (T,), outline edges (E, 2)
+    vertex indices, their polygons and owner triangles (E,), for one Fill: fans, except
+    constrained Delaunay for planar polygons of more than four vertices."""
+    starts = fill.starts
+    n = np.diff(starts)
+    count = np.maximum(n - 2, 0)
+    poly = np.repeat(np.arange(len(n)), count)
+    k = np.arange(len(poly)) - np.repeat(np.cumsum(count) - count, count)
+    s = starts[poly]
+    tris = np.stack([s, s + k + 1, s + k + 2], axis=1)
+    special = {}
+    for p in np.flatnonzero(n > 4):
+        idx = _delaunay(fill.vertices[starts[p]:starts[p + 1]])
+        if idx is not None:
+            special[p] = idx
+    if special:
+        drop = np.isin(poly, list(special))
+        tris, poly = [tris[~drop]], [poly[~drop]]
+        for p, idx in special.items():
+            tris.append(idx + starts[p])
+            poly.append(np.full(len(idx), p))
+        tris, poly = np.concatenate(tris), np.concatenate(poly)
+        order = np.argsort(poly, kind="stable")
+        tris, poly = tris[order], poly[order]
+    first_tri = np.searchsorted(poly, np.arange(len(n)))
+    m = n if fill.closed else n - 1
+    e_poly = np.repeat(np.arange(len(n)), m)
+    e_k = np.arange(len(e_poly)) - np.repeat(np.cumsum(m) - m, m)
+    e_n = n[e_poly]
+    edges = np.stack([starts[e_poly] + e_k, starts[e_poly] + (e_k + 1) % e_n], axis=1)
+    owner = first_tri[e_poly] + np.clip(e_k - 1, 0, np.maximum(e_n - 3, 0))
+    for p, idx in special.items():
+        mine = e_poly == p
+        owner[mine] = _outline_owners(idx, int(n[p]), int(first_tri[p]))[:int(m[p])]
+    return tris, poly, edges, e_poly, owner
 
 
 class Flattened:
@@ -83,27 +117,26 @@ class Flattened:
         edge_poly: list = []
         poly_fill: list = []
         poly_index: list = []
-        n_tri = 0
+        n_tri = n_poly = 0
         for f, fill in enumerate(got.fills):
-            for p, poly in enumerate(fill.polygons):
-                idx = _triangulate(poly)
-                n_poly = len(poly_fill)
-                tris.append(poly[idx])
-                tri_poly.append(np.full(len(idx), n_poly))
-                m = len(poly) if fill.closed else len(poly) - 1
-                edges.append(np.stack([poly, np.roll(poly, -1, axis=0)], axis=1)[:m])
-                edge_own.append(_outline_owners(idx, len(poly), n_tri)[:m])
-                edge_poly.append(np.full(m, n_poly))
-                poly_fill.append(f)
-                poly_index.append(p)
-                n_tri += len(idx)
+            t_idx, t_poly, e_idx, e_poly, owner = _fill_geometry(fill)
+            tris.append(fill.vertices[t_idx])
+            tri_poly.append(t_poly + n_poly)
+            edges.append(fill.vertices[e_idx])
+            edge_own.append(owner + n_tri)
+            edge_poly.append(e_poly + n_poly)
+            count = len(fill.starts) - 1
+            poly_fill.append(np.full(count, f))
+            poly_index.append(np.arange(count))
+            n_tri += len(t_idx)
+            n_poly += count
         self.triangles = _cat(tris, (0, 3, 3))
         self.tri_poly = _cat(tri_poly, (0,), np.int64)
         self.edges = _cat(edges, (0, 2, 3))
         self.edge_own = _cat(edge_own, (0,), np.int64)
         self.edge_poly = _cat(edge_poly, (0,), np.int64)
-        self.poly_fill = np.asarray(poly_fill, dtype=np.int64)
-        self.poly_index = np.asarray(poly_index, dtype=np.int64)
+        self.poly_fill = _cat(poly_fill, (0,), np.int64)
+        self.poly_index = _cat(poly_index, (0,), np.int64)
         segs: list = []
         seg_group: list = []
         seg_line: list = []
@@ -202,24 +235,54 @@ def _joined(seg_key: np.ndarray, seg_number: np.ndarray, t: np.ndarray,
     """Join visible pieces (sorted by segment) that continue each other (one ends at its
     segment's end, the next starts at the following segment's start, same polyline) into
     polylines: (list of (n, 2) display points, (L,) the key of each)."""
-    lines, keys = [], []
-    current: list = []
-    for k in range(len(pieces)):
-        starts_at_0 = t[k, 0] <= 1e-12
-        cont = (current and seg_key[k] == seg_key[k - 1] and
-                seg_number[k] == seg_number[k - 1] + 1 and t[k - 1, 1] >= 1 - 1e-12 and
-                starts_at_0)
-        if cont:
-            current.append(pieces[k, 1, :2])
-        else:
-            if current:
-                lines.append(np.array(current))
-                keys.append(seg_key[k - 1])
-            current = [pieces[k, 0, :2], pieces[k, 1, :2]]
-    if current:
-        lines.append(np.array(current))
-        keys.append(seg_key[len(pieces) - 1])
-    return lines, np.asarray(keys, dtype=np.int64)
+    if not len(pieces):
+        return [], np.zeros(0, np.int64)
+    cont = np.zeros(len(pieces), bool)
+    cont[1:] = ((seg_key[1:] == seg_key[:-1]) & (seg_number[1:] == seg_number[:-1] + 1)
+                & (t[:-1, 1] >= 1 - 1e-12) & (t[1:, 0] <= 1e-12))
+    first = np.flatnonzero(~cont)
+    # Each polyline: its first piece's start, then every piece's end.
+    points = np.concatenate([pieces[:, :1, :2], pieces[:, 1:, :2]], axis=1)
+    keep = np.ones((len(pieces), 2), bool)
+    keep[cont, 0] = False
+    flat_points = points[keep]
+    sizes = np.add.reduceat(keep.sum(axis=1), first)
+    lines = np.split(flat_points, np.cumsum(sizes)[:-1])
+    return lines, seg_key[first]
+
+
+def _pieces_in_order(vertices, piece_start, order) -> tuple:
+    """The pieces' vertices reordered as ``order`` lists the pieces, and their starts."""
+    size = np.diff(piece_start)[order]
+    start = np.r_[0, np.cumsum(size)].astype(np.int64)
+    src = np.repeat(piece_start[:-1][order] - start[:-1], size) + np.arange(start[-1])
+    return np.ascontiguousarray(vertices[src]), start
+
+
+def _compound_paths(ring_xy, ring_start, group_ring) -> list:
+    """One matplotlib Path per group of rings: MOVETO, LINETOs, CLOSEPOLY per ring."""
+    from matplotlib.path import Path
+
+    n_ring = len(ring_start) - 1
+    size = np.diff(ring_start) + 1  # each ring and its closing vertex
+    out_start = np.r_[0, np.cumsum(size)]
+    verts = np.empty((out_start[-1], 2))
+    src = np.repeat(ring_start[:-1] - out_start[:-1], size) + np.arange(out_start[-1])
+    last = out_start[1:] - 1
+    src[last] = ring_start[:-1]  # the closing vertex repeats the first (CLOSEPOLY ignores it)
+    verts[:] = ring_xy[src]
+    codes = np.full(len(verts), Path.LINETO, dtype=np.uint8)
+    codes[out_start[:-1]] = Path.MOVETO
+    codes[last] = Path.CLOSEPOLY
+    bounds = out_start[group_ring]
+    return [Path(verts[bounds[g]:bounds[g + 1]], codes[bounds[g]:bounds[g + 1]])
+            for g in range(len(group_ring) - 1)] if n_ring else []
+
+
+def _one_if_same(values: np.ndarray) -> np.ndarray:
+    """One value where all are equal: the SVG and PDF backends then define the marker once
+    and place it at each offset."""
+    return values[:1] if len(values) and np.all(values == values[0]) else values
 
 
 def _flat_classes():
@@ -252,7 +315,6 @@ def flat_artists(ax) -> tuple:
     """(ids of the 3D artists drawn here, [(2D artist, rank)]) for the axes' current view
     (``ax.M`` set). Warns, naming each, of 3D artists left to mplot3d."""
     from matplotlib.lines import Line2D
-    from matplotlib.path import Path
     from matplotlib.transforms import IdentityTransform
 
     got = gather(ax)
@@ -275,32 +337,25 @@ def flat_artists(ax) -> tuple:
     added: list = []
     replaced = {id(x.artist) for x in got.fills + got.lines + got.markers}
 
-    # Fills: each polygon's pieces as one compound path.
+    # Fills: each polygon's pieces merged into rings, one compound path per polygon.
     if seen.regions is not None and len(seen.regions):
         reg = seen.regions
         piece_poly = flat.tri_poly[reg.face_id[reg.piece_row]]
         order = np.argsort(piece_poly, kind="stable")
-        starts = reg.piece_start
+        verts, start = _pieces_in_order(reg.vertices, reg.piece_start, order)
+        polys = piece_poly[order]
+        groups = np.flatnonzero(np.r_[True, polys[1:] != polys[:-1], True])
+        ring_xy, ring_start, group_ring = merge_pieces(verts, start, groups)
+        ring_xy[:, 1] = height - ring_xy[:, 1]  # image rows -> display y up
+        paths = _compound_paths(ring_xy, ring_start, group_ring)
+        poly_of_path = polys[groups[:-1]]
         for f, fill in enumerate(got.fills):
-            mine = order[flat.poly_fill[piece_poly[order]] == f]
+            mine = np.flatnonzero(flat.poly_fill[poly_of_path] == f)
             if not len(mine):
                 continue
-            paths, colors = [], []
-            polys = piece_poly[mine]
-            cuts = np.flatnonzero(np.r_[True, polys[1:] != polys[:-1], True])
-            for a, b in zip(cuts[:-1], cuts[1:]):
-                verts, codes = [], []
-                for piece in mine[a:b]:
-                    ring = reg.vertices[starts[piece]:starts[piece + 1]].copy()
-                    ring[:, 1] = height - ring[:, 1]
-                    verts.append(np.vstack([ring, ring[:1]]))
-                    c = np.full(len(ring) + 1, Path.LINETO, dtype=np.uint8)
-                    c[0], c[-1] = Path.MOVETO, Path.CLOSEPOLY
-                    codes.append(c)
-                paths.append(Path(np.concatenate(verts), np.concatenate(codes)))
-                colors.append(fill.face_rgba[flat.poly_index[polys[a]]])
-            art = FlatPaths(paths, facecolors=np.array(colors), edgecolors="none",
-                            linewidths=0.0, transform=IdentityTransform(),
+            art = FlatPaths([paths[k] for k in mine],
+                            facecolors=fill.face_rgba[flat.poly_index[poly_of_path[mine]]],
+                            edgecolors="none", linewidths=0.0,
                             antialiaseds=fill.artist.get_antialiased()
                             if hasattr(fill.artist, "get_antialiased") else True)
             art.set_transform(IdentityTransform())
@@ -359,10 +414,10 @@ def flat_artists(ax) -> tuple:
         rank[marks.order] = np.arange(len(marks.order))
         o = np.argsort(rank[idx], kind="stable")
         idx, pos = idx[o], xy[sel][o]
-        art = FlatPaths(marks.artist.get_paths(), sizes=marks.sizes[idx],
+        art = FlatPaths(marks.artist.get_paths(), sizes=_one_if_same(marks.sizes[idx]),
                         offsets=pos, offset_transform=IdentityTransform(),
                         facecolors=marks.face_rgba[idx], edgecolors=marks.edge_rgba[idx],
-                        linewidths=marks.widths[idx])
+                        linewidths=_one_if_same(marks.widths[idx]))
         art.set_transform(IdentityTransform())
         _like(art, marks.artist, figure, "marker")
         added.append((art, _MARK))

@@ -19,11 +19,13 @@ from .view import to_box
 
 @dataclass
 class Fill:
-    """A Poly3DCollection or Patch3D: ``polygons`` (P,) of (n, 3) box coordinates, and per
-    polygon its face colour, edge colour (RGBA floats) and edge width (points)."""
+    """A Poly3DCollection or Patch3D: polygons as ``vertices`` (V, 3) box coordinates, the
+    polygon p being vertices[starts[p]:starts[p + 1]], and per polygon its face colour,
+    edge colour (RGBA floats) and edge width (points)."""
 
     artist: object
-    polygons: list
+    vertices: np.ndarray
+    starts: np.ndarray
     face_rgba: np.ndarray
     edge_rgba: np.ndarray
     edge_width: np.ndarray
@@ -94,14 +96,15 @@ def _poly_collection(ax, artist) -> Fill | str:
     # No edge colours: mplot3d strokes nothing (its _edgecolors2d stays empty).
     edge = to_rgba_array(_per_item(edges, n)) if n and len(edges) else np.zeros((n, 4))
     width = _per_item(np.atleast_1d(artist.get_linewidth()).astype(float), n)
-    polygons, keep = [], []
-    for i in range(n):
-        pts = faces[i][~invalid[i]]
-        if len(pts) >= 3 and np.all(np.isfinite(pts)):
-            polygons.append(to_box(ax, pts))
-            keep.append(i)
-    keep_idx = np.asarray(keep, dtype=np.int64)
-    return Fill(artist, polygons, face[keep_idx], edge[keep_idx], width[keep_idx])
+    # Each polygon's valid vertices, in order; one with a non-finite one is left out.
+    valid = ~invalid
+    bad = np.any(valid & ~np.all(np.isfinite(faces), axis=2), axis=1)
+    count = valid.sum(axis=1)
+    keep = np.flatnonzero(~bad & (count >= 3))
+    vertices = faces[keep][valid[keep]]
+    starts = np.r_[0, np.cumsum(count[keep])].astype(np.int64)
+    return Fill(artist, to_box(ax, vertices) if len(vertices) else vertices.reshape(0, 3),
+                starts, face[keep], edge[keep], width[keep])
 
 
 def _patch(ax, artist) -> Fill | str:
@@ -117,11 +120,12 @@ def _patch(ax, artist) -> Fill | str:
         closed = bool(len(codes)) and codes[-1] == Path.CLOSEPOLY
     points = np.array([tuple(p) for p in artist._segment3d], dtype=np.float64)
     if len(points) < 3 or not np.all(np.isfinite(points)):
-        return Fill(artist, [], np.zeros((0, 4)), np.zeros((0, 4)), np.zeros(0))
+        return Fill(artist, np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros((0, 4)),
+                    np.zeros((0, 4)), np.zeros(0))
     face = np.array([to_rgba(artist.get_facecolor())]) if artist.get_fill() else \
         np.array([[0.0, 0.0, 0.0, 0.0]])
     edge = np.array([to_rgba(artist.get_edgecolor())])
-    return Fill(artist, [to_box(ax, points)], face, edge,
+    return Fill(artist, to_box(ax, points), np.array([0, len(points)], np.int64), face, edge,
                 np.array([float(artist.get_linewidth())]), closed)
 
 
