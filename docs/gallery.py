@@ -49,6 +49,14 @@ PICTURES = {
     "prune.png": "`hsr prune`: a housing with a part inside, as rendered, and an x-ray of "
                  "the faces removed (red).",
 }
+# matplotlib issues whose figures hsr.mpl redraws (hsr.mpl.examples): mplot3d | hsr.
+MPL_ISSUES = ("29060", "23392", "22165", "16071", "9499")
+# The views drawn: the issue's own, or one where its failure shows (#16071's own view
+# looks straight down the cylinder).
+MPL_VIEWS = {"16071": (20, 30)}
+for _issue in MPL_ISSUES:
+    PICTURES[f"mpl-{_issue}.png"] = (f"matplotlib #{_issue}: mplot3d's figure (left) and the "
+                                     f"same code with projection='hsr3d' (right).")
 
 
 def model(name: str):
@@ -175,7 +183,34 @@ def prune_picture() -> np.ndarray:
                          label(xray, f"removed: {int((~keep).sum())} of {keep.size} faces")])
 
 
+def mpl_picture(issue: str) -> np.ndarray:
+    """mplot3d's figure of a matplotlib issue's code beside hsr.mpl's, each labelled."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hsr.mpl.examples import CASES
+
+    images = []
+    for projection, caption in (("3d", "mplot3d"), ("hsr3d", "hsr.mpl")):
+        fig, ax = CASES[issue](plt, projection)
+        if issue in MPL_VIEWS:
+            ax.view_init(*MPL_VIEWS[issue])
+        fig.set_dpi(80)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=80)
+        plt.close(fig)
+        image = np.asarray(Image.open(buf).convert("RGB"))
+        images.append(label(image, caption))
+    return side_by_side(images)
+
+
 def make(name: str):
+    if name.startswith("mpl-"):
+        return mpl_picture(name[len("mpl-"):-len(".png")])
     if name == "algorithms.png":
         return algorithms_picture()
     if name.startswith("explain-"):

@@ -21,7 +21,7 @@ from .gather import Gathered, gather
 from .view import camera_for
 
 # Above mplot3d's axis zorder, in this order (fills under lines under markers).
-_FILL, _EDGE, _LINE, _MARK = 0.0, 0.1, 0.2, 0.3
+_FILL, _GLASS, _EDGE, _LINE, _MARK = 0.0, 0.05, 0.1, 0.2, 0.3
 
 
 def _delaunay(polygon: np.ndarray) -> np.ndarray | None:
@@ -187,19 +187,27 @@ def _cat(parts: list, empty_shape: tuple, dtype=np.float64) -> np.ndarray:
 
 
 class VisibleParts:
-    """What the camera sees of a Flattened axes: ``regions`` (hsr Regions of its triangles,
-    or None), and the visible pieces of its edges, segments and points (one list: edges
-    first, then segments, then points as zero-length segments): ``item`` (K,), ``t``
-    (K, 2) and ``pieces`` (K, 2, 3) window x, y up, depth."""
+    """What the camera sees of a Flattened axes.
+
+    ``regions``: hsr Regions of the scene's faces (or None), the scene being the opaque
+    triangles, then the pieces a BSP tree cuts the transparent ones into (split where they
+    cross), in painting order; ``face_poly`` (F,) each scene face's polygon and
+    ``face_glass`` (F,) its place in that order (-1: opaque). Only opaque faces hide:
+    a transparent piece is cut by the opaque faces in front of it, never by another
+    transparent one. Fully transparent faces (alpha 0) are left out.
+
+    The visible pieces of edges, segments and points (one list: edges first, then
+    segments, then points as zero-length segments), hidden by the opaque faces: ``item``
+    (K,), ``t`` (K, 2) and ``pieces`` (K, 2, 3) window x, y up, depth."""
 
     def __init__(self, flat: Flattened, camera, width: int, height: int,
-                 edge_drawn: np.ndarray) -> None:
+                 edge_drawn: np.ndarray, poly_alpha: np.ndarray) -> None:
+        from ..algorithms import bsp_tree
         from ..geometry.stage import prepare
         from ..geometry.state import RenderState
         from ..lines.raster import clip_segments
         from ..lines.vector import visible_pieces
         from ..parallel import Workers
-        from ..scene.mesh import Mesh, Scene
         from ..visibility.regions import _regions
 
         self.width, self.height = width, height
@@ -208,26 +216,66 @@ class VisibleParts:
         self.edge_ids = edges
         ends = np.concatenate([flat.edges[edges], flat.segments,
                                np.repeat(flat.points[:, None, :], 2, axis=1)])
-        own = np.full((len(ends), 2), -1, dtype=np.int64)
-        own[:len(edges), 0] = flat.edge_own[edges]
         self.n_edges, self.n_segments = len(edges), len(flat.segments)
         view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
         self.regions = None
-        if not len(flat.triangles):
+        alpha = poly_alpha[flat.tri_poly]
+        opaque = np.flatnonzero(alpha >= 1.0)
+        glass = np.flatnonzero((alpha > 0.0) & (alpha < 1.0))
+        tris, self.face_poly = flat.triangles[opaque], flat.tri_poly[opaque]
+        self.face_glass = np.full(len(opaque), -1, np.int64)
+        if len(glass):
+            glass_scene = _soup_scene(flat.triangles[glass])
+            tree = bsp_tree.build(glass_scene)
+            order = bsp_tree.back_to_front(tree, camera)
+            tris = np.concatenate([tris, tree.triangles[order]])
+            self.face_poly = np.concatenate([self.face_poly,
+                                             flat.tri_poly[glass][tree.face_id[order]]])
+            self.face_glass = np.concatenate([self.face_glass, np.arange(len(order))])
+        # An outline edge is never hidden by the (opaque) triangle that holds it.
+        scene_face = np.full(len(flat.triangles), -1, np.int64)
+        scene_face[opaque] = np.arange(len(opaque))
+        own = np.full((len(ends), 2), -1, dtype=np.int64)
+        own[:len(edges), 0] = scene_face[flat.edge_own[edges]]
+        if not len(opaque):
             keep, pieces, t = clip_segments(ends, view_proj, width, height, guard=0)
             self.item, self.t, self.pieces = np.flatnonzero(keep), t, pieces
+        if not len(tris):
             return
-        n = len(flat.triangles)
-        scene = Scene([Mesh(flat.triangles.reshape(-1, 3),
-                            np.arange(3 * n, dtype=np.int64).reshape(-1, 3), name="mplot3d")])
+        scene = _soup_scene(tris)
         with Workers() as workers:
             screen = prepare(scene, view_proj, width, height, RenderState(cull="none"), {},
                              workers)
             if len(screen):
                 self.regions = _regions(scene, screen.xy_window, screen.depth_window,
-                                        screen.face_id, width, height, False, {}, workers)
-            self.item, self.t, self.pieces = visible_pieces(screen, view_proj, ends, own,
-                                                            workers)
+                                        screen.face_id, width, height, False, {}, workers,
+                                        hides=self.face_glass < 0)
+            if len(opaque):
+                hiders = _Subset(screen, self.face_glass[screen.face_id] < 0)
+                self.item, self.t, self.pieces = visible_pieces(hiders, view_proj, ends, own,
+                                                                workers)
+
+
+def _soup_scene(triangles: np.ndarray):
+    """An hsr Scene of a (T, 3, 3) triangle soup: face f is triangle f."""
+    from ..scene.mesh import Mesh, Scene
+
+    n = len(triangles)
+    return Scene([Mesh(triangles.reshape(-1, 3), np.arange(3 * n, dtype=np.int64).reshape(-1, 3),
+                       name="mplot3d")])
+
+
+class _Subset:
+    """The screen triangles of ``mask`` (what lines/vector.visible_pieces reads)."""
+
+    def __init__(self, screen, mask: np.ndarray) -> None:
+        self.xy_window = np.ascontiguousarray(screen.xy_window[mask])
+        self.depth_window = np.ascontiguousarray(screen.depth_window[mask])
+        self.face_id = np.ascontiguousarray(screen.face_id[mask])
+        self.width, self.height = screen.width, screen.height
+
+    def __len__(self) -> int:
+        return len(self.face_id)
 
 
 def _joined(seg_key: np.ndarray, seg_number: np.ndarray, t: np.ndarray,
@@ -275,7 +323,9 @@ def _compound_paths(ring_xy, ring_start, group_ring) -> list:
     codes[out_start[:-1]] = Path.MOVETO
     codes[last] = Path.CLOSEPOLY
     bounds = out_start[group_ring]
-    return [Path(verts[bounds[g]:bounds[g + 1]], codes[bounds[g]:bounds[g + 1]])
+    # Path's own constructor checks each array again (a third of the draw for 10k paths).
+    make = getattr(Path, "_fast_from_codes_and_verts", Path)
+    return [make(verts[bounds[g]:bounds[g + 1]], codes[bounds[g]:bounds[g + 1]])
             for g in range(len(group_ring) - 1)] if n_ring else []
 
 
@@ -283,6 +333,33 @@ def _one_if_same(values: np.ndarray) -> np.ndarray:
     """One value where all are equal: the SVG and PDF backends then define the marker once
     and place it at each offset."""
     return values[:1] if len(values) and np.all(values == values[0]) else values
+
+
+def _per_polygon(got, flat, name: str) -> np.ndarray:
+    """A Fill field (face_rgba, edge_rgba, edge_width) for every polygon of ``flat``."""
+    if not len(flat.poly_fill):
+        return np.zeros((0, 4)) if name.endswith("rgba") else np.zeros(0)
+    parts = [getattr(fill, name) for fill in got.fills]
+    offsets = np.r_[0, np.cumsum([len(p) for p in parts])]
+    return np.concatenate(parts)[offsets[flat.poly_fill] + flat.poly_index]
+
+
+def _antialiased(artist) -> bool:
+    value = artist.get_antialiased() if hasattr(artist, "get_antialiased") else True
+    return bool(np.all(value))
+
+
+def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int) -> tuple:
+    """(keys (G,), paths (G,)): the regions' ``pieces`` grouped by ``key`` (ascending),
+    each group's pieces merged into rings, as display-space compound paths."""
+    order = np.argsort(key, kind="stable")
+    chosen = pieces[order]
+    verts, start = _pieces_in_order(reg.vertices, reg.piece_start, chosen)
+    keys = key[order]
+    groups = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1], True])
+    ring_xy, ring_start, group_ring = merge_pieces(verts, start, groups)
+    ring_xy[:, 1] = height - ring_xy[:, 1]  # image rows -> display y up
+    return keys[groups[:-1]], _compound_paths(ring_xy, ring_start, group_ring)
 
 
 def _flat_classes():
@@ -328,39 +405,51 @@ def flat_artists(ax) -> tuple:
     height = max(1, int(math.ceil(figure.bbox.height)))
     flat = Flattened(got)
     camera = camera_for(ax, flat.all_points(), width, height)
-    edge_drawn = np.zeros(len(flat.poly_fill), bool)
-    for p, (f, i) in enumerate(zip(flat.poly_fill, flat.poly_index)):
-        fill = got.fills[f]
-        edge_drawn[p] = fill.edge_rgba[i, 3] > 0 and fill.edge_width[i] > 0
-    seen = VisibleParts(flat, camera, width, height, edge_drawn)
+    edge_rgba = _per_polygon(got, flat, "edge_rgba")
+    edge_width = _per_polygon(got, flat, "edge_width")
+    face_rgba = _per_polygon(got, flat, "face_rgba")
+    edge_drawn = (edge_rgba[:, 3] > 0) & (edge_width > 0) if len(edge_rgba) else \
+        np.zeros(0, bool)
+    seen = VisibleParts(flat, camera, width, height, edge_drawn,
+                        face_rgba[:, 3] if len(face_rgba) else np.zeros(0))
     FlatPaths, FlatLines = _flat_classes()
     added: list = []
     replaced = {id(x.artist) for x in got.fills + got.lines + got.markers}
 
-    # Fills: each polygon's pieces merged into rings, one compound path per polygon.
     if seen.regions is not None and len(seen.regions):
         reg = seen.regions
-        piece_poly = flat.tri_poly[reg.face_id[reg.piece_row]]
-        order = np.argsort(piece_poly, kind="stable")
-        verts, start = _pieces_in_order(reg.vertices, reg.piece_start, order)
-        polys = piece_poly[order]
-        groups = np.flatnonzero(np.r_[True, polys[1:] != polys[:-1], True])
-        ring_xy, ring_start, group_ring = merge_pieces(verts, start, groups)
-        ring_xy[:, 1] = height - ring_xy[:, 1]  # image rows -> display y up
-        paths = _compound_paths(ring_xy, ring_start, group_ring)
-        poly_of_path = polys[groups[:-1]]
+        piece_face = reg.face_id[reg.piece_row]
+        glass = seen.face_glass[piece_face]
+        # Opaque fills: each polygon's pieces merged into rings, one path per polygon.
+        opaque = np.flatnonzero(glass < 0)
+        polys, paths = _merged_paths(reg, opaque, seen.face_poly[piece_face[opaque]], height)
         for f, fill in enumerate(got.fills):
-            mine = np.flatnonzero(flat.poly_fill[poly_of_path] == f)
+            mine = np.flatnonzero(flat.poly_fill[polys] == f)
             if not len(mine):
                 continue
-            art = FlatPaths([paths[k] for k in mine],
-                            facecolors=fill.face_rgba[flat.poly_index[poly_of_path[mine]]],
+            art = FlatPaths([paths[k] for k in mine], facecolors=face_rgba[polys[mine]],
                             edgecolors="none", linewidths=0.0,
-                            antialiaseds=fill.artist.get_antialiased()
-                            if hasattr(fill.artist, "get_antialiased") else True)
+                            antialiaseds=_antialiased(fill.artist))
             art.set_transform(IdentityTransform())
             _like(art, fill.artist, figure, "fill")
             added.append((art, _FILL))
+        # Transparent fills: each BSP piece's visible part, back to front, in one
+        # collection so that pieces of different artists interleave as they must.
+        clear = np.flatnonzero(glass >= 0)
+        if len(clear):
+            # Consecutive pieces of one polygon (a quad's two triangles, one node's
+            # coplanar pieces) become one path: drawn apart, their shared edges would
+            # blend twice.
+            frag_poly = seen.face_poly[seen.face_glass >= 0]
+            run = np.cumsum(np.r_[True, frag_poly[1:] != frag_poly[:-1]]) - 1
+            runs, paths = _merged_paths(reg, clear, run[glass[clear]], height)
+            frag_poly = frag_poly[np.searchsorted(run, runs)]
+            first = got.fills[int(flat.poly_fill[frag_poly[0]])].artist
+            art = FlatPaths(paths, facecolors=face_rgba[frag_poly], edgecolors="none",
+                            linewidths=0.0, antialiaseds=_antialiased(first))
+            art.set_transform(IdentityTransform())
+            _like(art, first, figure, "glass")
+            added.append((art, _GLASS))
 
     # Outlines of polygons, then lines: visible pieces joined where they continue.
     item, t, pieces = seen.item, seen.t, seen.pieces
@@ -374,9 +463,8 @@ def flat_artists(ax) -> tuple:
             mine = np.flatnonzero(flat.poly_fill[keys] == f) if len(keys) else []
             if not len(mine):
                 continue
-            idx = flat.poly_index[keys[mine]]
-            art = FlatLines([lines[k] for k in mine], colors=fill.edge_rgba[idx],
-                            linewidths=fill.edge_width[idx], transform=IdentityTransform(),
+            art = FlatLines([lines[k] for k in mine], colors=edge_rgba[keys[mine]],
+                            linewidths=edge_width[keys[mine]], transform=IdentityTransform(),
                             linestyles=fill.artist.get_linestyle()
                             if hasattr(fill.artist, "get_linestyle") else "solid")
             art.set_transform(IdentityTransform())

@@ -390,7 +390,9 @@ def _regions_range(lo, hi, xy, planes, zmin, zmax, box, tri_face, cell_start, ce
 
 
 def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins, stats,
-             workers) -> Regions:
+             workers, hides=None) -> Regions:
+    """The regions of the screen triangles; ``hides`` (F,) bool, optional: the faces that
+    may hide others (the rest are cut by them but cut nothing: transparent surfaces)."""
     xy = np.array(xy_window, dtype=np.float64).reshape(-1, 3, 2)
     xy[..., 1] = height - xy[..., 1]  # image geometry: y down from the top edge
     depth = np.asarray(depth_window, dtype=np.float64).reshape(-1, 3)
@@ -400,7 +402,12 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
     xy, depth, planes, tri_face = xy[keep], depth[keep], planes[keep], tri_face[keep]
     box = np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
     zmin, zmax = depth.min(axis=1), depth.max(axis=1)
-    cell, ncx, ncy, cells, tris = _grid(box, width, height)
+    if hides is None:
+        cell, ncx, ncy, cells, tris = _grid(box, width, height)
+    else:  # only hiders in the grid: the others are never a candidate
+        hider = np.flatnonzero(np.asarray(hides, bool)[tri_face])
+        cell, ncx, ncy, cells, tris = _grid(box[hider], width, height)
+        tris = hider[tris]
     order = np.lexsort((zmin[tris], cells))  # by cell, nearest first within a cell
     cell_tris = tris[order]
     cell_start = np.searchsorted(cells[order], np.arange(ncx * ncy + 1))

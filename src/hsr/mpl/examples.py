@@ -1,10 +1,13 @@
-"""The code of five matplotlib issues about mplot3d's occlusion, as their reporters wrote it
-(``plt.show()`` left out; ``fig.gca(projection='3d')``, removed from matplotlib, written
-as ``add_subplot``), with the projection as the one line that turns hsr on."""
+"""The code of five matplotlib issues about mplot3d's occlusion, as their reporters wrote
+it (``plt.show()`` left out; ``fig.gca(projection='3d')``, removed from matplotlib, written
+as ``add_subplot``), with the projection as the one line that turns hsr on: each
+``issue_N(plt, projection)`` returns ``(fig, ax)``, with ``projection`` "3d" for mplot3d's
+own figure or "hsr3d". The tests, the docs' gallery and the guide page use them."""
 
 import numpy as np
 
 
+# --8<-- [start:29060]
 def issue_29060(plt, projection):
     """matplotlib #29060: two plot_surface calls that cross."""
     fig = plt.figure()
@@ -15,8 +18,10 @@ def issue_29060(plt, projection):
     ax.plot_surface(X, Y, Z1)
     ax.plot_surface(X, Y, Z2)
     return fig, ax
+# --8<-- [end:29060]
 
 
+# --8<-- [start:23392]
 def issue_23392(plt, projection, vertical_line_offset=0.253):
     """matplotlib #23392: scatter points just above a surface, all shown or all hidden."""
     def surface(x, y):
@@ -30,8 +35,10 @@ def issue_23392(plt, projection, vertical_line_offset=0.253):
     a, b = np.meshgrid(np.linspace(-5, 5, 5), np.linspace(-5, 5, 100))
     ax.scatter3D(a, b, surface(a, b) + vertical_line_offset, color='red')
     return fig, ax
+# --8<-- [end:23392]
 
 
+# --8<-- [start:22165]
 def issue_22165(plt, projection):
     """matplotlib #22165: a line through a surface."""
     V = np.linspace(-4, 4, 100)
@@ -51,8 +58,10 @@ def issue_22165(plt, projection):
     ax.set_zlabel('z')
     plt.tight_layout()
     return fig, ax
+# --8<-- [end:22165]
 
 
+# --8<-- [start:16071]
 def issue_16071(plt, projection):
     """matplotlib #16071: a cylinder standing on a plane."""
     def data_for_cylinder_along_z(center_x, center_y, center_z, radius, height_z):
@@ -79,8 +88,10 @@ def issue_16071(plt, projection):
     Xc, Yc, Zc = data_for_cylinder_along_z(r, 0, 0, r, 1)
     ax.plot_surface(Xc, Yc, Zc)
     return fig, ax
+# --8<-- [end:16071]
 
 
+# --8<-- [start:9499]
 def issue_9499(plt, projection):
     """matplotlib #9499: a patch drawn in front of a nearer one."""
     import matplotlib.patches as mpatches
@@ -108,6 +119,7 @@ def issue_9499(plt, projection):
         ax.add_patch(ret)
         art3d.pathpatch_2d_to_3d(ret, z=depth, zdir='x')
     return fig, ax
+# --8<-- [end:9499]
 
 
 CASES = {"29060": issue_29060, "23392": issue_23392, "22165": issue_22165,
