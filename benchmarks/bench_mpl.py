@@ -15,8 +15,8 @@ import os
 import sys
 
 import numpy as np
-
 from bench_regions import cpu_name
+
 from common import timings
 
 
