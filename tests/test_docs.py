@@ -45,8 +45,24 @@ def pages() -> list:
 
 def fenced_blocks(page: str):
     text = open(os.path.join(ROOT, page)).read()
-    return [(lang, body) for lang, body in re.findall(r"```(\w*)\n(.*?)```", text, re.S)
+    return [(lang, expand_snippets(body))
+            for lang, body in re.findall(r"```(\w*)\n(.*?)```", text, re.S)
             if lang in ("python", "bash")]
+
+
+def expand_snippets(body: str) -> str:
+    """A block's ``--8<-- "path:section"`` lines replaced by that section of the file, as
+    pymdownx.snippets does when the site is built (so the included code runs here too)."""
+    def section(match):
+        path, _, name = match.group(1).partition(":")
+        text = open(os.path.join(ROOT, path)).read()
+        if not name:
+            return text
+        start = text.index(f"--8<-- [start:{name}]")
+        start = text.index("\n", start) + 1
+        return text[start:text.index(f"# --8<-- [end:{name}]", start)]
+
+    return re.sub(r'^--8<-- "([^"]+)"$', section, body, flags=re.M)
 
 
 def commands(body: str):
@@ -131,6 +147,7 @@ WRITES = {
     "docs/guide/algorithms.md": ("compare.png", "cyclic.svg"),
     "docs/guide/prune.md": ("spot-visible.glb", "housing-visible.glb"),
     "docs/guide/visibility.md": ("spot_faces.npz", "spot_vertices.csv"),
+    "docs/guide/matplotlib.md": ("crossing.pdf", "occluded.svg"),
 }
 
 

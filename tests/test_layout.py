@@ -12,7 +12,8 @@ SRC = os.path.join(os.path.dirname(__file__), "..", "src", "hsr")
 # (render, cli) or helpers every stage may use (errors, parallel, choices).
 STAGES = {"errors": 0, "parallel": 0, "choices": 0, "scene": 1, "geometry": 2, "raster": 3,
           "algorithms": 4, "appearance": 5, "lines": 5, "render": 6, "__init__": 6,
-          "explain": 7, "batch": 7, "visibility": 7, "viewer": 7, "cli": 8, "__main__": 9}
+          "explain": 7, "batch": 7, "visibility": 7, "viewer": 7, "mpl": 7, "cli": 8,
+          "__main__": 9}
 
 
 def _modules():

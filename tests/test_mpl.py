@@ -286,3 +286,29 @@ def _glass_agreement(projection) -> float:
     close = np.abs(got - frame.color.astype(int)).max(axis=2) <= 3
     assert inside.sum() > 3000
     return float(close[inside].mean())
+
+
+def _styled(projection):
+    """A figure mplot3d draws right (nothing crosses; seen from above): a colormapped,
+    shaded surface, a dashed wide line, sized and depth-shaded markers. (Not its edges:
+    mplot3d's later quads cover half of the earlier ones' edge strokes, hsr's do not.)"""
+    fig = plt.figure(figsize=(5, 4), dpi=100)
+    ax = fig.add_subplot(projection=projection)
+    x, y = np.meshgrid(np.linspace(-2, 2, 12), np.linspace(-2, 2, 12))
+    ax.plot_surface(x, y, 0.2 * np.exp(-(x**2 + y**2)), cmap="viridis")
+    t = np.linspace(0, 1, 30)
+    ax.plot(3 * t - 1.5, np.full_like(t, 2.6), 1.0 + t, "--", color="tab:red", linewidth=3)
+    ax.scatter([-1.5, 0, 1.5], [-2.6, -2.6, -2.6], [1.2, 1.4, 1.6], s=[30, 90, 200],
+               color="tab:blue")
+    ax.view_init(70, -60)
+    ax.set_axis_off()
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+
+
+def test_colours_widths_styles_and_sizes_are_mplot3ds():
+    mine, theirs = _styled("hsr3d"), _styled("3d")
+    differs = np.abs(mine - theirs).max(axis=2) > 24
+    drawn = (theirs < 250).any(axis=2) | (mine < 250).any(axis=2)
+    assert drawn.sum() > 10000
+    assert differs[drawn].mean() < 0.005, differs[drawn].mean()

@@ -485,9 +485,12 @@ def flat_artists(ax) -> tuple:
                             linewidths=group.width[line_idx], linestyles=styles,
                             transform=IdentityTransform())
             art.set_transform(IdentityTransform())
-            if hasattr(group.artist, "get_dash_capstyle"):
-                art.set_capstyle(group.artist.get_solid_capstyle())
-                art.set_joinstyle(group.artist.get_solid_joinstyle())
+            if hasattr(group.artist, "get_dash_capstyle"):  # a Line3D: its caps and joins
+                solid = group.artist.get_linestyle() in ("-", "solid")
+                art.set_capstyle(group.artist.get_solid_capstyle() if solid
+                                 else group.artist.get_dash_capstyle())
+                art.set_joinstyle(group.artist.get_solid_joinstyle() if solid
+                                  else group.artist.get_dash_joinstyle())
             _like(art, group.artist, figure, "line")
             added.append((art, _LINE))
 
