@@ -78,11 +78,11 @@ def _fill_geometry(fill) -> tuple:
             special[p] = idx
     if special:
         drop = np.isin(poly, list(special))
-        tris, poly = [tris[~drop]], [poly[~drop]]
+        tri_parts, poly_parts = [tris[~drop]], [poly[~drop]]
         for p, idx in special.items():
-            tris.append(idx + starts[p])
-            poly.append(np.full(len(idx), p))
-        tris, poly = np.concatenate(tris), np.concatenate(poly)
+            tri_parts.append(idx + starts[p])
+            poly_parts.append(np.full(len(idx), p))
+        tris, poly = np.concatenate(tri_parts), np.concatenate(poly_parts)
         order = np.argsort(poly, kind="stable")
         tris, poly = tris[order], poly[order]
     first_tri = np.searchsorted(poly, np.arange(len(n)))
@@ -204,7 +204,7 @@ class VisibleParts:
                  edge_drawn: np.ndarray, poly_alpha: np.ndarray) -> None:
         from ..algorithms import bsp_tree
         from ..geometry.stage import prepare
-        from ..geometry.state import RenderState
+        from ..geometry.state import CullMode, RenderState
         from ..lines.raster import clip_segments
         from ..lines.vector import visible_pieces
         from ..parallel import Workers
@@ -244,7 +244,7 @@ class VisibleParts:
             return
         scene = _soup_scene(tris)
         with Workers() as workers:
-            screen = prepare(scene, view_proj, width, height, RenderState(cull="none"), {},
+            screen = prepare(scene, view_proj, width, height, RenderState(cull=CullMode.NONE), {},
                              workers)
             if len(screen):
                 self.regions = _regions(scene, screen.xy_window, screen.depth_window,
@@ -460,7 +460,8 @@ def flat_artists(ax) -> tuple:
         # Pieces of a polygon's ring continue each other from edge k to k + 1.
         lines, keys = _joined(poly, edge, t[is_edge], pieces[is_edge])
         for f, fill in enumerate(got.fills):
-            mine = np.flatnonzero(flat.poly_fill[keys] == f) if len(keys) else []
+            mine = np.flatnonzero(flat.poly_fill[keys] == f) if len(keys) else \
+                np.zeros(0, np.int64)
             if not len(mine):
                 continue
             art = FlatLines([lines[k] for k in mine], colors=edge_rgba[keys[mine]],
@@ -476,7 +477,7 @@ def flat_artists(ax) -> tuple:
         key = flat.seg_group[s] * (1 << 32) + flat.seg_line[s]
         lines, keys = _joined(key, flat.seg_number[s], t[is_seg], pieces[is_seg])
         for g, group in enumerate(got.lines):
-            mine = np.flatnonzero((keys >> 32) == g) if len(keys) else []
+            mine = np.flatnonzero((keys >> 32) == g) if len(keys) else np.zeros(0, np.int64)
             if not len(mine):
                 continue
             line_idx = keys[mine] & ((1 << 32) - 1)

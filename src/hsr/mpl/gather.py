@@ -185,6 +185,7 @@ def gather(ax) -> Gathered:
     for artist in ax._children:
         if not artist.get_visible():
             continue
+        got: Fill | Lines | Markers | str
         if isinstance(artist, art3d.Poly3DCollection):
             got = _poly_collection(ax, artist)
         elif isinstance(artist, art3d.Patch3D):
@@ -195,8 +196,7 @@ def gather(ax) -> Gathered:
             got = _line_collection(ax, artist)
         elif isinstance(artist, art3d.Path3DCollection):
             got = _scatter(ax, artist)
-        elif isinstance(artist, (art3d.Patch3DCollection, art3d.Collection3D)) or \
-                hasattr(artist, "do_3d_projection"):
+        elif hasattr(artist, "do_3d_projection"):  # Patch3DCollection, Collection3D, ...
             got = f"{type(artist).__name__} is not supported yet"
         else:
             continue  # 2D artists and texts: drawn by matplotlib as they are
