@@ -113,8 +113,7 @@ def scene_and_camera(ax) -> AxesScene:
     """The axes' surfaces and view as an hsr scene and camera:
     ``hsr.render(s.scene, s.camera, s.width, s.height)`` draws what the figure's axes shows
     with hsr's z-buffer, pixel for pixel on the figure's canvas (y down)."""
-    from ..scene.mesh import Mesh, Scene
-    from .flat import Flattened
+    from .flat import Flattened, soup_scene
     from .gather import gather
     from .view import camera_for
 
@@ -126,9 +125,7 @@ def scene_and_camera(ax) -> AxesScene:
     height = max(1, int(np.ceil(figure.bbox.height)))
     got = gather(ax)
     flat = Flattened(got)
-    n = len(flat.triangles)
-    scene = Scene([Mesh(flat.triangles.reshape(-1, 3),
-                        np.arange(3 * n, dtype=np.int64).reshape(-1, 3), name="mplot3d")])
+    scene = soup_scene(flat.triangles)
     face_artist = [got.fills[flat.poly_fill[p]].artist for p in flat.tri_poly]
     return AxesScene(scene, camera_for(ax, flat.all_points(), width, height), width, height,
                      face_artist)

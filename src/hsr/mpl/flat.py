@@ -225,7 +225,7 @@ class VisibleParts:
         tris, self.face_poly = flat.triangles[opaque], flat.tri_poly[opaque]
         self.face_glass = np.full(len(opaque), -1, np.int64)
         if len(glass):
-            glass_scene = _soup_scene(flat.triangles[glass])
+            glass_scene = soup_scene(flat.triangles[glass])
             tree = bsp_tree.build(glass_scene)
             order = bsp_tree.back_to_front(tree, camera)
             tris = np.concatenate([tris, tree.triangles[order]])
@@ -242,7 +242,7 @@ class VisibleParts:
             self.item, self.t, self.pieces = np.flatnonzero(keep), t, pieces
         if not len(tris):
             return
-        scene = _soup_scene(tris)
+        scene = soup_scene(tris)
         with Workers() as workers:
             screen = prepare(scene, view_proj, width, height, RenderState(cull=CullMode.NONE), {},
                              workers)
@@ -256,7 +256,7 @@ class VisibleParts:
                                                                 workers)
 
 
-def _soup_scene(triangles: np.ndarray):
+def soup_scene(triangles: np.ndarray):
     """An hsr Scene of a (T, 3, 3) triangle soup: face f is triangle f."""
     from ..scene.mesh import Mesh, Scene
 
