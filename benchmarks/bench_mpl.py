@@ -4,7 +4,8 @@ PDF each writes):
     python benchmarks/bench_mpl.py [--repeat 5]
 
 Cases (the issue's): an N x N plot_surface (rstride = cstride = 1: (N - 1)^2 quads) with
-1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300.
+1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300; then
+the SVG and PDF sizes of the five matplotlib issues' figures (hsr.mpl.examples).
 """
 
 from __future__ import annotations
@@ -63,6 +64,20 @@ def main(argv=None) -> int:
         print(f"{f'{n} x {n}':>10} {(n - 1) ** 2:7d} {t3:10.0f} {th:8.0f} {th / t3:9.2f} "
               f"{size['3d'] / 1e6:9.2f}MB {size['hsr3d'] / 1e6:7.2f}MB", flush=True)
         plt.close("all")
+    from hsr.mpl.examples import CASES
+
+    print(f"{'issue':>8} {'mplot3d SVG':>12} {'hsr SVG':>9} {'mplot3d PDF':>12} {'hsr PDF':>9}")
+    for name, case in CASES.items():
+        size = {}
+        for p in ("3d", "hsr3d"):
+            fig, _ = case(plt, p)
+            for fmt in ("svg", "pdf"):
+                buf = io.BytesIO()
+                fig.savefig(buf, format=fmt)
+                size[p, fmt] = len(buf.getvalue()) / 1e3
+            plt.close(fig)
+        print(f"{'#' + name:>8} {size['3d', 'svg']:10.0f}kB {size['hsr3d', 'svg']:7.0f}kB "
+              f"{size['3d', 'pdf']:10.0f}kB {size['hsr3d', 'pdf']:7.0f}kB", flush=True)
     return 0
 
 

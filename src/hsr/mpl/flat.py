@@ -349,9 +349,12 @@ def _antialiased(artist) -> bool:
     return bool(np.all(value))
 
 
-def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int) -> tuple:
-    """(keys (G,), paths (G,)): the regions' ``pieces`` grouped by ``key`` (ascending),
-    each group's pieces merged into rings, as display-space compound paths."""
+def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
+                  path_of=None) -> tuple:
+    """(path keys (P,), paths (P,)): the regions' ``pieces`` grouped by ``key``, each
+    group's pieces merged into rings, as display-space compound paths: one per key, or
+    with ``path_of`` (keys (G,) -> ints), one per value it gives (groups that share a
+    colour need not be drawn apart: their regions are disjoint)."""
     order = np.argsort(key, kind="stable")
     chosen = pieces[order]
     verts, start = _pieces_in_order(reg.vertices, reg.piece_start, chosen)
@@ -359,7 +362,20 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int) -> tupl
     groups = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1], True])
     ring_xy, ring_start, group_ring = merge_pieces(verts, start, groups)
     ring_xy[:, 1] = height - ring_xy[:, 1]  # image rows -> display y up
-    return keys[groups[:-1]], _compound_paths(ring_xy, ring_start, group_ring)
+    group_key = keys[groups[:-1]]
+    path_id = group_key if path_of is None else path_of(group_key)
+    by_path = np.argsort(path_id, kind="stable")
+    n_rings = np.diff(group_ring)[by_path]
+    ring_order = np.repeat(group_ring[:-1][by_path] - (np.cumsum(n_rings) - n_rings),
+                           n_rings) + np.arange(int(n_rings.sum()))
+    sizes = np.diff(ring_start)[ring_order]
+    new_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+    src = np.repeat(ring_start[:-1][ring_order] - new_start[:-1], sizes) + \
+        np.arange(new_start[-1])
+    ids = path_id[by_path]
+    cuts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1], True])
+    path_ring = np.r_[0, np.cumsum(n_rings)][cuts]
+    return ids[cuts[:-1]], _compound_paths(ring_xy[src], new_start, path_ring)
 
 
 def _flat_classes():
@@ -422,12 +438,23 @@ def flat_artists(ax) -> tuple:
         glass = seen.face_glass[piece_face]
         # Opaque fills: each polygon's pieces merged into rings, one path per polygon.
         opaque = np.flatnonzero(glass < 0)
-        polys, paths = _merged_paths(reg, opaque, seen.face_poly[piece_face[opaque]], height)
+        # One path per fill artist and colour: a colormap's few hundred colours are a
+        # few hundred paths, not one per polygon (and no seams inside a colour).
+        # Grouped by 8-bit RGBA, what every backend writes (np.unique on float rows
+        # sorts lexically: a fifth of a 90k-quad draw).
+        code = np.round(np.clip(face_rgba, 0, 1) * 255).astype(np.uint32) @ \
+            np.array([1 << 24, 1 << 16, 1 << 8, 1], np.uint32)
+        _, first, colour_id = np.unique(code, return_index=True, return_inverse=True)
+        colours = face_rgba[first]
+        n_col = len(colours)
+        ids, paths = _merged_paths(
+            reg, opaque, seen.face_poly[piece_face[opaque]], height,
+            path_of=lambda poly: flat.poly_fill[poly] * n_col + colour_id.ravel()[poly])
         for f, fill in enumerate(got.fills):
-            mine = np.flatnonzero(flat.poly_fill[polys] == f)
+            mine = np.flatnonzero(ids // n_col == f)
             if not len(mine):
                 continue
-            art = FlatPaths([paths[k] for k in mine], facecolors=face_rgba[polys[mine]],
+            art = FlatPaths([paths[k] for k in mine], facecolors=colours[ids[mine] % n_col],
                             edgecolors="none", linewidths=0.0,
                             antialiaseds=_antialiased(fill.artist))
             art.set_transform(IdentityTransform())

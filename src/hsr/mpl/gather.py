@@ -87,12 +87,19 @@ def _poly_collection(ax, artist) -> Fill | str:
 
     if getattr(artist, "_codes3d", None) is not None and len(artist._codes3d):
         return "polygons with path codes (holes) are not supported yet"
-    artist.do_3d_projection()  # colormaps and alpha into _facecolor3d / _edgecolor3d
+    # The colours mplot3d's do_3d_projection would take (without its projection and
+    # sort): a colormap's current mapping, else the 3D colours as set.
+    face_colors, edges = artist._facecolor3d, artist._edgecolor3d
+    if artist._A is not None:
+        artist.update_scalarmappable()
+        if artist._face_is_mapped:
+            face_colors = artist._facecolors
+        if artist._edge_is_mapped:
+            edges = artist._edgecolors
     faces = np.asarray(artist._faces, dtype=np.float64)
     n = len(faces)
     invalid = np.broadcast_to(np.asarray(artist._invalid_vertices, bool), faces.shape[:2])
-    face = to_rgba_array(_per_item(artist._facecolor3d, n)) if n else np.zeros((0, 4))
-    edges = artist._edgecolor3d
+    face = to_rgba_array(_per_item(face_colors, n)) if n else np.zeros((0, 4))
     # No edge colours: mplot3d strokes nothing (its _edgecolors2d stays empty).
     edge = to_rgba_array(_per_item(edges, n)) if n and len(edges) else np.zeros((n, 4))
     width = _per_item(np.atleast_1d(artist.get_linewidth()).astype(float), n)
