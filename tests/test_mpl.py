@@ -9,6 +9,8 @@ import re
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import hsr
 from conftest import require
@@ -312,3 +314,22 @@ def test_colours_widths_styles_and_sizes_are_mplot3ds():
     drawn = (theirs < 250).any(axis=2) | (mine < 250).any(axis=2)
     assert drawn.sum() > 10000
     assert differs[drawn].mean() < 0.005, differs[drawn].mean()
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(elev=st.floats(-89, 89), azim=st.floats(-180, 180), roll=st.floats(-30, 30),
+       ortho=st.booleans(), focal=st.floats(0.4, 2.0),
+       aspect=st.tuples(st.floats(0.5, 2), st.floats(0.5, 2), st.floats(0.5, 2)))
+def test_any_view_shows_what_the_z_buffer_shows(elev, azim, roll, ortho, focal, aspect):
+    """Random views, projections (perspective with a focal length, orthographic) and box
+    aspects of crossing surfaces with a thick line and markers through them."""
+    fig, ax = CASES["29060"](plt, "hsr3d")
+    t = np.linspace(-1, 1, 20)
+    ax.plot(t, 0.3 * t, 0.8 * t, linewidth=4)
+    ax.scatter([0.5, -0.5, 0.0], [0.5, -0.5, 0.2], [0.1, -0.1, 0.6], s=120)
+    ax.view_init(elev, azim, roll)
+    ax.set_proj_type("ortho" if ortho else "persp", focal_length=None if ortho else focal)
+    ax.set_box_aspect(aspect)
+    arts = _flat_colours(ax)
+    assert _agreement(_agg_ids(fig), _reference_ids(fig, ax, arts)) >= 0.995
+    plt.close(fig)
