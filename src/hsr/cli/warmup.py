@@ -12,16 +12,19 @@ import time
 def add_parser(sub) -> None:
     sub.add_parser("warmup", help="compile hsr's kernels now (first run only)",
                    description="Compile every Numba kernel hsr uses by rendering the "
-                   "built-in scene with each algorithm, casting rays and counting "
-                   "visibility at a small size; the compiled code is cached on disk, so "
-                   "later commands start at once.")
+                   "built-in scene with each algorithm, casting rays, counting "
+                   "visibility and computing exact regions and lines at a small size; the "
+                   "compiled code is cached on disk, so later commands start at once.")
 
 
 def run(args) -> int:
     import numpy as np
 
     from .. import algorithms, render, scenes
+    from ..geometry.merge import merge_pieces
+    from ..lines.vector import hidden_lines
     from ..visibility import RayScene, visibility_matrix
+    from ..visibility.regions import visible_regions
 
     start = time.perf_counter()
     scene, camera = scenes.get("cubes")
@@ -33,6 +36,10 @@ def run(args) -> int:
     rays.cast(origins, np.asarray(camera.target) - origins)
     rays.occluded(origins, np.asarray(camera.target) - origins)
     visibility_matrix(scene, [camera], 16)
+    # The exact engines (regions, vector lines) and the rings hsr.mpl merges pieces into.
+    regions = visible_regions(scene, camera, 32, 24)
+    merge_pieces(regions.vertices, regions.piece_start, np.array([0, len(regions.piece_row)]))
+    hidden_lines(scene, camera, 32, 24)
     print(f"hsr: kernels compiled and cached in {time.perf_counter() - start:.1f} s")
     return 0
 
