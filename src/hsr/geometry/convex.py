@@ -92,6 +92,34 @@ def bounds_overlap(p, n, q, m) -> bool:
     return not (px1 <= qx0 or qx1 <= px0 or py1 <= qy0 or qy1 <= py0)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _outside_edge(t, k, u, sign) -> bool:
+    """Whether triangle u lies wholly outside (or on) edge k of triangle t, wound ``sign``."""
+    ax, ay = t[k, 0], t[k, 1]
+    ex, ey = t[(k + 1) % 3, 0] - ax, t[(k + 1) % 3, 1] - ay
+    for m in range(3):
+        if sign * (ex * (u[m, 1] - ay) - ey * (u[m, 0] - ax)) > 0.0:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def triangles_apart(t, u) -> bool:
+    """True when triangles ``t`` and ``u`` (3, 2) overlap in no area: an edge of one has
+    the other wholly on its outer side or on its line (separating axes; a shared edge or
+    vertex counts as apart). Degenerate triangles are never apart (left to the caller)."""
+    st = (t[1, 0] - t[0, 0]) * (t[2, 1] - t[0, 1]) - (t[2, 0] - t[0, 0]) * (t[1, 1] - t[0, 1])
+    su = (u[1, 0] - u[0, 0]) * (u[2, 1] - u[0, 1]) - (u[2, 0] - u[0, 0]) * (u[1, 1] - u[0, 1])
+    if st == 0.0 or su == 0.0:
+        return False
+    sign_t = 1.0 if st > 0.0 else -1.0
+    sign_u = 1.0 if su > 0.0 else -1.0
+    for k in range(3):
+        if _outside_edge(t, k, u, sign_t) or _outside_edge(u, k, t, sign_u):
+            return True
+    return False
+
+
 @njit(cache=True, nogil=True)
 def edge_lines(poly, n, lines) -> int:
     """``lines[k] = (a, b, c)``, (a, b) a unit vector, with ``a x + b y + c > 0`` outside

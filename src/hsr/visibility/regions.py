@@ -47,6 +47,7 @@ from ..geometry.convex import (
     clip_to_view,
     edge_lines,
     signed_area,
+    triangles_apart,
 )
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike
@@ -299,6 +300,10 @@ def _regions_range(lo, hi, xy, planes, zmin, zmax, box, tri_face, cell_start, ce
                         continue
                     if (box[j, 2] <= box[i, 0] or box[i, 2] <= box[j, 0]
                             or box[j, 3] <= box[i, 1] or box[i, 3] <= box[j, 1]):
+                        continue
+                    # Neighbours in a mesh share an edge or a corner and no area: most
+                    # candidates of a fine surface (separating axes, before any clipping).
+                    if triangles_apart(xy[i], xy[j]):
                         continue
                     # d = z_i - z_j, affine: > 0 where j is nearer.
                     big = 0.0
