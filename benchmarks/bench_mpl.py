@@ -4,7 +4,8 @@ PDF each writes):
     python benchmarks/bench_mpl.py [--repeat 5]
 
 Cases (the issue's): an N x N plot_surface (rstride = cstride = 1: (N - 1)^2 quads) with
-1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300; then
+1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300 (the fastest draw of each,
+in blocks that alternate over three rounds); then
 the SVG and PDF sizes of the five matplotlib issues' figures (hsr.mpl.examples).
 """
 
@@ -54,8 +55,9 @@ def main(argv=None) -> int:
           f"{'mplot3d PDF':>11} {'hsr PDF':>9}")
     for n in args.sizes:
         figs = {p: figure(n, p) for p in ("3d", "hsr3d")}
+        # Blocks alternate over three rounds: both draws see the same machine load.
         (t3, _), (th, _) = timings([figs["3d"].canvas.draw, figs["hsr3d"].canvas.draw],
-                                   args.repeat)
+                                   args.repeat, rounds=3)
         size = {}
         for p, fig in figs.items():
             buf = io.BytesIO()

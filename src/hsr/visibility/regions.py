@@ -49,6 +49,7 @@ from ..geometry.convex import (
     signed_area,
     triangles_apart,
 )
+from ..parallel import split_range
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike
 
@@ -416,9 +417,11 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
     order = np.lexsort((zmin[tris], cells))  # by cell, nearest first within a cell
     cell_tris = tris[order]
     cell_start = np.searchsorted(cells[order], np.arange(ncx * ncy + 1))
-    parts = workers.run_range(_regions_range, len(xy), xy, planes, zmin, zmax, box, tri_face,
-                              cell_start, cell_tris, cell, ncx, ncy, later_wins, width,
-                              height, min_chunk=256)
+    # Eight chunks a thread, taken as threads come free: the work per triangle is uneven
+    # (a buried region stops early, a visible one meets all its candidates).
+    bounds = split_range(len(xy), min(8 * workers.threads, max(1, len(xy) // 256)))
+    parts = workers.run(_regions_range, bounds, xy, planes, zmin, zmax, box, tri_face,
+                        cell_start, cell_tris, cell, ncx, ncy, later_wins, width, height)
     if any(part[3] for part in parts):
         raise RegionsError(f"visible_regions: a face's visible part broke into more than "
                            f"{_MAX_PIECES} convex pieces")
