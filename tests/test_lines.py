@@ -248,3 +248,31 @@ def test_cli_writes_the_svg(tmp_path):
     assert main(["render", "--quiet", "--lines", "-o", str(tmp_path / "x.png")]) == 2
     assert main(["render", "--quiet", "--hidden-line", "--algorithm", "raycast",
                  "-o", str(tmp_path / "x.png")]) == 2
+
+
+@pytest.mark.parametrize("name", ["spot.obj", "fandisk.obj"])
+def test_feature_lines_do_not_depend_on_winding(models_dir, name):
+    """A random 30% of the faces flipped (issue #65): the same silhouettes and creases,
+    so the same visible feature lines (lengths equal to 1e-9, every piece within 1e-6 px
+    of the other drawing). Before, flipping faces drew false silhouettes and creases."""
+    mesh = hsr.load(f"{models_dir}/{name}")
+    rng = np.random.default_rng(7)
+    faces = mesh.faces.copy()
+    flip = rng.random(len(faces)) < 0.3
+    faces[flip] = faces[flip][:, ::-1]
+    flipped = hsr.Mesh(mesh.positions, faces)
+    camera = hsr.first_look(mesh, 4 / 3)
+    settings = HiddenLine(edges="feature")
+    a = hidden_lines(hsr.Mesh(mesh.positions, mesh.faces), camera, 400, 300, settings)
+    b = hidden_lines(flipped, camera, 400, 300, settings)
+
+    def length(segments):
+        return float(np.linalg.norm(segments[:, 1, :2] - segments[:, 0, :2], axis=1).sum())
+
+    assert len(a.visible) > 100
+    assert abs(length(a.visible) - length(b.visible)) <= 1e-9 * length(a.visible)
+    for one, other in ((a, b), (b, a)):
+        mids = 0.5 * (one.visible[:, 0, :2] + one.visible[:, 1, :2])
+        ends = np.concatenate([one.visible[:, 0, :2], one.visible[:, 1, :2], mids])
+        for chunk in np.array_split(ends, max(1, len(ends) // 2000)):
+            assert distance_to_segments(chunk, other.visible[:, :, :2]).max() <= 1e-6

@@ -132,33 +132,46 @@ def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges
         corner = weld.reshape(-1)[mesh.faces[local]]  # (F', 3) welded vertex ids
         a = corner.ravel()
         b = corner[:, [1, 2, 0]].ravel()
+        opposite = corner[:, [2, 0, 1]].ravel()  # the corner of the face off the edge
         face_of = np.repeat(local, 3)
         lo, hi = np.minimum(a, b), np.maximum(a, b)
+        forward = a < b  # the face walks the edge lo -> hi
         order = np.lexsort((face_of, hi, lo))
         lo, hi, face_of = lo[order], hi[order], face_of[order]
+        forward, opposite = forward[order], opposite[order]
         start = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
         count = np.diff(np.r_[start, len(lo)])
         first = face_of[start]
-        second = np.where(count >= 2, face_of[np.minimum(start + 1, len(lo) - 1)], -1)
+        nxt = np.minimum(start + 1, len(lo) - 1)
+        second = np.where(count >= 2, face_of[nxt], -1)
 
         world_pos = _world(inst, unique_pos)
         tri = world_pos[weld.reshape(-1)[mesh.faces]]
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         length = np.linalg.norm(normal, axis=1, keepdims=True)
         normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-        if camera.is_orthographic:
-            facing = normal @ -np.asarray(camera.forward) > 0
-        else:
-            facing = np.einsum("ij,ij->i", normal, np.asarray(camera.eye) - tri[:, 0]) > 0
-
         kind = np.zeros(len(start), dtype=np.uint8)
         kind[count == 1] |= BOUNDARY
         kind[count > 2] |= NONMANIFOLD
-        pair = count == 2
+        pair = np.flatnonzero(count == 2)
         f1, f2 = first[pair], second[pair]
-        dots = np.einsum("ij,ij->i", normal[f1], normal[f2])
-        kind[np.flatnonzero(pair)[dots < cos_crease]] |= CREASE
-        kind[np.flatnonzero(pair)[facing[f1] != facing[f2]]] |= SILHOUETTE
+        # Independent of winding (tessellated CAD and scans are often wound every which
+        # way): the fold angle with the second normal turned to agree with the first
+        # where the two faces walk the shared edge the same way (one of them is flipped).
+        agree = np.where(forward[start[pair]] != forward[nxt[pair]], 1.0, -1.0)
+        dots = agree * np.einsum("ij,ij->i", normal[f1], normal[f2])
+        kind[pair[dots < cos_crease]] |= CREASE
+        # A silhouette: both faces' far corners on one side of the plane through the eye
+        # and the edge (for an orthographic camera, the plane along the view).
+        p0, p1 = world_pos[lo[start[pair]]], world_pos[hi[start[pair]]]
+        c1, c2 = world_pos[opposite[start[pair]]], world_pos[opposite[nxt[pair]]]
+        if camera.is_orthographic:
+            plane = np.cross(p1 - p0, np.asarray(camera.forward, dtype=np.float64))
+        else:
+            plane = np.cross(p1 - p0, p0 - np.asarray(camera.eye, dtype=np.float64))
+        side1 = np.einsum("ij,ij->i", plane, c1 - p0)
+        side2 = np.einsum("ij,ij->i", plane, c2 - p0)
+        kind[pair[side1 * side2 > 0]] |= SILHOUETTE
         ends = np.stack([world_pos[lo[start]], world_pos[hi[start]]], axis=1)
         faces = np.stack([first + offsets[k], np.where(second >= 0, second + offsets[k], -1)],
                          axis=1)
