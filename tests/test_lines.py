@@ -276,3 +276,69 @@ def test_feature_lines_do_not_depend_on_winding(models_dir, name):
         ends = np.concatenate([one.visible[:, 0, :2], one.visible[:, 1, :2], mids])
         for chunk in np.array_split(ends, max(1, len(ends) // 2000)):
             assert distance_to_segments(chunk, other.visible[:, :, :2]).max() <= 1e-6
+
+
+def _cubes_and_sphere():
+    import trimesh
+
+    a = trimesh.creation.box(extents=(1, 1, 1))
+    a.apply_translation((0.5, 0.5, 0.5))  # [0, 1]^3
+    b = trimesh.creation.box(extents=(1, 1, 1))
+    b.apply_translation((1.0, 1.0, 1.0))  # [0.5, 1.5]^3
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.6)
+    sphere.apply_translation((3.0, 0.5, 0.5))
+    plane = trimesh.creation.box(extents=(2.0, 2.0, 1e-9 + 0.0))
+    plane = hsr.Mesh(np.array([[2, -0.5, 0.5], [4, -0.5, 0.5], [4, 1.5, 0.5],
+                               [2, 1.5, 0.5]], float), np.array([[0, 1, 2], [0, 2, 3]]))
+    meshes = [hsr.Mesh(np.asarray(m.vertices), np.asarray(m.faces)) for m in (a, b, sphere)]
+    return meshes + [plane], sphere
+
+
+def test_intersection_lines_are_the_exact_curves():
+    """Two interpenetrating cubes cross along six edges of their common cube (total length
+    3); a tessellated sphere cut by the plane z = 0.5 along a polygon on both (issue #65)."""
+    from hsr.lines.intersect import intersection_edges
+
+    meshes, sphere = _cubes_and_sphere()
+    cubes = hsr.Scene(meshes[:2]).world_triangles()
+    ends, pair = intersection_edges(cubes)
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    assert abs(length.sum() - 3.0) <= 1e-9
+    pts = np.concatenate([ends[:, 0], ends[:, 1], ends.mean(axis=1)])
+    on_a = np.abs(np.abs(pts - 0.5).max(axis=1) - 0.5)  # on the boundary of [0, 1]^3
+    on_b = np.abs(np.abs(pts - 1.0).max(axis=1) - 0.5)  # of [0.5, 1.5]^3
+    assert on_a.max() <= 1e-9 and on_b.max() <= 1e-9
+    assert np.all(pair[:, 0] < 12) and np.all(pair[:, 1] >= 12)  # one face of each cube
+    cut = hsr.Scene(meshes[2:]).world_triangles()
+    ends, pair = intersection_edges(cut)
+    pts = np.concatenate([ends[:, 0], ends[:, 1], ends.mean(axis=1)])
+    assert np.abs(pts[:, 2] - 0.5).max() <= 1e-9  # on the plane
+    tris = np.asarray(sphere.vertices)[np.asarray(sphere.faces)][pair[:, 0]]
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    for p in (ends[:, 0], ends[:, 1]):  # on its sphere face's plane
+        assert np.abs(np.einsum("ij,ij->i", p - tris[:, 0], normal)).max() <= 1e-9
+    # A closed polygon: every end meets another segment's end.
+    flat = ends.reshape(-1, 3)
+    d = np.linalg.norm(flat[:, None] - flat[None], axis=2) + np.eye(len(flat)) * 9
+    assert d.min(axis=1).max() <= 1e-9
+    radius = np.linalg.norm(pts[:, :2] - [3.0, 0.5], axis=1)
+    assert radius.max() <= 0.6 + 1e-9 and radius.min() >= 0.6 * 0.95  # chords inside
+
+
+def test_intersection_lines_are_hidden_like_any_edge():
+    meshes, _ = _cubes_and_sphere()
+    scene = hsr.Scene(meshes)
+    camera = hsr.Camera.look_at((4.5, -2.5, 3.5), (1.8, 0.6, 0.6), (0, 0, 1), 45, 0.1, 30)
+    settings = HiddenLine(edges="feature", intersections=True)
+    drawing = hidden_lines(scene, camera, 400, 300, settings)
+    plain = hidden_lines(scene, camera, 400, 300, HiddenLine(edges="feature"))
+    assert len(drawing.visible) > len(plain.visible)
+    rng = np.random.default_rng(5)
+    for which, expect_hidden in (("visible", False), ("hidden", True)):
+        pts = edge_samples(drawing, which, per_piece=3)
+        pts = pts[rng.choice(len(pts), min(600, len(pts)), replace=False)]
+        world = unproject(camera, 400, 300, pts)
+        assert (occluded(scene, camera, world) == expect_hidden).all(), which
+    with pytest.raises(hsr.HsrError, match="intersections must be True or False"):
+        HiddenLine(intersections="yes")

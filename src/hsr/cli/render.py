@@ -40,6 +40,9 @@ def add_parser(sub) -> None:
                    "(silhouettes, creases, boundaries)")
     rl.add_argument("--crease-angle", type=float, default=30.0,
                    help="feature edges: creases sharper than this many degrees")
+    rl.add_argument("--intersections", action="store_true",
+                   help="--lines and --hidden-line also draw where faces pass through each "
+                   "other (exact segments, hidden like any edge)")
     rl.add_argument("--line-color", help="line colour r,g,b (default: contrast with background)")
     rl.add_argument("--hidden-line-fill", default="background", choices=["background", "shaded"],
                    help="what --hidden-line draws under the edges")

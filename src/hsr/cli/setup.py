@@ -266,4 +266,5 @@ def hidden_line_args(args):
     color = rgb(args.line_color, "--line-color") if args.line_color else None
     offset = (floats(args.polygon_offset, 2, "--polygon-offset") if args.polygon_offset
               else (1.0, 1.0))
-    return HiddenLine(args.edges, args.crease_angle, offset, color, args.hidden_line_fill)
+    return HiddenLine(args.edges, args.crease_angle, offset, color, args.hidden_line_fill,
+                      bool(getattr(args, "intersections", False)))

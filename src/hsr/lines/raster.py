@@ -28,10 +28,10 @@ from ..scene.mesh import instance_of
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
            "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
-           "SILHOUETTE", "NONMANIFOLD", "as_hidden_line", "fill_state", "check",
+           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "as_hidden_line", "fill_state", "check",
            "draw_hidden_lines"]
 
-BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD = 1, 2, 4, 8
+BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD, INTERSECTION = 1, 2, 4, 8, 16
 EDGE_KINDS = ("all", "feature")
 
 
@@ -46,6 +46,8 @@ class HiddenLine:
     color : line colour; None = white on a dark background, black on a light one.
     fill : ``background`` (a classic hidden-line drawing) or ``shaded`` (edges over the
         shaded image).
+    intersections : also draw the lines where faces pass through each other (exact
+        segments, hidden like any edge; see :mod:`hsr.lines.intersect`).
 
     Raises :class:`~hsr.errors.RenderError` for an unknown edge kind or fill, or a crease
     angle outside 0..180.
@@ -56,6 +58,7 @@ class HiddenLine:
     polygon_offset: tuple = (1.0, 1.0)
     color: tuple | None = None
     fill: str = "background"
+    intersections: bool = False
 
     def line_color(self, background: tuple) -> tuple:
         """The line colour: ``color``, or white on a dark background, black on a light one."""
@@ -73,6 +76,9 @@ class HiddenLine:
             raise RenderError(f"crease angle must be a number in 0..180 degrees, got {angle!r}")
         if self.color is not None:
             check_rgb(self.color, "line colour")
+        if not isinstance(self.intersections, (bool, np.bool_)):
+            raise RenderError(f"intersections must be True or False, got "
+                              f"{self.intersections!r}")
 
 
 @dataclass
@@ -402,9 +408,18 @@ def polygon_edges(scene, screen, view_proj, state):
 def chosen_edges(scene, camera, screen, settings: HiddenLine) -> Edges:
     """The edges hidden-line drawing considers: every edge of the drawn faces once, or
     only the feature edges."""
-    edges = unique_edges(scene, camera, settings.crease_angle,
-                         drawn=drawn_faces(screen, scene.n_faces))
-    return edges.subset(edges.kind != 0) if settings.edges == "feature" else edges
+    drawn = drawn_faces(screen, scene.n_faces)
+    edges = unique_edges(scene, camera, settings.crease_angle, drawn=drawn)
+    edges = edges.subset(edges.kind != 0) if settings.edges == "feature" else edges
+    if not settings.intersections:
+        return edges
+    from .intersect import intersection_edges
+
+    ids = np.flatnonzero(drawn)
+    ends, pair = intersection_edges(scene.world_triangles()[ids])
+    return Edges(np.concatenate([edges.ends, ends]),
+                 np.concatenate([edges.faces, ids[pair]]),
+                 np.concatenate([edges.kind, np.full(len(ends), INTERSECTION, np.uint8)]))
 
 
 def hidden_line_pass(scene, camera, screen, view_proj, depth_filled, settings: HiddenLine,
