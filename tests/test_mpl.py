@@ -28,6 +28,9 @@ from hsr.mpl.examples import CASES  # noqa: E402
 
 PALETTE = [(230, 25, 75), (60, 180, 75), (0, 130, 200), (245, 130, 48), (145, 30, 180),
            (70, 240, 240), (240, 50, 230), (128, 128, 0)]
+# More, for figures of many artists (voxels: one per cube): saturated, none grey.
+PALETTE += [(40 + 29 * k % 200, 220 - 53 * k % 180, 60 + 97 * k % 190) for k in range(1, 80)]
+PALETTE = list(dict.fromkeys(c for c in PALETTE if max(c) - min(c) > 40))
 KINDS = (art3d.Poly3DCollection, art3d.Patch3D, art3d.Line3D, art3d.Line3DCollection,
          art3d.Path3DCollection)
 
@@ -333,3 +336,29 @@ def test_any_view_shows_what_the_z_buffer_shows(elev, azim, roll, ortho, focal, 
     arts = _flat_colours(ax)
     assert _agreement(_agg_ids(fig), _reference_ids(fig, ax, arts)) >= 0.995
     plt.close(fig)
+
+
+def _voxels(ax):
+    filled = np.random.default_rng(0).random((4, 4, 4)) > 0.6
+    ax.voxels(filled, facecolors="tab:blue", edgecolor="k")
+
+
+def _bars(ax):
+    ax.bar3d([0, 1, 2, 0.5], [0, 1, 0, 0.6], [0, 0, 0, 0], 0.7, 0.7, [1, 2, 3, 2.5],
+             shade=True)
+
+
+def _trisurf(ax):
+    x, y = np.meshgrid(np.linspace(-2, 2, 15), np.linspace(-2, 2, 15))
+    ax.plot_trisurf(x.ravel(), y.ravel(), (np.sin(x) * y).ravel(), cmap="viridis")
+    ax.plot_trisurf(x.ravel(), y.ravel(), (0.5 * x).ravel(), color="tab:orange")
+
+
+@pytest.mark.parametrize("draw", [_voxels, _bars, _trisurf])
+def test_voxels_bars_and_trisurfs_show_what_the_z_buffer_shows(draw):
+    fig = plt.figure()
+    ax = fig.add_subplot(projection="hsr3d")
+    draw(ax)
+    ax.view_init(30, -50)
+    arts = _flat_colours(ax)
+    assert _agreement(_agg_ids(fig), _reference_ids(fig, ax, arts)) >= 0.995
