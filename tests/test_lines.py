@@ -342,3 +342,34 @@ def test_intersection_lines_are_hidden_like_any_edge():
         assert (occluded(scene, camera, world) == expect_hidden).all(), which
     with pytest.raises(hsr.HsrError, match="intersections must be True or False"):
         HiddenLine(intersections="yes")
+
+
+def test_polylines_are_ordered_for_a_plotter(models_dir):
+    """Nearest free end next: the pen-up travel is what a plain greedy loop over every end
+    gives (here, O(n^2)), far below the joined order, and every polyline is kept (some
+    reversed)."""
+    from hsr.lines.vector import join_polylines, merge_collinear, order_for_plotter, pen_travel
+
+    mesh = hsr.load(f"{models_dir}/spot.obj")
+    camera = hsr.first_look(mesh, 4 / 3)
+    drawing = hidden_lines(mesh, camera, 400, 300, HiddenLine(edges="feature"))
+    joined = join_polylines(merge_collinear(drawing.visible), 300)
+    ordered = drawing.visible_polylines
+    assert len(ordered) == len(joined) > 50
+    def key(lines):
+        return sorted(tuple(np.round(np.r_[min(tuple(p[0]), tuple(p[-1])), len(p)], 9))
+                      for p in lines)
+
+    assert key(joined) == key(ordered)
+    here, left, naive = np.zeros(2), list(joined), []
+    while left:
+        d = [min(np.linalg.norm(p[0] - here), np.linalg.norm(p[-1] - here)) for p in left]
+        line = left.pop(int(np.argmin(d)))
+        if np.linalg.norm(line[-1] - here) < np.linalg.norm(line[0] - here):
+            line = line[::-1]
+        naive.append(line)
+        here = line[-1]
+    assert abs(pen_travel(ordered) - pen_travel(naive)) <= 1e-6 * pen_travel(naive)
+    assert pen_travel(ordered) < 0.5 * pen_travel(joined)
+    assert drawing.stats["pen_travel"] == pen_travel(ordered)
+    assert order_for_plotter([]) == [] and len(order_for_plotter(joined[:1])) == 1

@@ -31,7 +31,8 @@ from ..scene.mesh import SceneLike, as_scene
 from .raster import HiddenLine, chosen_edges, clip_segments
 from .svg import write_svg
 
-__all__ = ["LineDrawing", "hidden_lines", "write_lines_svg"]
+__all__ = ["LineDrawing", "hidden_lines", "write_lines_svg", "order_for_plotter",
+           "pen_travel"]
 
 # Tolerances, in window pixels and window depth units. Triangles are closed (a point within
 # EPS_PX of the outline counts as covered, like the reference ray test's u, v >= 0: an edge
@@ -326,11 +327,13 @@ def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
     visible = _drop_slivers(_pieces(ends, vis_edge, vis_t))
     hidden = _drop_slivers(_pieces(ends, hidden_edge, hidden_t))
     visible_merged = merge_collinear(visible)
+    # Plotter order: the pen goes to the nearest free end next (hidden parts likewise).
     drawing = LineDrawing(
-        visible, hidden, join_polylines(visible_merged, height),
-        join_polylines(merge_collinear(hidden), height) if with_hidden else [],
-        width, height)
+        visible, hidden, order_for_plotter(join_polylines(visible_merged, height)),
+        order_for_plotter(join_polylines(merge_collinear(hidden), height))
+        if with_hidden else [], width, height)
     drawing.stats = {"edges": int(len(ends)), "visible_pieces": int(len(visible)),
+                     "pen_travel": pen_travel(drawing.visible_polylines),
                      "hidden_pieces": int(len(hidden)),
                      "visible_after_merge": int(len(visible_merged)),
                      "polylines": len(drawing.visible_polylines),
@@ -423,6 +426,50 @@ def join_polylines(segments: np.ndarray, height: int, tol=1e-6) -> list:
         line = line.copy()
         line[:, 1] = height - line[:, 1]
         out.append(line)
+    return out
+
+
+def pen_travel(polylines: list) -> float:
+    """Pen-up travel of drawing ``polylines`` in order, from the first one's start: the
+    sum of the jumps from each end to the next start (pixels)."""
+    if len(polylines) < 2:
+        return 0.0
+    ends = np.array([line[-1] for line in polylines[:-1]])
+    starts = np.array([line[0] for line in polylines[1:]])
+    return float(np.linalg.norm(starts - ends, axis=1).sum())
+
+
+def order_for_plotter(polylines: list, start=(0.0, 0.0)) -> list:
+    """The polylines in an order, each possibly reversed, that shortens pen-up travel: from
+    ``start``, always the nearest unused end next (greedy, as plotter tools sort; the
+    nearest ends found through a k-d tree, so 100k polylines take well under a second)."""
+    from scipy.spatial import cKDTree
+
+    n = len(polylines)
+    if n < 2:
+        return list(polylines)
+    ends = np.empty((2 * n, 2))
+    ends[0::2] = [line[0] for line in polylines]
+    ends[1::2] = [line[-1] for line in polylines]
+    tree = cKDTree(ends)
+    used = np.zeros(n, dtype=bool)
+    out: list = []
+    here = np.asarray(start, dtype=np.float64)
+    k = 8
+    while len(out) < n:
+        _, idx = tree.query(here, k=min(k, 2 * n))
+        idx = np.atleast_1d(idx)
+        free = idx[~used[idx // 2]]
+        if not len(free):  # all nearest ends taken: look further
+            k = min(2 * k, 2 * n)
+            continue
+        pick = int(free[0])
+        line = polylines[pick // 2]
+        used[pick // 2] = True
+        line = line if pick % 2 == 0 else line[::-1]
+        out.append(line)
+        here = line[-1]
+        k = 8
     return out
 
 
