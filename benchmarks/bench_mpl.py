@@ -4,9 +4,9 @@ PDF each writes):
     python benchmarks/bench_mpl.py [--repeat 5]
 
 Cases (the issue's): an N x N plot_surface (rstride = cstride = 1: (N - 1)^2 quads) with
-1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300 (the fastest draw of each,
-in blocks that alternate over three rounds); then
-the SVG and PDF sizes of the five matplotlib issues' figures (hsr.mpl.examples).
+1,000 scatter points on it and a 1,000-segment line through it, for N = 100 and 300 (the
+fastest draw of each, in blocks that alternate over three rounds); then the SVG and PDF
+sizes of the five matplotlib issues' figures (hsr.mpl.examples).
 """
 
 from __future__ import annotations
