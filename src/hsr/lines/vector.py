@@ -236,28 +236,38 @@ _CHUNK = 8192  # edges per task: threads share the work and the progress bar mov
 def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progress):
     """Hidden intervals (edge, (t0, t1)) of the chosen edges, clipped to the view: the
     window-space edges, and the grid cell size used."""
-    width, height = screen.width, screen.height
     edges = chosen_edges(scene, camera, screen, settings)
-    keep, ends, _ = clip_segments(edges.ends, view_proj, width, height, guard=0)
-    if cell is None:
-        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
-    tri_xy = np.ascontiguousarray(screen.xy_window)
-    start, items, nx, ny = _grid(tri_xy, width, height, cell)
-    bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
+    keep, ends, _ = clip_segments(edges.ends, view_proj, screen.width, screen.height, guard=0)
     bar = None
     if progress and len(ends) > 4 * _CHUNK:
         from tqdm import tqdm
 
         bar = tqdm(total=len(ends), desc="hidden lines", unit="edge", leave=False)
-    results = workers.run(_hidden_intervals, bounds, ends, edges.faces[keep], tri_xy,
-                          np.ascontiguousarray(screen.depth_window), screen.face_id, start,
-                          items, nx, ny, cell,
-                          on_done=None if bar is None else (lambda lo, hi: bar.update(hi - lo)))
+    hidden_edge, hidden_t, cell = _hidden_intervals_of(
+        screen, ends, edges.faces[keep], workers, cell,
+        on_done=None if bar is None else (lambda lo, hi: bar.update(hi - lo)))
     if bar is not None:
         bar.close()
+    return hidden_edge, hidden_t, ends, cell
+
+
+def _hidden_intervals_of(screen, ends, own_faces, workers, cell=None, on_done=None) -> tuple:
+    """(edge (H,), (t0, t1) (H, 2), grid cell): the merged hidden intervals of window-space
+    segments ``ends`` (E, 2, 3) among ``screen``'s triangles, none hidden by its
+    ``own_faces`` (E, 2); chunks of _CHUNK segments on ``workers``."""
+    width, height = screen.width, screen.height
+    if cell is None:
+        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
+    tri_xy = np.ascontiguousarray(screen.xy_window)
+    start, items, nx, ny = _grid(tri_xy, width, height, cell)
+    bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
+    results = workers.run(_hidden_intervals, bounds, ends,
+                          np.ascontiguousarray(own_faces, dtype=np.int64), tri_xy,
+                          np.ascontiguousarray(screen.depth_window), screen.face_id, start,
+                          items, nx, ny, cell, on_done=on_done)
     hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
     hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
-    return hidden_edge, hidden_t, ends, cell
+    return hidden_edge, hidden_t, cell
 
 
 def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None) -> tuple:
@@ -268,20 +278,11 @@ def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None)
     depth)``, sorted by segment and t. ``own_faces`` (E, 2): faces that never hide their
     segment (-1: none). A segment of zero length is a point: one piece when visible, none
     when hidden."""
-    width, height = screen.width, screen.height
     ends_world = np.asarray(ends_world, dtype=np.float64).reshape(-1, 2, 3)
-    keep, ends, t_kept = clip_segments(ends_world, view_proj, width, height, guard=0)
-    if cell is None:
-        cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
-    tri_xy = np.ascontiguousarray(screen.xy_window)
-    start, items, nx, ny = _grid(tri_xy, width, height, cell)
-    bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
-    own = np.ascontiguousarray(np.asarray(own_faces, dtype=np.int64)[keep])
-    results = workers.run(_hidden_intervals, bounds, ends, own, tri_xy,
-                          np.ascontiguousarray(screen.depth_window), screen.face_id, start,
-                          items, nx, ny, cell)
-    hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
-    hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
+    keep, ends, t_kept = clip_segments(ends_world, view_proj, screen.width, screen.height,
+                                       guard=0)
+    own = np.asarray(own_faces, dtype=np.int64)[keep]
+    hidden_edge, hidden_t, _ = _hidden_intervals_of(screen, ends, own, workers, cell)
     degenerate = np.all(ends[:, 0, :2] == ends[:, 1, :2], axis=1)
     vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
     if degenerate.any():  # a point: visible whole or not at all
