@@ -300,7 +300,8 @@ def _joined(seg_key: np.ndarray, seg_number: np.ndarray, t: np.ndarray,
 
 
 def _pieces_in_order(vertices, piece_start, order) -> tuple:
-    """The pieces' vertices reordered as ``order`` lists the pieces, and their starts."""
+    """The pieces' (or rings') vertices reordered as ``order`` lists them, and their
+    starts."""
     size = np.diff(piece_start)[order]
     start = np.r_[0, np.cumsum(size)].astype(np.int64)
     src = np.repeat(piece_start[:-1][order] - start[:-1], size) + np.arange(start[-1])
@@ -368,14 +369,11 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
     n_rings = np.diff(group_ring)[by_path]
     ring_order = np.repeat(group_ring[:-1][by_path] - (np.cumsum(n_rings) - n_rings),
                            n_rings) + np.arange(int(n_rings.sum()))
-    sizes = np.diff(ring_start)[ring_order]
-    new_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
-    src = np.repeat(ring_start[:-1][ring_order] - new_start[:-1], sizes) + \
-        np.arange(new_start[-1])
+    ring_xy, ring_start = _pieces_in_order(ring_xy, ring_start, ring_order)
     ids = path_id[by_path]
     cuts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1], True])
     path_ring = np.r_[0, np.cumsum(n_rings)][cuts]
-    return ids[cuts[:-1]], _compound_paths(ring_xy[src], new_start, path_ring)
+    return ids[cuts[:-1]], _compound_paths(ring_xy, ring_start, path_ring)
 
 
 def _flat_classes():
