@@ -10,6 +10,7 @@ lines, then markers.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 
@@ -376,8 +377,10 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
     return ids[cuts[:-1]], _compound_paths(ring_xy, ring_start, path_ring)
 
 
+@functools.cache
 def _flat_classes():
-    """PathCollection / LineCollection that Axes3D.draw can ask for a 3D projection."""
+    """PathCollection / LineCollection that Axes3D.draw can ask for a 3D projection (made
+    once, when matplotlib is first needed)."""
     from matplotlib.collections import LineCollection, PathCollection
 
     class FlatPaths(PathCollection):
@@ -405,9 +408,6 @@ def _like(new, old, figure, kind: str) -> None:
 def flat_artists(ax) -> tuple:
     """(ids of the 3D artists drawn here, [(2D artist, rank)]) for the axes' current view
     (``ax.M`` set). Warns, naming each, of 3D artists left to mplot3d."""
-    from matplotlib.lines import Line2D
-    from matplotlib.transforms import IdentityTransform
-
     got = gather(ax)
     for artist, why in got.skipped:
         warnings.warn(f"hsr.mpl: {type(artist).__name__} {artist.get_label()!r} is drawn by "
@@ -419,64 +419,82 @@ def flat_artists(ax) -> tuple:
     height = max(1, int(math.ceil(figure.bbox.height)))
     flat = Flattened(got)
     camera = camera_for(ax, flat.all_points(), width, height)
+    face_rgba = _per_polygon(got, flat, "face_rgba")
     edge_rgba = _per_polygon(got, flat, "edge_rgba")
     edge_width = _per_polygon(got, flat, "edge_width")
-    face_rgba = _per_polygon(got, flat, "face_rgba")
     edge_drawn = (edge_rgba[:, 3] > 0) & (edge_width > 0) if len(edge_rgba) else \
         np.zeros(0, bool)
     seen = VisibleParts(flat, camera, width, height, edge_drawn,
                         face_rgba[:, 3] if len(face_rgba) else np.zeros(0))
-    FlatPaths, FlatLines = _flat_classes()
+    added = (_fill_artists(got, flat, seen, face_rgba, figure)
+             + _line_artists(got, flat, seen, edge_rgba, edge_width, figure)
+             + _marker_artists(got, flat, seen, figure))
+    return {id(x.artist) for x in got.fills + got.lines + got.markers}, added
+
+
+def _fill_artists(got, flat, seen, face_rgba, figure) -> list:
+    """[(2D artist, rank)] of the polygons' visible regions: opaque ones one path per fill
+    artist and colour, transparent pieces back to front."""
+    from matplotlib.transforms import IdentityTransform
+
+    if seen.regions is None or not len(seen.regions):
+        return []
+    FlatPaths, _ = _flat_classes()
     added: list = []
-    replaced = {id(x.artist) for x in got.fills + got.lines + got.markers}
+    reg, height = seen.regions, seen.height
+    piece_face = reg.face_id[reg.piece_row]
+    glass = seen.face_glass[piece_face]
+    # Opaque fills: each polygon's pieces merged into rings, one path per polygon.
+    opaque = np.flatnonzero(glass < 0)
+    # One path per fill artist and colour: a colormap's few hundred colours are a
+    # few hundred paths, not one per polygon (and no seams inside a colour).
+    # Grouped by 8-bit RGBA, what every backend writes (np.unique on float rows
+    # sorts lexically: a fifth of a 90k-quad draw).
+    code = np.round(np.clip(face_rgba, 0, 1) * 255).astype(np.uint32) @ \
+        np.array([1 << 24, 1 << 16, 1 << 8, 1], np.uint32)
+    _, first, colour_id = np.unique(code, return_index=True, return_inverse=True)
+    colours = face_rgba[first]
+    n_col = len(colours)
+    ids, paths = _merged_paths(
+        reg, opaque, seen.face_poly[piece_face[opaque]], height,
+        path_of=lambda poly: flat.poly_fill[poly] * n_col + colour_id.ravel()[poly])
+    for f, fill in enumerate(got.fills):
+        mine = np.flatnonzero(ids // n_col == f)
+        if not len(mine):
+            continue
+        art = FlatPaths([paths[k] for k in mine], facecolors=colours[ids[mine] % n_col],
+                        edgecolors="none", linewidths=0.0,
+                        antialiaseds=_antialiased(fill.artist))
+        art.set_transform(IdentityTransform())
+        _like(art, fill.artist, figure, "fill")
+        added.append((art, _FILL))
+    # Transparent fills: each BSP piece's visible part, back to front, in one
+    # collection so that pieces of different artists interleave as they must.
+    clear = np.flatnonzero(glass >= 0)
+    if len(clear):
+        # Consecutive pieces of one polygon (a quad's two triangles, one node's
+        # coplanar pieces) become one path: drawn apart, their shared edges would
+        # blend twice.
+        frag_poly = seen.face_poly[seen.face_glass >= 0]
+        run = np.cumsum(np.r_[True, frag_poly[1:] != frag_poly[:-1]]) - 1
+        runs, paths = _merged_paths(reg, clear, run[glass[clear]], height)
+        frag_poly = frag_poly[np.searchsorted(run, runs)]
+        first_art = got.fills[int(flat.poly_fill[frag_poly[0]])].artist
+        art = FlatPaths(paths, facecolors=face_rgba[frag_poly], edgecolors="none",
+                        linewidths=0.0, antialiaseds=_antialiased(first_art))
+        art.set_transform(IdentityTransform())
+        _like(art, first_art, figure, "glass")
+        added.append((art, _GLASS))
+    return added
 
-    if seen.regions is not None and len(seen.regions):
-        reg = seen.regions
-        piece_face = reg.face_id[reg.piece_row]
-        glass = seen.face_glass[piece_face]
-        # Opaque fills: each polygon's pieces merged into rings, one path per polygon.
-        opaque = np.flatnonzero(glass < 0)
-        # One path per fill artist and colour: a colormap's few hundred colours are a
-        # few hundred paths, not one per polygon (and no seams inside a colour).
-        # Grouped by 8-bit RGBA, what every backend writes (np.unique on float rows
-        # sorts lexically: a fifth of a 90k-quad draw).
-        code = np.round(np.clip(face_rgba, 0, 1) * 255).astype(np.uint32) @ \
-            np.array([1 << 24, 1 << 16, 1 << 8, 1], np.uint32)
-        _, first, colour_id = np.unique(code, return_index=True, return_inverse=True)
-        colours = face_rgba[first]
-        n_col = len(colours)
-        ids, paths = _merged_paths(
-            reg, opaque, seen.face_poly[piece_face[opaque]], height,
-            path_of=lambda poly: flat.poly_fill[poly] * n_col + colour_id.ravel()[poly])
-        for f, fill in enumerate(got.fills):
-            mine = np.flatnonzero(ids // n_col == f)
-            if not len(mine):
-                continue
-            art = FlatPaths([paths[k] for k in mine], facecolors=colours[ids[mine] % n_col],
-                            edgecolors="none", linewidths=0.0,
-                            antialiaseds=_antialiased(fill.artist))
-            art.set_transform(IdentityTransform())
-            _like(art, fill.artist, figure, "fill")
-            added.append((art, _FILL))
-        # Transparent fills: each BSP piece's visible part, back to front, in one
-        # collection so that pieces of different artists interleave as they must.
-        clear = np.flatnonzero(glass >= 0)
-        if len(clear):
-            # Consecutive pieces of one polygon (a quad's two triangles, one node's
-            # coplanar pieces) become one path: drawn apart, their shared edges would
-            # blend twice.
-            frag_poly = seen.face_poly[seen.face_glass >= 0]
-            run = np.cumsum(np.r_[True, frag_poly[1:] != frag_poly[:-1]]) - 1
-            runs, paths = _merged_paths(reg, clear, run[glass[clear]], height)
-            frag_poly = frag_poly[np.searchsorted(run, runs)]
-            first = got.fills[int(flat.poly_fill[frag_poly[0]])].artist
-            art = FlatPaths(paths, facecolors=face_rgba[frag_poly], edgecolors="none",
-                            linewidths=0.0, antialiaseds=_antialiased(first))
-            art.set_transform(IdentityTransform())
-            _like(art, first, figure, "glass")
-            added.append((art, _GLASS))
 
-    # Outlines of polygons, then lines: visible pieces joined where they continue.
+def _line_artists(got, flat, seen, edge_rgba, edge_width, figure) -> list:
+    """[(2D artist, rank)] of the visible pieces of polygon outlines and of lines, joined
+    where they continue each other."""
+    from matplotlib.transforms import IdentityTransform
+
+    _, FlatLines = _flat_classes()
+    added: list = []
     item, t, pieces = seen.item, seen.t, seen.pieces
     is_edge = item < seen.n_edges
     if is_edge.any():
@@ -519,11 +537,20 @@ def flat_artists(ax) -> tuple:
                                   else group.artist.get_dash_joinstyle())
             _like(art, group.artist, figure, "line")
             added.append((art, _LINE))
+    return added
 
-    # Markers whose centre is visible, in mplot3d's order (far to near).
-    is_point = item >= seen.n_edges + seen.n_segments
-    q = item[is_point] - seen.n_edges - seen.n_segments
-    xy = pieces[is_point, 0, :2]
+
+def _marker_artists(got, flat, seen, figure) -> list:
+    """[(2D artist, rank)] of the markers whose centre is visible, in mplot3d's order (far
+    to near), and of the visible vertices of lines drawn with markers."""
+    from matplotlib.lines import Line2D
+    from matplotlib.transforms import IdentityTransform
+
+    FlatPaths, _ = _flat_classes()
+    added: list = []
+    is_point = seen.item >= seen.n_edges + seen.n_segments
+    q = seen.item[is_point] - seen.n_edges - seen.n_segments
+    xy = seen.pieces[is_point, 0, :2]
     for g, marks in enumerate(got.markers):
         sel = (flat.point_kind[q] == 0) & (flat.point_group[q] == g)
         idx = flat.point_index[q[sel]]
@@ -549,4 +576,4 @@ def flat_artists(ax) -> tuple:
         art.set_transform(IdentityTransform())
         _like(art, group.artist, figure, "marker")
         added.append((art, _MARK))
-    return replaced, added
+    return added
