@@ -9,8 +9,10 @@ import pytest
 
 import hsr
 from hsr import scenes
+from hsr.lines.paths import join_polylines, merge_collinear
 from hsr.lines.raster import HiddenLine
-from hsr.lines.vector import hidden_lines, join_polylines, merge_collinear, write_lines_svg
+from hsr.lines.svg import write_lines_svg
+from hsr.lines.vector import hidden_lines
 from reference import occluded, reference_render, unproject
 
 W, H = 160, 120
@@ -177,11 +179,15 @@ def test_svg_parses_and_overlays_the_raster_hidden_line_image(tmp_path):
     root = ET.parse(path).getroot()
     ns = {"s": "http://www.w3.org/2000/svg"}
     assert root.get("viewBox") == f"0 0 {W} {H}"
-    groups = {g.get("id"): g for g in root.findall("s:g", ns)}
-    assert set(groups) == {"visible", "hidden"}
+    ink = "{http://www.inkscape.org/namespaces/inkscape}"
+    groups = {g.get(ink + "label"): g for g in root.findall("s:g", ns)}
+    assert all(g.get(ink + "groupmode") == "layer" for g in groups.values())
+    assert set(groups) == {"silhouette", "crease", "hidden"}  # a cube's edges are creases
     assert groups["hidden"].get("stroke-dasharray")
+    assert [groups[k].get("id") for k in ("silhouette", "crease", "hidden")] == \
+        ["layer1", "layer3", "layer7"]
     points = []
-    for p in groups["visible"].findall("s:path", ns):
+    for p in groups["silhouette"].findall("s:path", ns) + groups["crease"].findall("s:path", ns):
         coords = [tuple(map(float, c.split())) for c in p.get("d")[1:].split(" L")]
         for a, b in zip(coords[:-1], coords[1:]):
             for t in np.linspace(0.1, 0.9, 9):
@@ -345,31 +351,39 @@ def test_intersection_lines_are_hidden_like_any_edge():
 
 
 def test_polylines_are_ordered_for_a_plotter(models_dir):
-    """Nearest free end next: the pen-up travel is what a plain greedy loop over every end
-    gives (here, O(n^2)), far below the joined order, and every polyline is kept (some
-    reversed)."""
-    from hsr.lines.vector import join_polylines, merge_collinear, order_for_plotter, pen_travel
+    """Per layer, nearest free end next: the pen-up travel is what a plain greedy loop over
+    every end gives (here, O(n^2)), far below the joined order, and every polyline is kept
+    (some reversed)."""
+    from hsr.lines.drawing import layer_of
+    from hsr.lines.paths import join_polylines, merge_collinear, order_for_plotter, pen_travel
 
     mesh = hsr.load(f"{models_dir}/spot.obj")
     camera = hsr.first_look(mesh, 4 / 3)
     drawing = hidden_lines(mesh, camera, 400, 300, HiddenLine(edges="feature"))
-    joined = join_polylines(merge_collinear(drawing.visible), 300)
-    ordered = drawing.visible_polylines
-    assert len(ordered) == len(joined) > 50
-    def key(lines):
-        return sorted(tuple(np.round(np.r_[min(tuple(p[0]), tuple(p[-1])), len(p)], 9))
-                      for p in lines)
+    assert set(drawing.layers) >= {"silhouette", "crease"}
+    layer = layer_of(drawing.visible_kind)
+    total = 0.0
+    for name, ordered in drawing.layers.items():
+        joined = join_polylines(merge_collinear(drawing.visible[layer == name]), 300)
+        assert len(ordered) == len(joined) > 0
 
-    assert key(joined) == key(ordered)
-    here, left, naive = np.zeros(2), list(joined), []
-    while left:
-        d = [min(np.linalg.norm(p[0] - here), np.linalg.norm(p[-1] - here)) for p in left]
-        line = left.pop(int(np.argmin(d)))
-        if np.linalg.norm(line[-1] - here) < np.linalg.norm(line[0] - here):
-            line = line[::-1]
-        naive.append(line)
-        here = line[-1]
-    assert abs(pen_travel(ordered) - pen_travel(naive)) <= 1e-6 * pen_travel(naive)
-    assert pen_travel(ordered) < 0.5 * pen_travel(joined)
-    assert drawing.stats["pen_travel"] == pen_travel(ordered)
+        def key(lines):
+            return sorted(tuple(np.round(np.r_[min(tuple(p[0]), tuple(p[-1])), len(p)], 9))
+                          for p in lines)
+
+        assert key(joined) == key(ordered)
+        here, left, naive = np.zeros(2), list(joined), []
+        while left:
+            d = [min(np.linalg.norm(p[0] - here), np.linalg.norm(p[-1] - here)) for p in left]
+            line = left.pop(int(np.argmin(d)))
+            if np.linalg.norm(line[-1] - here) < np.linalg.norm(line[0] - here):
+                line = line[::-1]
+            naive.append(line)
+            here = line[-1]
+        assert abs(pen_travel(ordered) - pen_travel(naive)) <= 1e-6 * pen_travel(naive) + 1e-9
+        if len(joined) > 50:
+            assert pen_travel(ordered) < 0.5 * pen_travel(joined)
+        total += pen_travel(ordered)
+    assert drawing.stats["pen_travel"] == pytest.approx(total, rel=1e-12)
+    assert sum(map(len, drawing.layers.values())) == len(drawing.visible_polylines) > 50
     assert order_for_plotter([]) == [] and len(order_for_plotter(joined[:1])) == 1

@@ -40,7 +40,7 @@ _LAZY = {
     "RenderState": (".geometry.state", "RenderState"),
     "HiddenLine": (".lines.raster", "HiddenLine"),
     "hidden_lines": (".lines.vector", "hidden_lines"),
-    "write_lines_svg": (".lines.vector", "write_lines_svg"),
+    "write_lines_svg": (".lines.svg", "write_lines_svg"),
     "Workspace": (".parallel", "Workspace"),
     "Frame": (".render", "Frame"), "render": (".render", "render"),
     "scenes": (".scene.builtin", None), "views": (".scene.views", None),
@@ -108,7 +108,8 @@ if TYPE_CHECKING:  # the names as type checkers and IDEs see them
     )
     from .geometry.state import CullMode, DepthFunc, FrontFace, PolygonMode, RenderState
     from .lines.raster import HiddenLine
-    from .lines.vector import hidden_lines, write_lines_svg
+    from .lines.svg import write_lines_svg
+    from .lines.vector import hidden_lines
     from .parallel import Workspace
     from .render import Frame, render
     from .scene import builtin as scenes

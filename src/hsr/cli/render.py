@@ -114,7 +114,8 @@ def run(args) -> int:
     if args.fill:
         _write_regions(args, scene, camera, width, height, state, background, hidden_line)
     elif args.svg and args.lines:
-        from ..lines.vector import hidden_lines, write_lines_svg
+        from ..lines.svg import write_lines_svg
+        from ..lines.vector import hidden_lines
 
         drawing = hidden_lines(scene, camera, width, height, hidden_line, state)
         write_lines_svg(args.svg, drawing, background, hidden_line.line_color(background),

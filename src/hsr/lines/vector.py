@@ -17,9 +17,6 @@ overlays the PNG.
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass, field
-
 import numpy as np
 from numba import njit
 
@@ -28,11 +25,10 @@ from ..geometry.state import RenderState
 from ..geometry.viewport import check_size
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene
+from .drawing import LineDrawing, make_drawing
 from .raster import HiddenLine, chosen_edges, clip_segments
-from .svg import write_svg
 
-__all__ = ["LineDrawing", "hidden_lines", "write_lines_svg", "order_for_plotter",
-           "pen_travel"]
+__all__ = ["LineDrawing", "hidden_lines", "visible_pieces"]
 
 # Tolerances, in window pixels and window depth units. Triangles are closed (a point within
 # EPS_PX of the outline counts as covered, like the reference ray test's u, v >= 0: an edge
@@ -44,26 +40,6 @@ EPS_Z = 1e-9
 # Visible or hidden pieces shorter than this (pixels) are dropped: nobody can see them, and
 # they are what the EPS_Z margin leaves at vertices shared with an occluder.
 MIN_PIECE_PX = 1e-3
-
-
-@dataclass
-class LineDrawing:
-    """Visible (and hidden) edge pieces of a scene seen by a camera.
-
-    visible, hidden : (S, 2, 3) float64 segments in window space (x, y up, depth).
-    visible_polylines, hidden_polylines : lists of (n, 2) float64 arrays in image
-        coordinates (x right, y down), joined and merged.
-    width, height : the image size.
-    stats : counts.
-    """
-
-    visible: np.ndarray
-    hidden: np.ndarray
-    visible_polylines: list
-    hidden_polylines: list
-    width: int
-    height: int
-    stats: dict = field(default_factory=dict)
 
 
 @njit(cache=True, nogil=True)
@@ -205,11 +181,10 @@ def _pieces(ends, edge_idx, t_span):
     return np.stack([a + t_span[:, :1] * d, a + t_span[:, 1:] * d], axis=1)
 
 
-def _drop_slivers(segments, min_length=MIN_PIECE_PX):
-    """Drop pieces shorter than ``min_length`` pixels: slivers left where a hidden interval
-    stops EPS_Z short of a vertex shared with the occluder."""
-    length = np.hypot(*(segments[:, 1, :2] - segments[:, 0, :2]).T)
-    return segments[length >= min_length]
+def _long_enough(segments, min_length=MIN_PIECE_PX):
+    """Pieces at least ``min_length`` pixels long (mask): shorter ones are the slivers left
+    where a hidden interval stops EPS_Z short of a vertex shared with the occluder."""
+    return np.hypot(*(segments[:, 1, :2] - segments[:, 0, :2]).T) >= min_length
 
 
 def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
@@ -235,7 +210,7 @@ def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
 _CHUNK = 8192  # edges per task: threads share the work and the progress bar moves
 def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progress):
     """Hidden intervals (edge, (t0, t1)) of the chosen edges, clipped to the view: the
-    window-space edges, and the grid cell size used."""
+    window-space edges, their kinds, and the grid cell size used."""
     edges = chosen_edges(scene, camera, screen, settings)
     keep, ends, _ = clip_segments(edges.ends, view_proj, screen.width, screen.height, guard=0)
     bar = None
@@ -248,7 +223,7 @@ def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progre
         on_done=None if bar is None else (lambda lo, hi: bar.update(hi - lo)))
     if bar is not None:
         bar.close()
-    return hidden_edge, hidden_t, ends, cell
+    return hidden_edge, hidden_t, ends, edges.kind[keep], cell
 
 
 def _hidden_intervals_of(screen, ends, own_faces, workers, cell=None, on_done=None) -> tuple:
@@ -322,202 +297,15 @@ def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
         screen = prepare(scene, view_proj, width, height, state, {}, workers)
-        hidden_edge, hidden_t, ends, cell = _cut_edges(scene, camera, screen, settings,
-                                                       view_proj, workers, cell, progress)
+        hidden_edge, hidden_t, ends, kind, cell = _cut_edges(scene, camera, screen, settings,
+                                                             view_proj, workers, cell, progress)
     vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
-    visible = _drop_slivers(_pieces(ends, vis_edge, vis_t))
-    hidden = _drop_slivers(_pieces(ends, hidden_edge, hidden_t))
-    visible_merged = merge_collinear(visible)
-    # Plotter order: the pen goes to the nearest free end next (hidden parts likewise).
-    drawing = LineDrawing(
-        visible, hidden, order_for_plotter(join_polylines(visible_merged, height)),
-        order_for_plotter(join_polylines(merge_collinear(hidden), height))
-        if with_hidden else [], width, height)
-    drawing.stats = {"edges": int(len(ends)), "visible_pieces": int(len(visible)),
-                     "pen_travel": pen_travel(drawing.visible_polylines),
-                     "hidden_pieces": int(len(hidden)),
-                     "visible_after_merge": int(len(visible_merged)),
-                     "polylines": len(drawing.visible_polylines),
-                     "triangles": int(len(screen)), "grid_cell": int(cell)}
+    visible = _pieces(ends, vis_edge, vis_t)
+    hidden = _pieces(ends, hidden_edge, hidden_t)
+    keep_visible, keep_hidden = _long_enough(visible), _long_enough(hidden)
+    # Plotter order: per layer, the pen goes to the nearest free end next.
+    drawing = make_drawing(visible[keep_visible], kind[vis_edge[keep_visible]],
+                           hidden[keep_hidden], kind[hidden_edge[keep_hidden]], width, height,
+                           with_hidden)
+    drawing.stats.update(edges=int(len(ends)), triangles=int(len(screen)), grid_cell=int(cell))
     return drawing
-
-
-def merge_collinear(segments: np.ndarray, angle_tol=1e-7, offset_tol=1e-5) -> np.ndarray:
-    """Merge overlapping collinear segments (S, 2, 3) (e.g. an edge drawn by two objects)
-    into one; each merged run lies on, and takes its depth from, its first segment."""
-    if len(segments) < 2:
-        return segments
-    xy = segments[:, :, :2]
-    d = xy[:, 1] - xy[:, 0]
-    theta = np.mod(np.arctan2(d[:, 1], d[:, 0]), np.pi)
-    theta = np.where(theta > np.pi - angle_tol, 0.0, theta)
-    direction = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    rho = direction[:, 0] * xy[:, 0, 1] - direction[:, 1] * xy[:, 0, 0]
-    key = np.stack([np.round(theta / angle_tol), np.round(rho / offset_tol)], axis=1)
-    _, group = np.unique(key, axis=0, return_inverse=True)
-    group = group.reshape(-1)
-    s = np.einsum("ij,ikj->ik", direction, xy)  # position of both ends along the line
-    lo, hi = s.min(axis=1), s.max(axis=1)
-    order = np.lexsort((lo, group))
-    g, lo, hi = group[order], lo[order], hi[order]
-    # Running maximum of hi within each group (groups are contiguous after the sort).
-    span = float(np.abs(s).max()) * 4.0 + 1.0
-    reach = np.maximum.accumulate(hi + g * span) - g * span
-    new_run = np.r_[True, (g[1:] != g[:-1]) | (lo[1:] > reach[:-1] + offset_tol)]
-    run_start = np.flatnonzero(new_run)
-    run_end = np.r_[run_start[1:], len(g)] - 1
-    first = order[run_start]
-    run_lo, run_hi = lo[run_start], reach[run_end]
-    seg = segments[first]
-    sa = np.einsum("ij,ij->i", direction[first], seg[:, 0, :2])
-    sb = np.einsum("ij,ij->i", direction[first], seg[:, 1, :2])
-    length = np.where(sb != sa, sb - sa, 1.0)
-    ta = ((run_lo - sa) / length)[:, None]
-    tb = ((run_hi - sa) / length)[:, None]
-    # Keep each run's orientation along its first segment.
-    ta, tb = np.where(sb >= sa, ta[:, 0], tb[:, 0])[:, None], np.where(
-        sb >= sa, tb[:, 0], ta[:, 0])[:, None]
-    return np.stack([seg[:, 0] + ta * (seg[:, 1] - seg[:, 0]),
-                     seg[:, 0] + tb * (seg[:, 1] - seg[:, 0])], axis=1)
-
-
-def join_polylines(segments: np.ndarray, height: int, tol=1e-6) -> list:
-    """Chain segments that share endpoints into polylines (image coordinates, y down) and
-    drop interior points where the direction does not change."""
-    if len(segments) == 0:
-        return []
-    pts = segments[:, :, :2].reshape(-1, 2)
-    keys = np.round(pts / tol).astype(np.int64)
-    _, node = np.unique(keys, axis=0, return_inverse=True)
-    node = node.reshape(-1, 2)
-    n_nodes = node.max() + 1
-    adjacency: list[list[int]] = [[] for _ in range(n_nodes)]
-    for s, (a, b) in enumerate(node):
-        adjacency[a].append(s)
-        adjacency[b].append(s)
-    used = np.zeros(len(segments), dtype=bool)
-    position = np.zeros((n_nodes, 2))
-    position[node[:, 0]] = segments[:, 0, :2]
-    position[node[:, 1]] = segments[:, 1, :2]
-    lines = []
-
-    def walk(start_node):
-        chain = [start_node]
-        current = start_node
-        while True:
-            nxt = None
-            for s in adjacency[current]:
-                if not used[s]:
-                    nxt = s
-                    break
-            if nxt is None:
-                return chain
-            used[nxt] = True
-            a, b = node[nxt]
-            current = b if a == current else a
-            chain.append(current)
-
-    degree = np.array([len(a) for a in adjacency])
-    for start_node in list(np.flatnonzero(degree != 2)) + list(range(n_nodes)):
-        while any(not used[s] for s in adjacency[start_node]):
-            chain = walk(start_node)
-            lines.append(_simplify(position[chain]))
-    out = []
-    for line in lines:
-        line = line.copy()
-        line[:, 1] = height - line[:, 1]
-        out.append(line)
-    return out
-
-
-def pen_travel(polylines: list) -> float:
-    """Pen-up travel of drawing ``polylines`` in order, from the first one's start: the
-    sum of the jumps from each end to the next start (pixels)."""
-    if len(polylines) < 2:
-        return 0.0
-    ends = np.array([line[-1] for line in polylines[:-1]])
-    starts = np.array([line[0] for line in polylines[1:]])
-    return float(np.linalg.norm(starts - ends, axis=1).sum())
-
-
-def order_for_plotter(polylines: list, start=(0.0, 0.0)) -> list:
-    """The polylines in an order, each possibly reversed, that shortens pen-up travel: from
-    ``start``, always the nearest unused end next (greedy, as plotter tools sort; the
-    nearest ends found through a k-d tree, so 100k polylines take well under a second)."""
-    from scipy.spatial import cKDTree
-
-    n = len(polylines)
-    if n < 2:
-        return list(polylines)
-    ends = np.empty((2 * n, 2))
-    ends[0::2] = [line[0] for line in polylines]
-    ends[1::2] = [line[-1] for line in polylines]
-    tree = cKDTree(ends)
-    used = np.zeros(n, dtype=bool)
-    out: list = []
-    here = np.asarray(start, dtype=np.float64)
-    k = 8
-    while len(out) < n:
-        _, idx = tree.query(here, k=min(k, 2 * n))
-        idx = np.atleast_1d(idx)
-        free = idx[~used[idx // 2]]
-        if not len(free):  # all nearest ends taken: look further
-            k = min(2 * k, 2 * n)
-            continue
-        pick = int(free[0])
-        line = polylines[pick // 2]
-        used[pick // 2] = True
-        line = line if pick % 2 == 0 else line[::-1]
-        out.append(line)
-        here = line[-1]
-        k = 8
-    return out
-
-
-def _simplify(points: np.ndarray) -> np.ndarray:
-    """Drop interior points where a polyline goes straight on (collinear joins)."""
-    if len(points) < 3:
-        return points
-    keep = [0]
-    for i in range(1, len(points) - 1):
-        a = points[keep[-1]]
-        b, c = points[i], points[i + 1]
-        u, v = b - a, c - b
-        cross = u[0] * v[1] - u[1] * v[0]
-        if abs(cross) > 1e-9 * (np.hypot(*u) * np.hypot(*v) + 1e-300) or u @ v <= 0:
-            keep.append(i)
-    keep.append(len(points) - 1)
-    return points[keep]
-
-
-def write_lines_svg(path: str | os.PathLike, drawing: LineDrawing,
-                    background: tuple = (255, 255, 255), color: tuple = (0, 0, 0),
-                    hidden: bool = False, stroke_width: float = 1.0) -> None:
-    """Write the drawing as SVG: one ``<path>`` per polyline in a ``visible`` group and,
-    with ``hidden``, the hidden parts dashed in a ``hidden`` group. The viewBox is the
-    image, so the SVG overlays the PNG of the same render.
-
-    Raises :class:`~hsr.errors.OutputError` when the file cannot be written.
-    """
-
-    def rgb(c):
-        return f"rgb({int(c[0])},{int(c[1])},{int(c[2])})"
-
-    def paths(polylines):
-        for line in polylines:
-            yield "M" + " L".join(f"{x:.4f} {y:.4f}" for x, y in line)
-
-    w, h = drawing.width, drawing.height
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
-             f'viewBox="0 0 {w} {h}">',
-             f'<rect width="{w}" height="{h}" fill="{rgb(background)}"/>']
-    if hidden:
-        parts.append(f'<g id="hidden" fill="none" stroke="{rgb(color)}" stroke-opacity="0.45" '
-                     f'stroke-width="{stroke_width}" stroke-dasharray="4 3">')
-        parts.extend(f'<path d="{d}"/>' for d in paths(drawing.hidden_polylines))
-        parts.append("</g>")
-    parts.append(f'<g id="visible" fill="none" stroke="{rgb(color)}" '
-                 f'stroke-width="{stroke_width}" stroke-linecap="round" stroke-linejoin="round">')
-    parts.extend(f'<path d="{d}"/>' for d in paths(drawing.visible_polylines))
-    parts.append("</g></svg>")
-    write_svg(path, parts)

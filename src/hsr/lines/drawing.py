@@ -1,0 +1,103 @@
+"""A line drawing: the visible (and hidden) pieces of a scene's edges, labelled by kind and
+gathered into one layer of plotter-ordered polylines per kind.
+
+An edge can be several kinds at once (a crease on the silhouette); it is drawn once, in the
+layer of its first kind in :data:`LAYERS` order. Layer numbers are fixed, so pen 1 always
+draws silhouettes, whatever the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .paths import join_polylines, merge_runs, order_for_plotter, pen_travel
+from .raster import BOUNDARY, CREASE, INTERSECTION, NONMANIFOLD, SILHOUETTE
+
+__all__ = ["LAYERS", "LineDrawing", "layer_names", "layer_of", "make_drawing"]
+
+# (name, kind bit, layer number), in the order an edge of several kinds is assigned;
+# "edge" (bit 0) takes every other edge (all edges of a mesh, a CAD model's own edges).
+LAYERS = (("silhouette", SILHOUETTE, 1), ("boundary", BOUNDARY, 2),
+          ("nonmanifold", NONMANIFOLD, 5), ("intersection", INTERSECTION, 4),
+          ("crease", CREASE, 3), ("edge", 0, 6))
+
+
+def layer_names() -> tuple:
+    """The layer names in layer-number order (silhouette, boundary, crease, ...)."""
+    return tuple(name for name, _, _ in sorted(LAYERS, key=lambda layer: layer[2]))
+
+
+@dataclass
+class LineDrawing:
+    """Visible (and hidden) edge pieces of a scene seen by a camera.
+
+    visible, hidden : (S, 2, 3) float64 segments in window space (x, y up, depth).
+    visible_kind, hidden_kind : (S,) uint8 bit masks of each segment's kinds
+        (:data:`hsr.lines.raster.BOUNDARY`, ``CREASE``, ``SILHOUETTE``, ``NONMANIFOLD``,
+        ``INTERSECTION``; 0 = an ordinary edge).
+    layers, hidden_layers : {layer name: list of (n, 2) float64 polylines in image
+        coordinates (x right, y down)}, joined, merged and ordered for a plotter, in layer
+        number order (see :data:`LAYERS`); only layers with lines.
+    visible_polylines, hidden_polylines : every layer's polylines in one list.
+    width, height : the image size.
+    stats : counts.
+    """
+
+    visible: np.ndarray
+    hidden: np.ndarray
+    visible_polylines: list
+    hidden_polylines: list
+    width: int
+    height: int
+    stats: dict = field(default_factory=dict)
+    visible_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
+    hidden_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
+    layers: dict = field(default_factory=dict)
+    hidden_layers: dict = field(default_factory=dict)
+
+
+def layer_of(kind: np.ndarray) -> np.ndarray:
+    """The layer name (object array) of each kind mask (S,)."""
+    names = np.array([name for name, _, _ in LAYERS], dtype=object)
+    return names[_layer_index(np.asarray(kind))]
+
+
+def _layer_index(kind: np.ndarray) -> np.ndarray:
+    """Index into LAYERS of each kind mask: its first kind in LAYERS order."""
+    index = np.full(len(kind), len(LAYERS) - 1, dtype=np.int64)
+    for k in range(len(LAYERS) - 2, -1, -1):
+        index[(kind & LAYERS[k][1]) != 0] = k
+    return index
+
+
+def _layered(segments: np.ndarray, kind: np.ndarray, height: int) -> dict:
+    """{layer name: ordered polylines}. Collinear overlaps are merged across kinds first (an
+    edge two objects share is drawn once), each run in the layer of its members' kinds."""
+    runs, run_of = merge_runs(segments)
+    run_kind = np.zeros(len(runs), dtype=np.uint8)
+    np.bitwise_or.at(run_kind, run_of, kind.astype(np.uint8))
+    index = _layer_index(run_kind)
+    out = {}
+    for k, (name, _, _) in sorted(enumerate(LAYERS), key=lambda item: item[1][2]):
+        mine = runs[index == k]
+        if len(mine):
+            out[name] = order_for_plotter(join_polylines(mine, height))
+    return out
+
+
+def make_drawing(visible, visible_kind, hidden, hidden_kind, width: int, height: int,
+                 with_hidden: bool = True) -> LineDrawing:
+    """The drawing of window-space pieces and their kinds: layers of ordered polylines."""
+    layers = _layered(visible, visible_kind, height)
+    hidden_layers = _layered(hidden, hidden_kind, height) if with_hidden else {}
+    drawing = LineDrawing(visible, hidden, [p for lines in layers.values() for p in lines],
+                          [p for lines in hidden_layers.values() for p in lines], width, height,
+                          visible_kind=visible_kind, hidden_kind=hidden_kind, layers=layers,
+                          hidden_layers=hidden_layers)
+    drawing.stats = {"visible_pieces": int(len(visible)), "hidden_pieces": int(len(hidden)),
+                     "polylines": len(drawing.visible_polylines),
+                     "pen_travel": sum(pen_travel(lines) for lines in layers.values()),
+                     "layers": {name: len(lines) for name, lines in layers.items()}}
+    return drawing
