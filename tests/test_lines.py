@@ -351,9 +351,9 @@ def test_intersection_lines_are_hidden_like_any_edge():
 
 
 def test_polylines_are_ordered_for_a_plotter(models_dir):
-    """Per layer, nearest free end next: the pen-up travel is what a plain greedy loop over
-    every end gives (here, O(n^2)), far below the joined order, and every polyline is kept
-    (some reversed)."""
+    """Per layer, the pen-up travel is at most what a plain greedy loop over every end gives
+    (here, O(n^2); hsr adds 2-opt moves to its greedy order), far below the joined order,
+    and every polyline is kept (some reversed)."""
     from hsr.lines.drawing import layer_of
     from hsr.lines.paths import join_polylines, merge_collinear, order_for_plotter, pen_travel
 
@@ -380,7 +380,7 @@ def test_polylines_are_ordered_for_a_plotter(models_dir):
                 line = line[::-1]
             naive.append(line)
             here = line[-1]
-        assert abs(pen_travel(ordered) - pen_travel(naive)) <= 1e-6 * pen_travel(naive) + 1e-9
+        assert pen_travel(ordered) <= pen_travel(naive) + 1e-9
         if len(joined) > 50:
             assert pen_travel(ordered) < 0.5 * pen_travel(joined)
         total += pen_travel(ordered)

@@ -29,6 +29,8 @@ COMMANDS = {  # arguments, outputs by flag, the inputs of the call
     "render --fill": (["render", "m.obj", "--size", "16x16", "--camera", "cams.json",
                        "--fill", "--shading", "flat"], {"--svg": ".svg", "--pdf": ".pdf"},
                       MODEL + ("cams.json",)),
+    "lines": (["lines", "m.obj", "--size", "16x16", "--camera", "cams.json", "--page", "A6"],
+              {"-o": ".svg"}, MODEL + ("cams.json",)),
     "explain": (["explain", "depth", "m.obj", "--size", "32x32"], {"-o": ".png"}, MODEL),
     "compare": (["compare", "m.obj", "--size", "32x32", "--algorithms", "zbuffer,painter"],
                 {"--montage": ".png"}, MODEL),

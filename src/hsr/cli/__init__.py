@@ -1,6 +1,6 @@
 """The ``hsr`` command line. Bad input ends with one line on stderr and exit code 2.
 
-One module per command (``render``, ``compare``, ``explain``, ``report``, ``batch``,
+One module per command (``render``, ``lines``, ``compare``, ``explain``, ``report``, ``batch``,
 ``prune``, ``visibility``, ``view``), each with ``add_parser(sub)`` and ``run(args)``;
 the options several commands share are defined once in :mod:`hsr.cli.options`, the
 scene, camera and state they describe are built in :mod:`hsr.cli.setup`."""
@@ -13,15 +13,27 @@ import sys
 import warnings
 
 from ..errors import HsrError
-from . import batch, compare, explain, partition, prune, render, report, view, visibility, warmup
+from . import (
+    batch,
+    compare,
+    explain,
+    lines,
+    partition,
+    prune,
+    render,
+    report,
+    view,
+    visibility,
+    warmup,
+)
 from .options import EXIT_USAGE, CliError, HelpFormatter, Parser
 
 __all__ = ["main", "build_parser", "CliError", "EXIT_USAGE"]
 
 # In the order ``hsr --help`` lists them.
-COMMANDS = {"render": render, "compare": compare, "explain": explain, "report": report,
-            "batch": batch, "partition": partition, "prune": prune, "visibility": visibility,
-            "view": view, "warmup": warmup}
+COMMANDS = {"render": render, "lines": lines, "compare": compare, "explain": explain,
+            "report": report, "batch": batch, "partition": partition, "prune": prune,
+            "visibility": visibility, "view": view, "warmup": warmup}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -190,20 +190,9 @@ def add_up_axis(group, what: str) -> None:
                        f"the file declares: y for glTF, z for STL and 3MF, else y)")
 
 
-def add_scene_args(p):
-    """Arguments shared by every command that renders, in groups: scene, camera, depth
-    state, culling and polygons, appearance, run."""
-    from ..appearance.shading import LIGHTS, SHADING_MODES
-    from ..scene.builtin import SCENES
-
-    p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files (OBJ, PLY, STL, "
-                   "OFF, glTF/GLB: one object per node), drawn in order")
-    g = p.add_argument_group("scene")
-    g.add_argument("--scene", default="cubes", choices=list(SCENES),
-                   help="built-in scene when no MODEL is given (default %(default)s)")
-    g.add_argument("--opacity", metavar="A[,A...]",
-                   help="opacity per MODEL (or one for all), 0..1; < 1 is blended")
-    g = p.add_argument_group("camera")
+def add_camera_args(g) -> None:
+    """The camera: --size, --view, --eye, --target, --up, --up-axis, --camera, --fov,
+    --near, --far, --ortho (read by :func:`hsr.cli.setup.view_setup`)."""
     g.add_argument("--size", help="WxH in pixels (default: the --camera file's, else 800x600)")
     g.add_argument("--view", dest="view_from", metavar="AZ,EL", help="frame the model from "
                    "azimuth AZ (degrees from +Z towards +X) and elevation EL (degrees up) "
@@ -221,6 +210,22 @@ def add_scene_args(p):
     g.add_argument("--far", type=float, help="far plane distance (default: hug the model)")
     g.add_argument("--ortho", type=float, metavar="HEIGHT",
                    help="orthographic projection showing HEIGHT world units vertically")
+
+
+def add_scene_args(p):
+    """Arguments shared by every command that renders, in groups: scene, camera, depth
+    state, culling and polygons, appearance, run."""
+    from ..appearance.shading import LIGHTS, SHADING_MODES
+    from ..scene.builtin import SCENES
+
+    p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files (OBJ, PLY, STL, "
+                   "OFF, glTF/GLB: one object per node), drawn in order")
+    g = p.add_argument_group("scene")
+    g.add_argument("--scene", default="cubes", choices=list(SCENES),
+                   help="built-in scene when no MODEL is given (default %(default)s)")
+    g.add_argument("--opacity", metavar="A[,A...]",
+                   help="opacity per MODEL (or one for all), 0..1; < 1 is blended")
+    add_camera_args(p.add_argument_group("camera"))
     g = p.add_argument_group("depth state")
     add_depth_func(g)
     g.add_argument("--no-depth-test", action="store_true", help="glDisable(GL_DEPTH_TEST)")

@@ -162,6 +162,16 @@ def camera_from_args(args, scene, default_camera, aspect):
                        f"set --eye, --target, --near and --far") from None
 
 
+def view_setup(args, scene, default_camera=None) -> tuple:
+    """``(camera, width, height)`` from the camera arguments (:func:`add_camera_args`)."""
+    check_lens(args)
+    # The camera file's planes, where it gives none, fit the scene (read after it).
+    file_camera, file_size = camera_from_file(args, scene.bounds() if args.camera else None)
+    width, height = size(args.size) if args.size else (file_size or (800, 600))
+    camera = file_camera or camera_from_args(args, scene, default_camera, width / height)
+    return camera, width, height
+
+
 def setup(args):
     """Scene, camera, size, state, background and options from the shared arguments."""
     from ..geometry.state import RenderState
@@ -180,9 +190,7 @@ def setup(args):
             raise CliError("--texture needs MODEL files")
         scene, default_camera = scenes.get(args.scene)
         owner = list(range(len(scene.instances)))
-    # The camera file's planes, where it gives none, fit the scene (read after it).
-    file_camera, file_size = camera_from_file(args, scene.bounds() if args.camera else None)
-    width, height = size(args.size) if args.size else (file_size or (800, 600))
+    camera, width, height = view_setup(args, scene, default_camera)
     if args.opacity:
         count = len(args.models) if args.models else len(scene.instances)
         values = args.opacity.split(",")
@@ -198,7 +206,6 @@ def setup(args):
                 raise CliError(f"--opacity values must be in 0..1, got {a}")
         for inst, k in zip(scene.instances, owner):
             inst.opacity = opacity[k]
-    camera = file_camera or camera_from_args(args, scene, default_camera, width / height)
     state = RenderState(depth_test=not args.no_depth_test, depth_func=args.depth_func,
                         depth_mask=not args.no_depth_write, clear_depth=args.clear_depth,
                         depth_range=floats(args.depth_range, 2, "--depth-range"),

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .paths import join_polylines, merge_runs, order_for_plotter, pen_travel
+from .paths import join_polylines, merge_collinear, merge_runs, order_for_plotter, pen_travel
 from .raster import BOUNDARY, CREASE, INTERSECTION, NONMANIFOLD, SILHOUETTE
 
 __all__ = ["LAYERS", "LineDrawing", "layer_names", "layer_of", "make_drawing"]
@@ -37,10 +37,11 @@ class LineDrawing:
     visible_kind, hidden_kind : (S,) uint8 bit masks of each segment's kinds
         (:data:`hsr.lines.raster.BOUNDARY`, ``CREASE``, ``SILHOUETTE``, ``NONMANIFOLD``,
         ``INTERSECTION``; 0 = an ordinary edge).
-    layers, hidden_layers : {layer name: list of (n, 2) float64 polylines in image
-        coordinates (x right, y down)}, joined, merged and ordered for a plotter, in layer
-        number order (see :data:`LAYERS`); only layers with lines.
-    visible_polylines, hidden_polylines : every layer's polylines in one list.
+    layers : {layer name: list of (n, 2) float64 polylines in image coordinates (x right,
+        y down)}, merged, joined and ordered for a plotter, in layer number order (see
+        :data:`LAYERS`); only layers with lines.
+    visible_polylines : every layer's polylines in one list, layer after layer.
+    hidden_polylines : the hidden parts' polylines, whatever their kinds, as one layer.
     width, height : the image size.
     stats : counts.
     """
@@ -55,7 +56,6 @@ class LineDrawing:
     visible_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     hidden_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     layers: dict = field(default_factory=dict)
-    hidden_layers: dict = field(default_factory=dict)
 
 
 def layer_of(kind: np.ndarray) -> np.ndarray:
@@ -89,13 +89,14 @@ def _layered(segments: np.ndarray, kind: np.ndarray, height: int) -> dict:
 
 def make_drawing(visible, visible_kind, hidden, hidden_kind, width: int, height: int,
                  with_hidden: bool = True) -> LineDrawing:
-    """The drawing of window-space pieces and their kinds: layers of ordered polylines."""
+    """The drawing of window-space pieces and their kinds: layers of ordered polylines; the
+    hidden parts as one layer (one pen, dashed), whatever their kinds."""
     layers = _layered(visible, visible_kind, height)
-    hidden_layers = _layered(hidden, hidden_kind, height) if with_hidden else {}
+    hidden_polylines = (order_for_plotter(join_polylines(merge_collinear(hidden), height))
+                        if with_hidden else [])
     drawing = LineDrawing(visible, hidden, [p for lines in layers.values() for p in lines],
-                          [p for lines in hidden_layers.values() for p in lines], width, height,
-                          visible_kind=visible_kind, hidden_kind=hidden_kind, layers=layers,
-                          hidden_layers=hidden_layers)
+                          hidden_polylines, width, height, visible_kind=visible_kind,
+                          hidden_kind=hidden_kind, layers=layers)
     drawing.stats = {"visible_pieces": int(len(visible)), "hidden_pieces": int(len(hidden)),
                      "polylines": len(drawing.visible_polylines),
                      "pen_travel": sum(pen_travel(lines) for lines in layers.values()),
