@@ -34,7 +34,7 @@ class MissingExtraError(HsrError):
 # The extra of pyproject.toml that installs each optional module.
 EXTRAS = {"distributed": "dask", "zarr": "dask", "starlette": "view", "uvicorn": "view",
           "OpenEXR": "exr", "shapely": "regions",
-          "matplotlib": "mpl"}
+          "matplotlib": "mpl", "OCP": "cad", "vpype": "plot"}
 
 
 def require_extra(what: str, *modules: str) -> None:

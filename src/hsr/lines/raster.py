@@ -28,10 +28,10 @@ from ..scene.mesh import instance_of
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
            "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
-           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "as_hidden_line", "fill_state", "check",
-           "draw_hidden_lines"]
+           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "MODEL", "as_hidden_line", "fill_state",
+           "check", "draw_hidden_lines"]
 
-BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD, INTERSECTION = 1, 2, 4, 8, 16
+BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD, INTERSECTION, MODEL = 1, 2, 4, 8, 16, 32
 EDGE_KINDS = ("all", "feature")
 
 
@@ -181,6 +181,11 @@ def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges
         ends = np.stack([world_pos[lo[start]], world_pos[hi[start]]], axis=1)
         faces = np.stack([first + offsets[k], np.where(second >= 0, second + offsets[k], -1)],
                          axis=1)
+        if mesh.feature_lines is not None:
+            # A CAD model draws its own B-rep edges; of the triangles' edges only the
+            # silhouettes (a curved face's facets meet at creases nobody drew).
+            kind &= SILHOUETTE
+            parts.append(_model_lines(inst, unique_pos, lo[start], hi[start], faces))
         parts.append(Edges(ends, faces, kind))
     if not parts:
         return Edges(np.zeros((0, 2, 3)), np.zeros((0, 2), dtype=np.int64),
@@ -188,6 +193,31 @@ def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges
     return Edges(np.concatenate([p.ends for p in parts]),
                  np.concatenate([p.faces for p in parts]),
                  np.concatenate([p.kind for p in parts]))
+
+
+def _model_lines(inst, unique_pos, edge_lo, edge_hi, edge_faces) -> Edges:
+    """The instance's ``feature_lines`` in world space, each with the faces of the triangle
+    edge it runs along (found by welded vertex ids; -1 where it runs along none)."""
+    lines = inst.mesh.feature_lines
+    if len(lines) == 0:
+        return Edges(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.uint8))
+    both, ids = np.unique(np.concatenate([unique_pos, lines.reshape(-1, 3)]), axis=0,
+                          return_inverse=True)
+    ids = ids.reshape(-1)
+    mesh_id, ends_id = ids[:len(unique_pos)], ids[len(unique_pos):].reshape(-1, 2)
+    n = len(both)
+
+    def key(a, b):
+        return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+
+    table = key(mesh_id[edge_lo], mesh_id[edge_hi])
+    order = np.argsort(table)
+    at = np.clip(np.searchsorted(table, key(ends_id[:, 0], ends_id[:, 1]), sorter=order), 0,
+                 len(table) - 1)
+    found = table[order[at]] == key(ends_id[:, 0], ends_id[:, 1])
+    faces = np.where(found[:, None], edge_faces[order[at]], -1)
+    return Edges(_world(inst, lines.reshape(-1, 3)).reshape(-1, 2, 3), faces,
+                 np.full(len(lines), MODEL, np.uint8))
 
 
 def clip_segments(ends_world, view_proj, width, height, depth_range=(0.0, 1.0),

@@ -88,6 +88,24 @@ def _above(f0, f1, eps, lo, hi):
     return lo, min(hi, t)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _canonical(tri_xy, t):
+    """Corner order of triangle ``t`` that does not depend on how it is wound: from its
+    lowest corner (x, then y), counter-clockwise in the window; (-1, -1, -1) when it has
+    no area. The same arithmetic for either winding: bit-identical intervals."""
+    i0 = 0
+    for i in (1, 2):
+        if tri_xy[t, i, 0] < tri_xy[t, i0, 0] or (tri_xy[t, i, 0] == tri_xy[t, i0, 0]
+                                                  and tri_xy[t, i, 1] < tri_xy[t, i0, 1]):
+            i0 = i
+    i1, i2 = (i0 + 1) % 3, (i0 + 2) % 3
+    det = ((tri_xy[t, i1, 0] - tri_xy[t, i0, 0]) * (tri_xy[t, i2, 1] - tri_xy[t, i0, 1])
+           - (tri_xy[t, i2, 0] - tri_xy[t, i0, 0]) * (tri_xy[t, i1, 1] - tri_xy[t, i0, 1]))
+    if det == 0.0:
+        return -1, -1, -1
+    return (i0, i1, i2) if det > 0 else (i0, i2, i1)
+
+
 @njit(cache=True, nogil=True)
 def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, start, items,
                       nx, ny, cell):
@@ -122,20 +140,19 @@ def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, sta
                         face = tri_face[t]
                         if face == edge_faces[e, 0] or face == edge_faces[e, 1]:
                             continue
-                        x0, y0 = tri_xy[t, 0, 0], tri_xy[t, 0, 1]
-                        x1, y1 = tri_xy[t, 1, 0], tri_xy[t, 1, 1]
-                        x2, y2 = tri_xy[t, 2, 0], tri_xy[t, 2, 1]
-                        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-                        if det == 0.0:
+                        i0, i1, i2 = _canonical(tri_xy, t)
+                        if i0 < 0:
                             continue
-                        sign = 1.0 if det > 0 else -1.0
+                        x0, y0 = tri_xy[t, i0, 0], tri_xy[t, i0, 1]
+                        x1, y1 = tri_xy[t, i1, 0], tri_xy[t, i1, 1]
+                        x2, y2 = tri_xy[t, i2, 0], tri_xy[t, i2, 1]
+                        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
                         lo, hi = 0.0, 1.0
-                        for i in range(3):
-                            ux, uy = tri_xy[t, i, 0], tri_xy[t, i, 1]
-                            vx, vy = tri_xy[t, (i + 1) % 3, 0], tri_xy[t, (i + 1) % 3, 1]
+                        for ux, uy, vx, vy in ((x0, y0, x1, y1), (x1, y1, x2, y2),
+                                               (x2, y2, x0, y0)):
                             ex, ey = vx - ux, vy - uy
-                            fa = sign * (ex * (ay - uy) - ey * (ax - ux))
-                            fb = sign * (ex * (by - uy) - ey * (bx - ux))
+                            fa = ex * (ay - uy) - ey * (ax - ux)
+                            fb = ex * (by - uy) - ey * (bx - ux)
                             lo, hi = _above(fa, fb, -EPS_PX * np.sqrt(ex * ex + ey * ey), lo,
                                             hi)
                             if lo >= hi:
@@ -143,9 +160,9 @@ def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, sta
                         if lo >= hi:
                             continue
                         # Plane of the triangle's window depth: z = z0 + gx (x - x0) + gy (y - y0).
-                        z0 = tri_z[t, 0]
-                        gx = ((tri_z[t, 1] - z0) * (y2 - y0) - (tri_z[t, 2] - z0) * (y1 - y0)) / det
-                        gy = ((x1 - x0) * (tri_z[t, 2] - z0) - (x2 - x0) * (tri_z[t, 1] - z0)) / det
+                        z0, z1, z2 = tri_z[t, i0], tri_z[t, i1], tri_z[t, i2]
+                        gx = ((z1 - z0) * (y2 - y0) - (z2 - z0) * (y1 - y0)) / det
+                        gy = ((x1 - x0) * (z2 - z0) - (x2 - x0) * (z1 - z0)) / det
                         da = az - (z0 + gx * (ax - x0) + gy * (ay - y0))
                         db = bz - (z0 + gx * (bx - x0) + gy * (by - y0))
                         lo, hi = _above(da, db, EPS_Z, lo, hi)

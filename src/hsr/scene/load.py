@@ -25,6 +25,7 @@ import numpy as np
 from ..choices import UpAxisChoice
 from ..errors import HsrError, MeshError
 from .assets import check_gltf_assets, check_gltf_nodes, folder_resolver, glb_chunks, gltf_json
+from .cad import is_cad, read_cad
 from .files import MAX_MESH_BYTES, check_regular, read_regular
 from .images import MAX_TEXTURE_PIXELS
 from .mesh import (
@@ -54,7 +55,8 @@ UP_AXIS_CHOICES = ("auto", "y", "z")
 
 def load(source: str | os.PathLike | SceneLike, max_bytes: int = MAX_MESH_BYTES,
          up_axis: UpAxisChoice = "auto") -> Mesh:
-    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...), a ``trimesh.Trimesh``, a
+    """Load a mesh: a path (OBJ, PLY, STL, OFF, glTF, ...; STEP, IGES and BREP with the
+    ``[cad]`` extra, see :mod:`hsr.scene.cad`), a ``trimesh.Trimesh``, a
     ``trimesh.Scene`` holding one mesh, or a ``(vertices, faces)`` pair. Face order is kept
     exactly. Only regular files of at most ``max_bytes`` are read. A file or scene with
     several meshes or nodes is refused: :func:`load_scene` keeps each node as an instance.
@@ -79,6 +81,8 @@ def _load(source, max_bytes: int) -> Mesh:
     path = os.fspath(source)
     if path.lower().endswith(".obj"):
         return read_obj(path, max_bytes=max_bytes)
+    if is_cad(path):
+        return read_cad(path, max_bytes)
     loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
         return _single(_file_scene(loaded, header, path, read), path)
@@ -145,7 +149,8 @@ def _load_scene(source, max_bytes: int) -> Scene | PartitionedScene:
         return open_partitioned(source)  # a store, or the reason it is not one
     if is_trimesh_scene(source):
         return _scene_from_trimesh(source, None, "trimesh scene")
-    if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj"):
+    if not isinstance(source, (str, os.PathLike)) or os.fspath(source).lower().endswith(".obj") \
+            or is_cad(source):
         return Scene([_load(source, max_bytes)])
     path = os.fspath(source)
     loaded, header, read = _read_with_trimesh(path, max_bytes)

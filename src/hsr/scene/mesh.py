@@ -49,6 +49,10 @@ class Mesh:
         (glTF: +Y; STL and 3MF: +Z, the build direction) or as :func:`hsr.load` was told;
         None when unknown (views then take +Y, OpenGL's). Coordinates are never changed:
         it orients the views (:func:`hsr.first_look`, :mod:`hsr.views`, the viewer).
+    feature_lines : (S, 2, 3) float64 or None, model-space segments the model itself
+        draws as its lines (a CAD model's B-rep edges on its tessellation, see
+        :mod:`hsr.scene.cad`): feature-edge drawings take these and the silhouettes in
+        place of the triangles' creases and boundaries.
 
     Raises :class:`~hsr.errors.MeshError` for arrays of the wrong shape or type, indices
     outside the vertices, NaN, infinite or huge (> 1e100) coordinates used by a face, no faces.
@@ -69,6 +73,7 @@ class Mesh:
     corner_colors: np.ndarray | None = None
     sources: tuple = ()
     up_axis: str | None = None
+    feature_lines: np.ndarray | None = None
 
     def __post_init__(self):
         if self.up_axis is not None and self.up_axis not in ("y", "z"):
@@ -96,6 +101,12 @@ class Mesh:
                 raise MeshError(f"{self.name}: corner_colors must have shape ({n_faces}, 3, 3), "
                                 f"got {colors.shape}")
             self.corner_colors = _colors(colors, self.name, "corner_colors")
+        if self.feature_lines is not None:
+            lines = np.asarray(self.feature_lines, dtype=np.float64)
+            if lines.ndim != 3 or lines.shape[1:] != (2, 3) or not np.isfinite(lines).all():
+                raise MeshError(f"{self.name}: feature_lines must be finite (S, 2, 3) "
+                                f"segments, got shape {np.shape(self.feature_lines)}")
+            self.feature_lines = lines
 
     def __repr__(self):
         extras = [what for what, value in (("uv", self.corner_uv), ("normals",
