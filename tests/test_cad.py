@@ -77,7 +77,7 @@ def _occt_visible(path, view_dir, right) -> list:
     BRepBndLib.Add_s(shape, box)
     diagonal = np.linalg.norm(np.subtract(box.CornerMax().Coord(), box.CornerMin().Coord()))
     BRepMesh_IncrementalMesh(shape, DEFAULT_TOLERANCE * diagonal, False, ANGULAR_DEFLECTION,
-                             True)
+                             False)
     algo = HLRBRep_PolyAlgo()
     algo.Load(shape)
     algo.Projector(HLRAlgo_Projector(gp_Ax2(gp_Pnt(0, 0, 0), gp_Dir(*view_dir),

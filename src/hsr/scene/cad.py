@@ -29,6 +29,7 @@ CAD_SUFFIXES = (".step", ".stp", ".iges", ".igs", ".brep")
 # (radians) of OCCT's mesher: 1/1000 of the part keeps chords within a pen width on A4.
 DEFAULT_TOLERANCE = 1e-3
 ANGULAR_DEFLECTION = 0.35  # 20 degrees
+READ_TIMEOUT_S = 600.0
 
 
 def is_cad(path) -> bool:
@@ -169,21 +170,9 @@ def _free_edges(shape, deflection: float) -> list:
     return out
 
 
-def read_cad(path: str | os.PathLike, max_bytes: int, tolerance: float | None = None) -> Mesh:
-    """A STEP, IGES or BREP file as a Mesh tessellated by OCCT with linear deflection
-    ``tolerance`` (model units; default :data:`DEFAULT_TOLERANCE` of the bounding box's
-    diagonal) and 20 degrees angular deflection, with the B-rep's edges as
-    ``feature_lines``. Only regular files of at most ``max_bytes`` are read.
-
-    Raises :class:`~hsr.errors.MissingExtraError` without the ``[cad]`` extra and
-    :class:`~hsr.errors.MeshError` for a file that cannot be read, holds no geometry or
-    tessellates to no triangle, or a tolerance that is not a positive number."""
-    path = os.fspath(path)
-    check_regular(path, "CAD file", max_bytes)
-    require_extra(f"reading {path}", "OCP")
-    if tolerance is not None and (isinstance(tolerance, bool) or not isinstance(
-            tolerance, (int, float)) or not np.isfinite(tolerance) or tolerance <= 0):
-        raise MeshError(f"the CAD tolerance must be a positive number, got {tolerance!r}")
+def tessellate(path: str, tolerance: float | None) -> tuple:
+    """``(positions, faces, feature_lines)`` of a CAD file, read and tessellated by OCCT in
+    this process (see :func:`read_cad`, which runs it in a child). Raises MeshError."""
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
 
     shape = _read_shape(path)
@@ -191,7 +180,9 @@ def read_cad(path: str | os.PathLike, max_bytes: int, tolerance: float | None = 
         raise MeshError(f"{path}: no shape in the file")
     deflection = float(tolerance) if tolerance is not None else \
         DEFAULT_TOLERANCE * _diagonal(shape, path)
-    BRepMesh_IncrementalMesh(shape, deflection, False, ANGULAR_DEFLECTION, True)
+    # One thread: the child is forked, and OCCT's thread pool, if the parent started one,
+    # does not survive a fork (the mesher would wait on it forever).
+    BRepMesh_IncrementalMesh(shape, deflection, False, ANGULAR_DEFLECTION, False)
     positions, faces, lines, offset = [], [], [], 0
     seen: dict = {}
     for face, nodes, tris, tri, location in _faces(shape):
@@ -206,6 +197,75 @@ def read_cad(path: str | os.PathLike, max_bytes: int, tolerance: float | None = 
     for points in _free_edges(shape, deflection):
         lines.append(np.stack([points[:-1], points[1:]], axis=1))
     feature_lines = np.concatenate(lines) if lines else np.zeros((0, 2, 3))
-    return Mesh(np.concatenate(positions), np.concatenate(faces),
-                name=os.path.basename(path), sources=(os.path.abspath(path),),
-                up_axis="z", feature_lines=feature_lines)
+    return np.concatenate(positions), np.concatenate(faces), feature_lines
+
+
+def _child(connection, path: str, tolerance) -> None:
+    """Child process: OCCT's messages silenced (they go to the terminal), the result or the
+    MeshError's message sent back."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 1)
+    os.dup2(null, 2)
+    try:
+        connection.send(("ok", tessellate(path, tolerance)))
+    except MeshError as exc:
+        connection.send(("error", str(exc)))
+    except Exception as exc:  # OCCT raises its own types for malformed files
+        connection.send(("error", f"{path}: cannot read the file ({type(exc).__name__}: "
+                                  f"{exc})"))
+    finally:
+        connection.close()
+
+
+def read_cad(path: str | os.PathLike, max_bytes: int, tolerance: float | None = None,
+             timeout: float = READ_TIMEOUT_S) -> Mesh:
+    """A STEP, IGES or BREP file as a Mesh tessellated by OCCT with linear deflection
+    ``tolerance`` (model units; default :data:`DEFAULT_TOLERANCE` of the bounding box's
+    diagonal) and 20 degrees angular deflection, with the B-rep's edges as
+    ``feature_lines``. Only regular files of at most ``max_bytes`` are read.
+
+    OCCT reads in a child process: its readers crash outright (segmentation faults) on
+    some damaged files, and that must end in an error, not in the end of the caller's
+    process; a read that takes longer than ``timeout`` seconds is stopped.
+
+    Raises :class:`~hsr.errors.MissingExtraError` without the ``[cad]`` extra and
+    :class:`~hsr.errors.MeshError` for a file that cannot be read (or crashes OCCT, or
+    takes too long), holds no geometry or tessellates to no triangle, or a tolerance that
+    is not a positive number."""
+    import multiprocessing
+
+    path = os.fspath(path)
+    check_regular(path, "CAD file", max_bytes)
+    require_extra(f"reading {path}", "OCP")
+    if tolerance is not None and (isinstance(tolerance, bool) or not isinstance(
+            tolerance, (int, float)) or not np.isfinite(tolerance) or tolerance <= 0):
+        raise MeshError(f"the CAD tolerance must be a positive number, got {tolerance!r}")
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    receive, send = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(send, path, tolerance), daemon=True)
+    child.start()
+    send.close()
+    try:
+        if not receive.poll(timeout):
+            raise MeshError(f"{path}: reading took longer than {timeout:g} s; stopped")
+        status, result = receive.recv()
+    except EOFError:
+        child.join()
+        raise MeshError(f"{path}: OCCT crashed reading the file (exit code "
+                        f"{child.exitcode}); it is damaged or not a {_kind(path)} file") from None
+    finally:
+        if child.is_alive():
+            child.kill()
+        child.join()
+        receive.close()
+    if status == "error":
+        raise MeshError(result)
+    positions, faces, feature_lines = result
+    return Mesh(positions, faces, name=os.path.basename(path),
+                sources=(os.path.abspath(path),), up_axis="z", feature_lines=feature_lines)
+
+
+def _kind(path: str) -> str:
+    return {".stp": "STEP", ".igs": "IGES"}.get(os.path.splitext(path)[1].lower(),
+                                                os.path.splitext(path)[1][1:].upper())
