@@ -15,6 +15,7 @@ counter-clockwise. CAD files are Z-up (``Mesh.up_axis = "z"``).
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
@@ -241,7 +242,7 @@ def read_cad(path: str | os.PathLike, max_bytes: int, tolerance: float | None = 
             tolerance, (int, float)) or not np.isfinite(tolerance) or tolerance <= 0):
         raise MeshError(f"the CAD tolerance must be a positive number, got {tolerance!r}")
     methods = multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    context: Any = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
     receive, send = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(send, path, tolerance), daemon=True)
     child.start()
