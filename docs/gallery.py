@@ -48,6 +48,9 @@ PICTURES = {
     "explain-culling.png": "`hsr explain culling`: the four glCullFace modes.",
     "prune.png": "`hsr prune`: a housing with a part inside, as rendered, and an x-ray of "
                  "the faces removed (red).",
+    "lines.png": "`hsr lines`: spot's silhouettes and creases with the hidden layer "
+                 "(dashed grey), and the AS1 assembly from its STEP file: the B-rep's "
+                 "own edges and silhouettes.",
 }
 # matplotlib issues whose figures hsr.mpl redraws (hsr.mpl.examples): mplot3d | hsr.
 MPL_ISSUES = ("29060", "23392", "22165", "16071", "9499")
@@ -208,6 +211,39 @@ def mpl_picture(issue: str) -> np.ndarray:
     return side_by_side(images)
 
 
+def drawing_picture(drawing, size=(520, 390)) -> np.ndarray:
+    """A line drawing on white: hidden parts grey (dashed in the SVG), visible black."""
+    sheet = Image.new("RGB", (drawing.width, drawing.height), (255, 255, 255))
+    pen = ImageDraw.Draw(sheet)
+    for lines, color in ((drawing.hidden_polylines, (170, 170, 170)),
+                         (drawing.visible_polylines, (0, 0, 0))):
+        for line in lines:
+            pen.line([tuple(p) for p in line], fill=color, width=2)
+    return np.asarray(sheet.resize(size, Image.LANCZOS))
+
+
+def lines_picture() -> np.ndarray:
+    import gzip
+    import tempfile
+
+    from hsr.lines.raster import HiddenLine
+
+    spot = model("spot.obj")
+    spot_lines = hsr.hidden_lines(spot, hsr.first_look(spot, 4 / 3), 1040, 780,
+                                  HiddenLine(edges="feature"))
+    images = [label(drawing_picture(spot_lines), "spot.obj")]
+    step = os.path.join(HERE, "..", "tests", "data", "cad", "as1-oc-214.stp.gz")
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, "as1-oc-214.stp")
+        with gzip.open(step, "rb") as src, open(path, "wb") as dst:
+            dst.write(src.read())
+        as1 = hsr.load(path)  # needs the [cad] extra
+    as1_lines = hsr.hidden_lines(as1, hsr.first_look(as1, 4 / 3), 1040, 780,
+                                 HiddenLine(edges="feature"))
+    images.append(label(drawing_picture(as1_lines), "as1-oc-214.stp (STEP)"))
+    return side_by_side(images)
+
+
 def make(name: str):
     if name.startswith("mpl-"):
         return mpl_picture(name[len("mpl-"):-len(".png")])
@@ -217,7 +253,7 @@ def make(name: str):
         return explain_picture(name[len("explain-"):-len(".png")])
     return {"models.png": models_picture, "buffers.png": buffers_picture,
             "appearance.png": appearance_picture, "transparency.png": transparency_picture,
-            "prune.png": prune_picture}[name]()
+            "prune.png": prune_picture, "lines.png": lines_picture}[name]()
 
 
 def save(image, path: str) -> None:

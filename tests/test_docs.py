@@ -15,6 +15,7 @@ images or snippets, and docstring problems fail it), and its API reference must 
 every public function and class of ``hsr`` and of the sub-packages users import.
 """
 
+import gzip
 import os
 import re
 import shlex
@@ -89,6 +90,9 @@ def beside_shared(tmp_path, monkeypatch, models_dir):
     work = tmp_path / "work"
     work.mkdir()
     (tmp_path / "shared").symlink_to(os.path.dirname(MODELS_DIR))
+    # The CAD page's part: a real STEP file the tests keep (tests/data/cad).
+    with gzip.open(os.path.join(ROOT, "tests", "data", "cad", "as1-oc-214.stp.gz"), "rb") as src:
+        (work / "as1-oc-214.stp").write_bytes(src.read())
     monkeypatch.chdir(work)
     return work
 
@@ -124,6 +128,12 @@ def run_page(page: str, capsys) -> tuple:
         for tokens in commands(body):
             if not tokens or is_not_run(tokens):
                 continue
+            if tokens[0] == "vpype":  # the plugin, through vpype's own command line
+                import vpype_cli
+
+                vpype_cli.execute(shlex.join(tokens[1:]))
+                ran_hsr += 1
+                continue
             assert tokens[0] == "hsr", f"{page}: a command this test cannot run: {tokens}"
             code = main(tokens[1:])
             err = capsys.readouterr().err
@@ -148,6 +158,8 @@ WRITES = {
     "docs/guide/prune.md": ("spot-visible.glb", "housing-visible.glb"),
     "docs/guide/visibility.md": ("spot_faces.npz", "spot_vertices.csv"),
     "docs/guide/matplotlib.md": ("crossing.pdf", "occluded.svg"),
+    "docs/guide/lines.md": ("spot-lines.svg", "fandisk.svg", "crossing.svg", "spot-a4.svg",
+                            "spot-vpype.svg", "bunny-a4.svg", "as1.svg"),
 }
 
 
