@@ -9,6 +9,7 @@ draws silhouettes, whatever the model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -42,7 +43,8 @@ class LineDrawing:
         y down)}, merged, joined and ordered for a plotter, in layer number order (see
         :data:`LAYERS`); only layers with lines.
     visible_polylines : every layer's polylines in one list, layer after layer.
-    hidden_polylines : the hidden parts' polylines, whatever their kinds, as one layer.
+    hidden_polylines : the hidden parts' polylines, whatever their kinds, as one layer
+        (joined and ordered when first asked for: most drawings never draw them).
     width, height : the image size.
     stats : counts.
     """
@@ -50,13 +52,19 @@ class LineDrawing:
     visible: np.ndarray
     hidden: np.ndarray
     visible_polylines: list
-    hidden_polylines: list
     width: int
     height: int
     stats: dict = field(default_factory=dict)
     visible_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     hidden_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     layers: dict = field(default_factory=dict)
+    with_hidden: bool = True
+
+    @cached_property
+    def hidden_polylines(self) -> list:
+        if not self.with_hidden or len(self.hidden) == 0:
+            return []
+        return order_for_plotter(join_polylines(merge_collinear(self.hidden), self.height))
 
 
 def layer_of(kind: np.ndarray) -> np.ndarray:
@@ -93,11 +101,9 @@ def make_drawing(visible, visible_kind, hidden, hidden_kind, width: int, height:
     """The drawing of window-space pieces and their kinds: layers of ordered polylines; the
     hidden parts as one layer (one pen, dashed), whatever their kinds."""
     layers = _layered(visible, visible_kind, height)
-    hidden_polylines = (order_for_plotter(join_polylines(merge_collinear(hidden), height))
-                        if with_hidden else [])
     drawing = LineDrawing(visible, hidden, [p for lines in layers.values() for p in lines],
-                          hidden_polylines, width, height, visible_kind=visible_kind,
-                          hidden_kind=hidden_kind, layers=layers)
+                          width, height, visible_kind=visible_kind, hidden_kind=hidden_kind,
+                          layers=layers, with_hidden=with_hidden)
     drawing.stats = {"visible_pieces": int(len(visible)), "hidden_pieces": int(len(hidden)),
                      "polylines": len(drawing.visible_polylines),
                      "pen_travel": sum(pen_travel(lines) for lines in layers.values()),

@@ -119,12 +119,134 @@ def triangle_edges(scene, face_ids) -> Edges:
     return Edges(ends.reshape(-1, 2, 3), faces, np.zeros(3 * len(face_ids), dtype=np.uint8))
 
 
-def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges:
+def _weld(positions: np.ndarray) -> tuple:
+    """``(unique positions (U, 3) in x, y, z order, id (V,) of each vertex among them)``:
+    vertices at exactly the same position welded (np.unique's rows, by one lexsort)."""
+    order = np.lexsort((positions[:, 2], positions[:, 1], positions[:, 0]))
+    ordered = positions[order]
+    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+    weld = np.empty(len(positions), dtype=np.int64)
+    weld[order] = np.cumsum(new) - 1
+    return ordered[new], weld
+
+
+@njit(cache=True, inline="always")
+def _sub(pos, i, j):
+    return pos[i, 0] - pos[j, 0], pos[i, 1] - pos[j, 1], pos[i, 2] - pos[j, 2]
+
+
+@njit(cache=True)
+def _half_edges_by_edge(corner, n_pos):
+    """Half-edges ``3 f + s`` (edge s of face f) ordered by edge (low vertex, then high),
+    faces in order within an edge: a counting sort on the low vertex, then an insertion
+    sort of each vertex's few half-edges by the high one (both stable; O(n))."""
+    n_half = 3 * corner.shape[0]
+    start = np.zeros(n_pos + 1, dtype=np.int64)
+    for h in range(n_half):
+        a, b = corner[h // 3, h % 3], corner[h // 3, (h % 3 + 1) % 3]
+        start[min(a, b) + 1] += 1
+    for v in range(n_pos):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    order = np.empty(n_half, dtype=np.int64)
+    high = np.empty(n_half, dtype=np.int64)
+    for h in range(n_half):
+        a, b = corner[h // 3, h % 3], corner[h // 3, (h % 3 + 1) % 3]
+        v = min(a, b)
+        order[fill[v]], high[fill[v]] = h, max(a, b)
+        fill[v] += 1
+    for v in range(n_pos):
+        for i in range(start[v] + 1, start[v + 1]):
+            h, key = order[i], high[i]
+            j = i - 1
+            while j >= start[v] and high[j] > key:
+                order[j + 1], high[j + 1] = order[j], high[j]
+                j -= 1
+            order[j + 1], high[j + 1] = h, key
+    return order
+
+
+@njit(cache=True)
+def _edge_kinds(corner, world_pos, view, orthographic, cos_crease, features_only):
+    """Each edge of the faces ``corner`` (F, 3) (welded vertex ids into ``world_pos``)
+    once, classified: ``(lo, hi, first, second, kind)``, ``first``/``second`` the rows of
+    the faces on either side (-1: none; the first two in face order where there are
+    more). ``view``: the eye, or the view direction when ``orthographic``. With
+    ``features_only``, ordinary edges (kind 0) are left out."""
+    n_faces, n_pos = corner.shape[0], world_pos.shape[0]
+    order = _half_edges_by_edge(corner, n_pos)
+    key = np.empty(3 * n_faces, dtype=np.int64)
+    for f in range(n_faces):
+        for s in range(3):
+            a, b = corner[f, s], corner[f, (s + 1) % 3]
+            key[3 * f + s] = min(a, b) * n_pos + max(a, b)
+    n_half = 3 * n_faces
+    lo = np.empty(n_half, dtype=np.int64)
+    hi = np.empty(n_half, dtype=np.int64)
+    first = np.empty(n_half, dtype=np.int64)
+    second = np.empty(n_half, dtype=np.int64)
+    kinds = np.empty(n_half, dtype=np.uint8)
+    n_out, i = 0, 0
+    while i < n_half:
+        j = i
+        while j + 1 < n_half and key[order[j + 1]] == key[order[i]]:
+            j += 1
+        f1, s1 = order[i] // 3, order[i] % 3
+        a, b = corner[f1, s1], corner[f1, (s1 + 1) % 3]
+        kind, f2 = 0, -1
+        if j == i:
+            kind = BOUNDARY
+        elif j > i + 1:
+            kind, f2 = NONMANIFOLD, order[i + 1] // 3
+        else:
+            f2, s2 = order[i + 1] // 3, order[i + 1] % 3
+            p0, p1 = min(a, b), max(a, b)
+            c1, c2 = corner[f1, (s1 + 2) % 3], corner[f2, (s2 + 2) % 3]
+            ex, ey, ez = _sub(world_pos, p1, p0)
+            ux, uy, uz = _sub(world_pos, c1, p0)
+            vx, vy, vz = _sub(world_pos, c2, p0)
+            # Independent of winding (tessellated CAD and scans are often wound every
+            # which way): both normals from the edge's own direction, so the faces fold
+            # flat when their far corners lie on opposite sides (n1 . n2 = -|n1||n2|).
+            n1x, n1y, n1z = ey * uz - ez * uy, ez * ux - ex * uz, ex * uy - ey * ux
+            n2x, n2y, n2z = ey * vz - ez * vy, ez * vx - ex * vz, ex * vy - ey * vx
+            len12 = np.sqrt((n1x * n1x + n1y * n1y + n1z * n1z)
+                            * (n2x * n2x + n2y * n2y + n2z * n2z))
+            if len12 > 0:
+                if -(n1x * n2x + n1y * n2y + n1z * n2z) / len12 < cos_crease:
+                    kind |= CREASE
+            elif cos_crease > 0:
+                kind |= CREASE
+            # A silhouette: both far corners on one side of the plane through the eye and
+            # the edge (for an orthographic camera, the plane along the view).
+            if orthographic:
+                wx, wy, wz = view[0], view[1], view[2]
+            else:
+                wx, wy, wz = (world_pos[p0, 0] - view[0], world_pos[p0, 1] - view[1],
+                              world_pos[p0, 2] - view[2])
+            px, py, pz = ey * wz - ez * wy, ez * wx - ex * wz, ex * wy - ey * wx
+            if (px * ux + py * uy + pz * uz) * (px * vx + py * vy + pz * vz) > 0:
+                kind |= SILHOUETTE
+        if kind != 0 or not features_only:
+            lo[n_out], hi[n_out] = min(a, b), max(a, b)
+            first[n_out], second[n_out], kinds[n_out] = f1, f2, kind
+            n_out += 1
+        i = j + 1
+    return lo[:n_out], hi[:n_out], first[:n_out], second[:n_out], kinds[:n_out]
+
+
+def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None,
+                 features_only: bool = False) -> Edges:
     """Every edge of every instance once (vertices welded by exact position, so meshes with
     split vertices still have shared edges), classified. ``drawn`` (F,) bool limits the
-    edges to those of faces that are drawn (not culled, not degenerate)."""
+    edges to those of faces that are drawn (not culled, not degenerate);
+    ``features_only`` leaves out the ordinary edges (kind 0)."""
     offsets = scene.face_offsets()
-    cos_crease = np.cos(np.radians(crease_angle))
+    cos_crease = float(np.cos(np.radians(crease_angle)))
+    if camera.is_orthographic:
+        view = np.asarray(camera.forward, dtype=np.float64)
+    else:
+        view = np.asarray(camera.eye, dtype=np.float64)
     parts = []
     for k, inst in enumerate(scene.instances):
         mesh = inst.mesh
@@ -134,58 +256,23 @@ def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None) -> Edges
         local = np.flatnonzero(keep)
         if len(local) == 0:
             continue
-        unique_pos, weld = np.unique(mesh.positions, axis=0, return_inverse=True)
-        corner = weld.reshape(-1)[mesh.faces[local]]  # (F', 3) welded vertex ids
-        a = corner.ravel()
-        b = corner[:, [1, 2, 0]].ravel()
-        opposite = corner[:, [2, 0, 1]].ravel()  # the corner of the face off the edge
-        face_of = np.repeat(local, 3)
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        forward = a < b  # the face walks the edge lo -> hi
-        order = np.lexsort((face_of, hi, lo))
-        lo, hi, face_of = lo[order], hi[order], face_of[order]
-        forward, opposite = forward[order], opposite[order]
-        start = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
-        count = np.diff(np.r_[start, len(lo)])
-        first = face_of[start]
-        nxt = np.minimum(start + 1, len(lo) - 1)
-        second = np.where(count >= 2, face_of[nxt], -1)
-
-        world_pos = _world(inst, unique_pos)
-        tri = world_pos[weld.reshape(-1)[mesh.faces]]
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-        kind = np.zeros(len(start), dtype=np.uint8)
-        kind[count == 1] |= BOUNDARY
-        kind[count > 2] |= NONMANIFOLD
-        pair = np.flatnonzero(count == 2)
-        f1, f2 = first[pair], second[pair]
-        # Independent of winding (tessellated CAD and scans are often wound every which
-        # way): the fold angle with the second normal turned to agree with the first
-        # where the two faces walk the shared edge the same way (one of them is flipped).
-        agree = np.where(forward[start[pair]] != forward[nxt[pair]], 1.0, -1.0)
-        dots = agree * np.einsum("ij,ij->i", normal[f1], normal[f2])
-        kind[pair[dots < cos_crease]] |= CREASE
-        # A silhouette: both faces' far corners on one side of the plane through the eye
-        # and the edge (for an orthographic camera, the plane along the view).
-        p0, p1 = world_pos[lo[start[pair]]], world_pos[hi[start[pair]]]
-        c1, c2 = world_pos[opposite[start[pair]]], world_pos[opposite[nxt[pair]]]
-        if camera.is_orthographic:
-            plane = np.cross(p1 - p0, np.asarray(camera.forward, dtype=np.float64))
-        else:
-            plane = np.cross(p1 - p0, p0 - np.asarray(camera.eye, dtype=np.float64))
-        side1 = np.einsum("ij,ij->i", plane, c1 - p0)
-        side2 = np.einsum("ij,ij->i", plane, c2 - p0)
-        kind[pair[side1 * side2 > 0]] |= SILHOUETTE
-        ends = np.stack([world_pos[lo[start]], world_pos[hi[start]]], axis=1)
-        faces = np.stack([first + offsets[k], np.where(second >= 0, second + offsets[k], -1)],
+        unique_pos, weld = _weld(mesh.positions)
+        world_pos = np.ascontiguousarray(_world(inst, unique_pos))
+        cad = mesh.feature_lines is not None
+        lo, hi, first, second, kind = _edge_kinds(
+            np.ascontiguousarray(weld[mesh.faces[local]]), world_pos, view,
+            camera.is_orthographic, cos_crease, features_only and not cad)
+        ends = np.stack([world_pos[lo], world_pos[hi]], axis=1)
+        faces = np.stack([local[first] + offsets[k],
+                          np.where(second >= 0, local[np.maximum(second, 0)] + offsets[k], -1)],
                          axis=1)
-        if mesh.feature_lines is not None:
+        if cad:
             # A CAD model draws its own B-rep edges; of the triangles' edges only the
             # silhouettes (a curved face's facets meet at creases nobody drew).
-            kind &= SILHOUETTE
-            parts.append(_model_lines(inst, unique_pos, lo[start], hi[start], faces))
+            parts.append(_model_lines(inst, unique_pos, lo, hi, faces))
+            kind = kind & SILHOUETTE
+            if features_only:
+                ends, faces, kind = ends[kind != 0], faces[kind != 0], kind[kind != 0]
         parts.append(Edges(ends, faces, kind))
     if not parts:
         return Edges(np.zeros((0, 2, 3)), np.zeros((0, 2), dtype=np.int64),
@@ -439,8 +526,8 @@ def chosen_edges(scene, camera, screen, settings: HiddenLine) -> Edges:
     """The edges hidden-line drawing considers: every edge of the drawn faces once, or
     only the feature edges."""
     drawn = drawn_faces(screen, scene.n_faces)
-    edges = unique_edges(scene, camera, settings.crease_angle, drawn=drawn)
-    edges = edges.subset(edges.kind != 0) if settings.edges == "feature" else edges
+    edges = unique_edges(scene, camera, settings.crease_angle, drawn=drawn,
+                         features_only=settings.edges == "feature")
     if not settings.intersections:
         return edges
     from .intersect import intersection_edges

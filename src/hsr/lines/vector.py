@@ -40,12 +40,16 @@ EPS_Z = 1e-9
 # Visible or hidden pieces shorter than this (pixels) are dropped: nobody can see them, and
 # they are what the EPS_Z margin leaves at vertices shared with an occluder.
 MIN_PIECE_PX = 1e-3
+# Triangles are listed in every cell their bounding box comes within this of, so a segment
+# walked through the cells it crosses meets every triangle within EPS_PX of it (even along
+# a cell's border or through its corner).
+GRID_MARGIN_PX = 1e-3
 
 
 @njit(cache=True, nogil=True)
 def _grid(xy, width, height, cell):
     """Uniform grid over the window: (cell_start, items) listing the triangles whose
-    bounding box touches each cell."""
+    bounding box, grown by GRID_MARGIN_PX, touches each cell."""
     nx = (width + cell - 1) // cell
     ny = (height + cell - 1) // cell
     n = xy.shape[0]
@@ -56,10 +60,10 @@ def _grid(xy, width, height, cell):
         x_hi = max(xy[t, 0, 0], xy[t, 1, 0], xy[t, 2, 0])
         y_lo = min(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
         y_hi = max(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
-        c0 = max(int(np.floor(x_lo / cell)), 0)
-        c1 = min(int(np.floor(x_hi / cell)), nx - 1)
-        r0 = max(int(np.floor(y_lo / cell)), 0)
-        r1 = min(int(np.floor(y_hi / cell)), ny - 1)
+        c0 = max(int(np.floor((x_lo - GRID_MARGIN_PX) / cell)), 0)
+        c1 = min(int(np.floor((x_hi + GRID_MARGIN_PX) / cell)), nx - 1)
+        r0 = max(int(np.floor((y_lo - GRID_MARGIN_PX) / cell)), 0)
+        r1 = min(int(np.floor((y_hi + GRID_MARGIN_PX) / cell)), ny - 1)
         boxes[t, 0], boxes[t, 1], boxes[t, 2], boxes[t, 3] = c0, c1, r0, r1
         for r in range(r0, r1 + 1):
             for c in range(c0, c1 + 1):
@@ -88,6 +92,36 @@ def _above(f0, f1, eps, lo, hi):
     return lo, min(hi, t)
 
 
+@njit(cache=True, nogil=True)
+def _cells_crossed(x0, y0, x1, y1, nx, ny, cells):
+    """Write the ids (row * nx + column) of the grid cells the segment (x0, y0)-(x1, y1),
+    in cell units, passes through into ``cells``, in order (Amanatides & Woo's traversal);
+    cells outside the grid are skipped. Returns how many."""
+    cx, cy = int(np.floor(x0)), int(np.floor(y0))
+    end_x, end_y = int(np.floor(x1)), int(np.floor(y1))
+    dx, dy = x1 - x0, y1 - y0
+    step_x = 1 if dx > 0 else -1
+    step_y = 1 if dy > 0 else -1
+    next_x = ((cx + (1 if dx > 0 else 0)) - x0) / dx if dx != 0 else np.inf
+    next_y = ((cy + (1 if dy > 0 else 0)) - y0) / dy if dy != 0 else np.inf
+    delta_x = abs(1.0 / dx) if dx != 0 else np.inf
+    delta_y = abs(1.0 / dy) if dy != 0 else np.inf
+    n = 0
+    for _ in range(abs(end_x - cx) + abs(end_y - cy) + 1):
+        if 0 <= cx < nx and 0 <= cy < ny:
+            cells[n] = cy * nx + cx
+            n += 1
+        if cx == end_x and cy == end_y:
+            break
+        if next_x < next_y:
+            cx += step_x
+            next_x += delta_x
+        else:
+            cy += step_y
+            next_y += delta_y
+    return n
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _canonical(tri_xy, t):
     """Corner order of triangle ``t`` that does not depend on how it is wound: from its
@@ -113,6 +147,7 @@ def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, sta
     and (t0, t1), sorted by edge and t0."""
     n_tri = tri_xy.shape[0]
     stamp = np.full(n_tri, -1, dtype=np.int64)
+    cells = np.empty(nx + ny + 4, dtype=np.int64)
     scratch = np.empty((n_tri + 1, 2))
     out_edge = np.empty(max(64, 2 * (e_hi - e_lo)), dtype=np.int64)
     out_t = np.empty((out_edge.shape[0], 2))
@@ -120,55 +155,48 @@ def _hidden_intervals(e_lo, e_hi, ends, edge_faces, tri_xy, tri_z, tri_face, sta
     for e in range(e_lo, e_hi):
         ax, ay, az = ends[e, 0, 0], ends[e, 0, 1], ends[e, 0, 2]
         bx, by, bz = ends[e, 1, 0], ends[e, 1, 1], ends[e, 1, 2]
-        length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2)
         n_int = 0
-        # Walk the cells along the segment in steps of at most half a cell.
-        steps = int(length / (0.5 * cell)) + 1
-        for s in range(steps + 1):
-            t_s = s / steps
-            px, py = ax + t_s * (bx - ax), ay + t_s * (by - ay)
-            cx0 = max(int(np.floor(px / cell)) - 1, 0)
-            cy0 = max(int(np.floor(py / cell)) - 1, 0)
-            for cy in range(cy0, min(cy0 + 3, ny)):
-                for cx in range(cx0, min(cx0 + 3, nx)):
-                    cid = cy * nx + cx
-                    for q in range(start[cid], start[cid + 1]):
-                        t = items[q]
-                        if stamp[t] == e:
-                            continue
-                        stamp[t] = e
-                        face = tri_face[t]
-                        if face == edge_faces[e, 0] or face == edge_faces[e, 1]:
-                            continue
-                        i0, i1, i2 = _canonical(tri_xy, t)
-                        if i0 < 0:
-                            continue
-                        x0, y0 = tri_xy[t, i0, 0], tri_xy[t, i0, 1]
-                        x1, y1 = tri_xy[t, i1, 0], tri_xy[t, i1, 1]
-                        x2, y2 = tri_xy[t, i2, 0], tri_xy[t, i2, 1]
-                        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-                        lo, hi = 0.0, 1.0
-                        for ux, uy, vx, vy in ((x0, y0, x1, y1), (x1, y1, x2, y2),
-                                               (x2, y2, x0, y0)):
-                            ex, ey = vx - ux, vy - uy
-                            fa = ex * (ay - uy) - ey * (ax - ux)
-                            fb = ex * (by - uy) - ey * (bx - ux)
-                            lo, hi = _above(fa, fb, -EPS_PX * np.sqrt(ex * ex + ey * ey), lo,
-                                            hi)
-                            if lo >= hi:
-                                break
-                        if lo >= hi:
-                            continue
-                        # Plane of the triangle's window depth: z = z0 + gx (x - x0) + gy (y - y0).
-                        z0, z1, z2 = tri_z[t, i0], tri_z[t, i1], tri_z[t, i2]
-                        gx = ((z1 - z0) * (y2 - y0) - (z2 - z0) * (y1 - y0)) / det
-                        gy = ((x1 - x0) * (z2 - z0) - (x2 - x0) * (z1 - z0)) / det
-                        da = az - (z0 + gx * (ax - x0) + gy * (ay - y0))
-                        db = bz - (z0 + gx * (bx - x0) + gy * (by - y0))
-                        lo, hi = _above(da, db, EPS_Z, lo, hi)
-                        if lo < hi:
-                            scratch[n_int, 0], scratch[n_int, 1] = lo, hi
-                            n_int += 1
+        # Walk the cells the segment crosses (Amanatides & Woo 1987).
+        n_cells = _cells_crossed(ax / cell, ay / cell, bx / cell, by / cell, nx, ny, cells)
+        for k in range(n_cells):
+            cid = cells[k]
+            for q in range(start[cid], start[cid + 1]):
+                t = items[q]
+                if stamp[t] == e:
+                    continue
+                stamp[t] = e
+                face = tri_face[t]
+                if face == edge_faces[e, 0] or face == edge_faces[e, 1]:
+                    continue
+                i0, i1, i2 = _canonical(tri_xy, t)
+                if i0 < 0:
+                    continue
+                x0, y0 = tri_xy[t, i0, 0], tri_xy[t, i0, 1]
+                x1, y1 = tri_xy[t, i1, 0], tri_xy[t, i1, 1]
+                x2, y2 = tri_xy[t, i2, 0], tri_xy[t, i2, 1]
+                det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+                lo, hi = 0.0, 1.0
+                for ux, uy, vx, vy in ((x0, y0, x1, y1), (x1, y1, x2, y2),
+                                       (x2, y2, x0, y0)):
+                    ex, ey = vx - ux, vy - uy
+                    fa = ex * (ay - uy) - ey * (ax - ux)
+                    fb = ex * (by - uy) - ey * (bx - ux)
+                    lo, hi = _above(fa, fb, -EPS_PX * np.sqrt(ex * ex + ey * ey), lo,
+                                    hi)
+                    if lo >= hi:
+                        break
+                if lo >= hi:
+                    continue
+                # Plane of the triangle's window depth: z = z0 + gx (x - x0) + gy (y - y0).
+                z0, z1, z2 = tri_z[t, i0], tri_z[t, i1], tri_z[t, i2]
+                gx = ((z1 - z0) * (y2 - y0) - (z2 - z0) * (y1 - y0)) / det
+                gy = ((x1 - x0) * (z2 - z0) - (x2 - x0) * (z1 - z0)) / det
+                da = az - (z0 + gx * (ax - x0) + gy * (ay - y0))
+                db = bz - (z0 + gx * (bx - x0) + gy * (by - y0))
+                lo, hi = _above(da, db, EPS_Z, lo, hi)
+                if lo < hi:
+                    scratch[n_int, 0], scratch[n_int, 1] = lo, hi
+                    n_int += 1
         if n_int == 0:
             continue
         order = np.argsort(scratch[:n_int, 0])
