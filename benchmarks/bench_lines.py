@@ -19,9 +19,9 @@ import sys
 import tempfile
 
 import numpy as np
+from bench_regions import cpu_name
 
 import hsr
-from bench_regions import cpu_name
 from common import load_model, timed
 from hsr.lines.raster import HiddenLine
 
