@@ -218,3 +218,37 @@ def test_bad_cad_files_are_one_line(tmp_path):
 
     with pytest.raises(hsr.HsrError, match="tolerance"):
         read_cad(tmp_path / "junk.stp", 1 << 20, tolerance=-1)
+
+
+def test_iges_and_brep_read_as_the_step_they_were_written_from(tmp_path, step_files):
+    """The part written by OCCT's own BREP and IGES (B-rep mode) writers reads back as the
+    STEP file does: the same bounds, and the same area and B-rep line length (the BREP's to
+    1e-9; the IGES writer turns some surfaces into splines, so within 1%)."""
+    from OCP.BRepTools import BRepTools
+    from OCP.IGESControl import IGESControl_Writer
+
+    from hsr.scene.cad import _read_shape
+
+    step = step_files["face_recognition_sample_part.stp"]
+    shape = _read_shape(step)
+    assert BRepTools.Write_s(shape, str(tmp_path / "part.brep"))
+    writer = IGESControl_Writer("MM", 1)
+    writer.AddShape(shape)
+    writer.ComputeModel()
+    assert writer.Write(str(tmp_path / "part.igs"))
+    def area(mesh):
+        tri = mesh.positions[mesh.faces]
+        return np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                              axis=1).sum() / 2
+
+    def length(mesh):
+        return np.linalg.norm(mesh.feature_lines[:, 1] - mesh.feature_lines[:, 0],
+                              axis=1).sum()
+
+    reference = hsr.load(step)
+    for name, tolerance in (("part.brep", 1e-9), ("part.igs", 0.01)):
+        mesh = hsr.load(tmp_path / name)
+        assert mesh.up_axis == "z", name
+        np.testing.assert_allclose(mesh.bounds(), reference.bounds(), atol=1e-6)
+        assert abs(area(mesh) / area(reference) - 1) < tolerance, name
+        assert abs(length(mesh) / length(reference) - 1) < tolerance, name
