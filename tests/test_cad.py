@@ -193,7 +193,7 @@ def test_hsr_lines_and_render_take_a_step_file(tmp_path, step_files):
                          "A4", "--hidden-layer", "-o", str(out)])
     assert code == 0, err
     text = out.read_text()
-    for label in ("silhouette", "model", "hidden"):
+    for label in ("border", "model", "hidden"):
         assert f'inkscape:label="{label}"' in text
     code, err = run_cli(["render", step_files["as1-oc-214.stp"], "--size", "64x48", "-o",
                          str(tmp_path / "part.png")])

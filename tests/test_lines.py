@@ -182,12 +182,13 @@ def test_svg_parses_and_overlays_the_raster_hidden_line_image(tmp_path):
     ink = "{http://www.inkscape.org/namespaces/inkscape}"
     groups = {g.get(ink + "label"): g for g in root.findall("s:g", ns)}
     assert all(g.get(ink + "groupmode") == "layer" for g in groups.values())
-    assert set(groups) == {"silhouette", "crease", "hidden"}  # a cube's edges are creases
+    # Convex cubes: every silhouette outlines a cube (a border); the other edges are creases.
+    assert set(groups) == {"border", "crease", "hidden"}
     assert groups["hidden"].get("stroke-dasharray")
-    assert [groups[k].get("id") for k in ("silhouette", "crease", "hidden")] == \
-        ["layer1", "layer3", "layer7"]
+    assert [groups[k].get("id") for k in ("crease", "hidden", "border")] == \
+        ["layer3", "layer7", "layer9"]
     points = []
-    for p in groups["silhouette"].findall("s:path", ns) + groups["crease"].findall("s:path", ns):
+    for p in groups["border"].findall("s:path", ns) + groups["crease"].findall("s:path", ns):
         coords = [tuple(map(float, c.split())) for c in p.get("d")[1:].split(" L")]
         for a, b in zip(coords[:-1], coords[1:]):
             for t in np.linspace(0.1, 0.9, 9):

@@ -69,10 +69,11 @@ def test_page_holds_the_drawing_in_its_margins(tmp_path, models_dir):
 
 
 def test_layers_hold_their_kinds_and_the_polylines_cover_the_visible_pieces(models_dir):
-    """Each visible piece is in the layer of its first kind in LAYERS order, and each
-    layer's polylines have the length of its (merged) pieces."""
+    """Each visible piece is in the layer of its first kind in LAYERS order (a run of
+    collinear pieces, merged, in the layer of all its pieces' kinds), and each layer's
+    polylines have the length of its runs."""
     from hsr.lines.drawing import LAYERS, layer_of
-    from hsr.lines.paths import merge_collinear
+    from hsr.lines.paths import merge_runs
 
     mesh = hsr.load(f"{models_dir}/fandisk.obj")
     camera = hsr.first_look(mesh, 4 / 3)
@@ -86,8 +87,12 @@ def test_layers_hold_their_kinds_and_the_polylines_cover_the_visible_pieces(mode
             continue
         assert kind & bit[name]
         assert not any(kind & bit[n] for n in order[:order.index(name)])
+    runs, run_of = merge_runs(drawing.visible)
+    run_kind = np.zeros(len(runs), np.uint8)
+    np.bitwise_or.at(run_kind, run_of, drawing.visible_kind)
+    run_layer = layer_of(run_kind)
     for name, lines in drawing.layers.items():
-        pieces = merge_collinear(drawing.visible[names == name])
+        pieces = runs[run_layer == name]
         expect = np.hypot(*(pieces[:, 1, :2] - pieces[:, 0, :2]).T).sum()
         got = sum(np.hypot(*np.diff(p, axis=0).T).sum() for p in lines)
         # Ends within JOIN_PX (0.01 px) of each other are joined.
@@ -203,6 +208,7 @@ def test_vpype_hsr_writes_the_layers(tmp_path, models_dir, vpype_cli):
     names = {lid: layer.property(vpype.METADATA_FIELD_NAME)
              for lid, layer in document.layers.items()}
     assert names[1] == "silhouette" and names[3] == "crease" and names[7] == "hidden"
+    assert names[9] == "border"
     assert document.page_size == pytest.approx((800.0, 600.0))
 
 
@@ -231,3 +237,71 @@ def test_vpype_hsr_bad_input(tmp_path, models_dir, vpype_cli):
         assert run.returncode == 2, (args, run.stderr)
         assert run.stderr.strip().splitlines()[-1].startswith("Error:"), run.stderr
         assert not out.exists()
+
+
+def _first_instance(scene, camera, width, height, window_xy) -> np.ndarray:
+    """Brute force: the instance the ray through each window point (x, y up) meets first
+    (Moller-Trumbore against every triangle), -1 for none."""
+    from reference import unproject, world_triangles
+
+    tris = world_triangles(scene)
+    offsets = scene.face_offsets()
+    near = unproject(camera, width, height, np.c_[window_xy, np.zeros(len(window_xy))])
+    far = unproject(camera, width, height, np.c_[window_xy, np.ones(len(window_xy))])
+    v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    out = np.full(len(near), -1)
+    for k, (o, f) in enumerate(zip(near, far)):
+        d = f - o
+        p = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", p, e1)
+        ok = np.abs(det) > 1e-300
+        inv = np.where(ok, 1 / np.where(ok, det, 1), 0)
+        s = o - v0
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        v = (q @ d) * inv
+        t = np.einsum("ij,ij->i", q, e2) * inv
+        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+        if hit.any():
+            face = int(np.flatnonzero(hit)[np.argmin(t[hit])])
+            out[k] = int(np.searchsorted(offsets, face, side="right") - 1)
+    return out
+
+
+@pytest.mark.parametrize("name", ["cubes", "spheres", "spot"])
+def test_object_borders_outline_each_object(name, models_dir):
+    """A visible silhouette or boundary piece is in the border layer exactly when, a
+    quarter pixel to either side of its middle, the brute-force rays meet two different
+    objects, or one object and the background (pieces under 2 px, or whose sides change
+    between 0.1 and 0.4 px off, are left out: what lies beside them is not one thing)."""
+    from hsr.lines.raster import BOUNDARY, OBJECT_BORDER, SILHOUETTE
+
+    if name == "spot":
+        scene = hsr.Scene([hsr.load(f"{models_dir}/spot.obj")])
+        camera = hsr.first_look(scene, 4 / 3)
+    else:
+        scene, camera = hsr.scenes.get(name)
+    w, h = 400, 300
+    drawing = hidden_lines(scene, camera, w, h, HiddenLine(edges="feature"))
+    kind = drawing.visible_kind
+    chosen = np.flatnonzero((kind & (SILHOUETTE | BOUNDARY)) != 0)
+    seg = drawing.visible[chosen, :, :2]
+    d = seg[:, 1] - seg[:, 0]
+    length = np.hypot(d[:, 0], d[:, 1])
+    long_enough = length >= 2
+    seg, d, length, chosen = seg[long_enough], d[long_enough], length[long_enough], \
+        chosen[long_enough]
+    normal = np.c_[-d[:, 1], d[:, 0]] / length[:, None]
+    mid = seg.mean(axis=1)
+    sides = {off: [_first_instance(scene, camera, w, h, mid + sign * off * normal)
+                   for sign in (1, -1)] for off in (0.1, 0.25, 0.4)}
+    steady = np.ones(len(mid), bool)
+    for off in (0.1, 0.4):
+        for k in range(2):
+            steady &= sides[off][k] == sides[0.25][k]
+    expect = (sides[0.25][0] != sides[0.25][1])
+    got = (kind[chosen] & OBJECT_BORDER) != 0
+    assert steady.sum() > 10
+    assert (got[steady] == expect[steady]).all(), \
+        (name, int((got[steady] != expect[steady]).sum()), int(steady.sum()))
+    assert got.any() and (name != "spot" or (~got[steady]).any())

@@ -10,9 +10,9 @@ def add_parser(sub) -> None:
 
     p = sub.add_parser("lines", help="exact visible lines as a layered SVG (pen plotters)",
                        description="Draw the visible feature lines of MODEL files (or a "
-                       "built-in scene) exactly, one Inkscape layer per kind (silhouette, "
-                       "boundary, crease, intersection, ...), joined into polylines and "
-                       "ordered for a pen plotter.")
+                       "built-in scene) exactly, one Inkscape layer per kind (object "
+                       "border, silhouette, boundary, crease, intersection, ...), joined "
+                       "into polylines and ordered for a pen plotter.")
     p.add_argument("models", nargs="*", metavar="MODEL", help="mesh files (OBJ, PLY, STL, "
                    "OFF, glTF/GLB), one scene")
     p.add_argument("--scene", default="cubes", choices=list(SCENES),

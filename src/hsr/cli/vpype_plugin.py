@@ -5,11 +5,11 @@ extra). A vpype global processor, registered through the ``vpype.plugins`` entry
 
 Each kind of line goes into its own layer, numbered as in hsr's SVG
 (:data:`hsr.lines.drawing.LAYERS`: 1 silhouette, 2 boundary, 3 crease, 4 intersection,
-5 non-manifold, 6 a CAD model's own edges, 7 the hidden parts with ``--hidden-layer``, 8
-other edges), named after the kind, in plotter order. Coordinates are the image's pixels
-(CSS pixels to vpype); the page is the image unless the pipeline already has one
-(``layout`` and ``scaleto`` fit it to paper). The options are ``hsr lines``'s, read by
-the same code.
+5 non-manifold, 6 a CAD model's own edges, 7 the hidden parts with ``--hidden-layer``,
+8 other edges, 9 object borders), named after the kind, in plotter order. Coordinates are
+the image's pixels (CSS pixels to vpype); the page is the image unless the pipeline
+already has one (``layout`` and ``scaleto`` fit it to paper). The options are ``hsr
+lines``'s, read by the same code.
 """
 
 from __future__ import annotations

@@ -14,14 +14,23 @@ from functools import cached_property
 import numpy as np
 
 from .paths import join_polylines, merge_collinear, merge_runs, order_for_plotter, pen_travel
-from .raster import BOUNDARY, CREASE, INTERSECTION, MODEL, NONMANIFOLD, SILHOUETTE
+from .raster import (
+    BOUNDARY,
+    CREASE,
+    INTERSECTION,
+    MODEL,
+    NONMANIFOLD,
+    OBJECT_BORDER,
+    SILHOUETTE,
+)
 
 __all__ = ["LAYERS", "LineDrawing", "layer_names", "layer_of", "make_drawing"]
 
 # (name, kind bit, layer number), in the order an edge of several kinds is assigned;
-# "model" is a CAD model's own (B-rep) edges, "edge" (bit 0) every other edge (drawing all
-# edges of a mesh); 7 is the hidden layer.
-LAYERS = (("silhouette", SILHOUETTE, 1), ("boundary", BOUNDARY, 2),
+# "border" is the visible silhouettes and boundaries that outline an object against the
+# background or another object, "model" a CAD model's own (B-rep) edges, "edge" (bit 0)
+# every other edge (drawing all edges of a mesh); 7 is the hidden layer.
+LAYERS = (("border", OBJECT_BORDER, 9), ("silhouette", SILHOUETTE, 1), ("boundary", BOUNDARY, 2),
           ("nonmanifold", NONMANIFOLD, 5), ("intersection", INTERSECTION, 4),
           ("crease", CREASE, 3), ("model", MODEL, 6), ("edge", 0, 8))
 

@@ -28,10 +28,12 @@ from ..scene.mesh import instance_of
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
            "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
-           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "MODEL", "as_hidden_line", "fill_state",
+           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "MODEL", "OBJECT_BORDER", "as_hidden_line",
+           "fill_state",
            "check", "draw_hidden_lines"]
 
 BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD, INTERSECTION, MODEL = 1, 2, 4, 8, 16, 32
+OBJECT_BORDER = 64  # of a visible piece, not an edge: see hsr.lines.border
 EDGE_KINDS = ("all", "feature")
 
 

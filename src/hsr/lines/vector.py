@@ -25,7 +25,9 @@ from ..geometry.state import RenderState
 from ..geometry.viewport import check_size
 from ..scene.camera import Camera
 from ..scene.mesh import SceneLike, as_scene
+from .border import object_borders
 from .drawing import LineDrawing, make_drawing
+from .grid import window_grid
 from .raster import HiddenLine, chosen_edges, clip_segments
 
 __all__ = ["LineDrawing", "hidden_lines", "visible_pieces"]
@@ -40,43 +42,6 @@ EPS_Z = 1e-9
 # Visible or hidden pieces shorter than this (pixels) are dropped: nobody can see them, and
 # they are what the EPS_Z margin leaves at vertices shared with an occluder.
 MIN_PIECE_PX = 1e-3
-# Triangles are listed in every cell their bounding box comes within this of, so a segment
-# walked through the cells it crosses meets every triangle within EPS_PX of it (even along
-# a cell's border or through its corner).
-GRID_MARGIN_PX = 1e-3
-
-
-@njit(cache=True, nogil=True)
-def _grid(xy, width, height, cell):
-    """Uniform grid over the window: (cell_start, items) listing the triangles whose
-    bounding box, grown by GRID_MARGIN_PX, touches each cell."""
-    nx = (width + cell - 1) // cell
-    ny = (height + cell - 1) // cell
-    n = xy.shape[0]
-    boxes = np.empty((n, 4), dtype=np.int64)
-    count = np.zeros(nx * ny + 1, dtype=np.int64)
-    for t in range(n):
-        x_lo = min(xy[t, 0, 0], xy[t, 1, 0], xy[t, 2, 0])
-        x_hi = max(xy[t, 0, 0], xy[t, 1, 0], xy[t, 2, 0])
-        y_lo = min(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
-        y_hi = max(xy[t, 0, 1], xy[t, 1, 1], xy[t, 2, 1])
-        c0 = max(int(np.floor((x_lo - GRID_MARGIN_PX) / cell)), 0)
-        c1 = min(int(np.floor((x_hi + GRID_MARGIN_PX) / cell)), nx - 1)
-        r0 = max(int(np.floor((y_lo - GRID_MARGIN_PX) / cell)), 0)
-        r1 = min(int(np.floor((y_hi + GRID_MARGIN_PX) / cell)), ny - 1)
-        boxes[t, 0], boxes[t, 1], boxes[t, 2], boxes[t, 3] = c0, c1, r0, r1
-        for r in range(r0, r1 + 1):
-            for c in range(c0, c1 + 1):
-                count[r * nx + c + 1] += 1
-    start = np.cumsum(count)
-    items = np.empty(start[-1], dtype=np.int64)
-    fill = start[:-1].copy()
-    for t in range(n):
-        for r in range(boxes[t, 2], boxes[t, 3] + 1):
-            for c in range(boxes[t, 0], boxes[t, 1] + 1):
-                items[fill[r * nx + c]] = t
-                fill[r * nx + c] += 1
-    return start, items, nx, ny
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -255,7 +220,7 @@ def _complement(n_edges, hidden_edge, hidden_t, min_t=1e-9):
 _CHUNK = 8192  # edges per task: threads share the work and the progress bar moves
 def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progress):
     """Hidden intervals (edge, (t0, t1)) of the chosen edges, clipped to the view: the
-    window-space edges, their kinds, and the grid cell size used."""
+    window-space edges, their kinds and faces, and the grid of triangles used."""
     edges = chosen_edges(scene, camera, screen, settings)
     keep, ends, _ = clip_segments(edges.ends, view_proj, screen.width, screen.height, guard=0)
     bar = None
@@ -263,23 +228,23 @@ def _cut_edges(scene, camera, screen, settings, view_proj, workers, cell, progre
         from tqdm import tqdm
 
         bar = tqdm(total=len(ends), desc="hidden lines", unit="edge", leave=False)
-    hidden_edge, hidden_t, cell = _hidden_intervals_of(
+    hidden_edge, hidden_t, grid = _hidden_intervals_of(
         screen, ends, edges.faces[keep], workers, cell,
         on_done=None if bar is None else (lambda lo, hi: bar.update(hi - lo)))
     if bar is not None:
         bar.close()
-    return hidden_edge, hidden_t, ends, edges.kind[keep], cell
+    return hidden_edge, hidden_t, ends, edges.kind[keep], edges.faces[keep], grid
 
 
 def _hidden_intervals_of(screen, ends, own_faces, workers, cell=None, on_done=None) -> tuple:
-    """(edge (H,), (t0, t1) (H, 2), grid cell): the merged hidden intervals of window-space
-    segments ``ends`` (E, 2, 3) among ``screen``'s triangles, none hidden by its
-    ``own_faces`` (E, 2); chunks of _CHUNK segments on ``workers``."""
+    """(edge (H,), (t0, t1) (H, 2), grid (start, items, nx, ny, cell)): the merged hidden
+    intervals of window-space segments ``ends`` (E, 2, 3) among ``screen``'s triangles,
+    none hidden by its ``own_faces`` (E, 2); chunks of _CHUNK segments on ``workers``."""
     width, height = screen.width, screen.height
     if cell is None:
         cell = int(np.clip(np.sqrt(width * height / max(len(screen), 1)) * 2, 4, 64))
     tri_xy = np.ascontiguousarray(screen.xy_window)
-    start, items, nx, ny = _grid(tri_xy, width, height, cell)
+    start, items, nx, ny = window_grid(tri_xy, width, height, cell)
     bounds = np.unique(np.r_[0, np.arange(0, len(ends) + _CHUNK, _CHUNK).clip(max=len(ends))])
     results = workers.run(_hidden_intervals, bounds, ends,
                           np.ascontiguousarray(own_faces, dtype=np.int64), tri_xy,
@@ -287,7 +252,7 @@ def _hidden_intervals_of(screen, ends, own_faces, workers, cell=None, on_done=No
                           items, nx, ny, cell, on_done=on_done)
     hidden_edge = np.concatenate([r[0] for r in results] + [np.zeros(0, np.int64)])
     hidden_t = np.concatenate([r[1] for r in results] + [np.zeros((0, 2))])
-    return hidden_edge, hidden_t, cell
+    return hidden_edge, hidden_t, (start, items, nx, ny, cell)
 
 
 def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None) -> tuple:
@@ -342,15 +307,18 @@ def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     with Workers(threads) as workers:
         screen = prepare(scene, view_proj, width, height, state, {}, workers)
-        hidden_edge, hidden_t, ends, kind, cell = _cut_edges(scene, camera, screen, settings,
-                                                             view_proj, workers, cell, progress)
+        hidden_edge, hidden_t, ends, kind, faces, grid = _cut_edges(
+            scene, camera, screen, settings, view_proj, workers, cell, progress)
     vis_edge, vis_t = _complement(len(ends), hidden_edge, hidden_t)
     visible = _pieces(ends, vis_edge, vis_t)
     hidden = _pieces(ends, hidden_edge, hidden_t)
     keep_visible, keep_hidden = _long_enough(visible), _long_enough(hidden)
+    visible, vis_edge = visible[keep_visible], vis_edge[keep_visible]
+    visible_kind = kind[vis_edge] | object_borders(scene, view_proj, screen, visible,
+                                                   kind[vis_edge], faces[vis_edge], grid)
     # Plotter order: per layer, the pen goes to the nearest free end next.
-    drawing = make_drawing(visible[keep_visible], kind[vis_edge[keep_visible]],
-                           hidden[keep_hidden], kind[hidden_edge[keep_hidden]], width, height,
-                           with_hidden)
-    drawing.stats.update(edges=int(len(ends)), triangles=int(len(screen)), grid_cell=int(cell))
+    drawing = make_drawing(visible, visible_kind, hidden[keep_hidden],
+                           kind[hidden_edge[keep_hidden]], width, height, with_hidden)
+    drawing.stats.update(edges=int(len(ends)), triangles=int(len(screen)),
+                         grid_cell=int(grid[4]))
     return drawing
