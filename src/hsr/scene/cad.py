@@ -203,7 +203,11 @@ def tessellate(path: str, tolerance: float | None) -> tuple:
 
 def _child(connection, path: str, tolerance) -> None:
     """Child process: OCCT's messages silenced (they go to the terminal), the result or the
-    MeshError's message sent back."""
+    MeshError's message sent back. A crash here is expected on damaged files: no
+    faulthandler report of it (the parent turns it into an error)."""
+    import faulthandler
+
+    faulthandler.disable()
     null = os.open(os.devnull, os.O_WRONLY)
     os.dup2(null, 1)
     os.dup2(null, 2)
