@@ -213,24 +213,29 @@ def test_vpype_hsr_writes_the_layers(tmp_path, models_dir, vpype_cli):
 
 
 def test_vpype_hsr_travel_is_at_most_linemerge_linesort(models_dir, vpype_cli):
-    """On the same lines (vpype's merge tolerance set to hsr's 0.01 px join, so neither
-    changes the drawing), hsr's own order needs no more pen-up travel than vpype's
-    ``linemerge linesort``, which finds nothing left to merge."""
+    """hsr's own order needs no more pen-up travel than vpype's ``linemerge linesort`` on
+    the same lines, which finds nothing left to merge: with vpype's default tolerance
+    (``vpype hsr`` joins ends within linemerge's 0.05 mm too), and with both at hsr's
+    exact 0.01 px (``--join-tolerance 0``)."""
     for model, view in (("spot.obj", "35,25"), ("teapot.obj", "35,25"),
                         ("stanford-bunny.obj", "-60,10"), ("fandisk.obj", "120,30")):
-        base = f"hsr {models_dir}/{model} --view {view} --hidden-layer"
-        ours = vpype_cli.execute(base)
-        theirs = vpype_cli.execute(base + " linemerge --tolerance 0.01px linesort")
-        assert _document_travel(ours) <= _document_travel(theirs) + 1e-6, model
-        assert sum(len(v) for v in ours.layers.values()) == \
-            sum(len(v) for v in theirs.layers.values()), model
+        for ours_args, theirs_args in (("", "linemerge linesort"),
+                                       (" --join-tolerance 0",
+                                        "linemerge --tolerance 0.01px linesort")):
+            base = f"hsr {models_dir}/{model} --view {view} --hidden-layer{ours_args}"
+            ours = vpype_cli.execute(base)
+            theirs = vpype_cli.execute(f"{base} {theirs_args}")
+            assert _document_travel(ours) <= _document_travel(theirs) + 1e-6, (model, ours_args)
+            assert sum(len(v) for v in ours.layers.values()) == \
+                sum(len(v) for v in theirs.layers.values()), (model, ours_args)
 
 
 def test_vpype_hsr_bad_input(tmp_path, models_dir, vpype_cli):
     out = tmp_path / "x.svg"
     spot = f"{models_dir}/spot.obj"
     for args in (["missing.obj"], ["--scene", "cubes"], [spot, "--crease-angle", "500"],
-                 [spot, "--view", "1,2,3"], [spot, "--size", "0x10"]):
+                 [spot, "--view", "1,2,3"], [spot, "--size", "0x10"],
+                 [spot, "--join-tolerance", "-1mm"]):
         run = subprocess.run([os.path.join(os.path.dirname(sys.executable), "vpype"), "hsr",
                               *args, "write", str(out)], capture_output=True, text=True,
                              timeout=300)

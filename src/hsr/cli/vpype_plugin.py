@@ -20,7 +20,8 @@ import vpype_cli
 
 from ..errors import HsrError
 from ..geometry.state import CullMode, FrontFace
-from ..lines.drawing import LAYERS
+from ..lines.drawing import LAYERS, make_drawing
+from ..lines.paths import JOIN_PX
 from ..lines.svg import HIDDEN_LAYER
 
 __all__ = ["hsr_command"]
@@ -85,6 +86,9 @@ class _ModelFirst(click.Command):
               help="glCullFace: culled faces neither hide nor draw lines")
 @click.option("--front-face", type=click.Choice([m.value for m in FrontFace]), help="glFrontFace")
 @click.option("--threads", type=int, help="threads for the kernels (default: all cores)")
+@click.option("--join-tolerance", type=vpype_cli.LengthType(), default="0.05mm",
+              help="join line ends closer than this, as linemerge does (default 0.05mm; "
+              "0: only the ends that meet exactly, within 0.01 px)")
 @vpype_cli.global_processor
 def hsr_command(document: vpype.Document, model, **options) -> vpype.Document:
     """Exact visible lines of MODEL (a mesh file: OBJ, PLY, STL, OFF, glTF), one layer per
@@ -92,11 +96,18 @@ def hsr_command(document: vpype.Document, model, **options) -> vpype.Document:
     from . import build_parser
     from .lines import drawing_from_args
 
+    join = options.pop("join_tolerance")
+    if not join >= 0:
+        raise click.BadParameter(f"must be >= 0, got {join}", param_hint="--join-tolerance")
     try:
         args = build_parser().parse_args(_argv(model, options))
-        drawing, _, _, _ = drawing_from_args(args, check_out=False)
+        exact, _, _, _ = drawing_from_args(args, check_out=False)
     except HsrError as exc:
         raise click.UsageError(f"hsr: {exc}") from None
+    # vpype's pixels are CSS pixels and the drawing's are the image's: one to one.
+    drawing = make_drawing(exact.visible, exact.visible_kind, exact.hidden, exact.hidden_kind,
+                           exact.width, exact.height, bool(options.get("hidden_layer")),
+                           join_px=max(float(join), JOIN_PX))
     numbers = {name: number for name, _, number in LAYERS}
     layers = [(numbers[name], name, lines) for name, lines in drawing.layers.items()]
     if options.get("hidden_layer") and drawing.hidden_polylines:

@@ -13,7 +13,14 @@ from functools import cached_property
 
 import numpy as np
 
-from .paths import join_polylines, merge_collinear, merge_runs, order_for_plotter, pen_travel
+from .paths import (
+    JOIN_PX,
+    join_polylines,
+    merge_collinear,
+    merge_runs,
+    order_for_plotter,
+    pen_travel,
+)
 from .raster import (
     BOUNDARY,
     CREASE,
@@ -68,12 +75,14 @@ class LineDrawing:
     hidden_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     layers: dict = field(default_factory=dict)
     with_hidden: bool = True
+    join_px: float = JOIN_PX
 
     @cached_property
     def hidden_polylines(self) -> list:
         if not self.with_hidden or len(self.hidden) == 0:
             return []
-        return order_for_plotter(join_polylines(merge_collinear(self.hidden), self.height))
+        return order_for_plotter(join_polylines(merge_collinear(self.hidden), self.height,
+                                                self.join_px))
 
 
 def layer_of(kind: np.ndarray) -> np.ndarray:
@@ -90,7 +99,7 @@ def _layer_index(kind: np.ndarray) -> np.ndarray:
     return index
 
 
-def _layered(segments: np.ndarray, kind: np.ndarray, height: int) -> dict:
+def _layered(segments: np.ndarray, kind: np.ndarray, height: int, join_px: float) -> dict:
     """{layer name: ordered polylines}. Collinear overlaps are merged across kinds first (an
     edge two objects share is drawn once), each run in the layer of its members' kinds."""
     runs, run_of = merge_runs(segments)
@@ -101,18 +110,20 @@ def _layered(segments: np.ndarray, kind: np.ndarray, height: int) -> dict:
     for k, (name, _, _) in sorted(enumerate(LAYERS), key=lambda item: item[1][2]):
         mine = runs[index == k]
         if len(mine):
-            out[name] = order_for_plotter(join_polylines(mine, height))
+            out[name] = order_for_plotter(join_polylines(mine, height, join_px))
     return out
 
 
 def make_drawing(visible, visible_kind, hidden, hidden_kind, width: int, height: int,
-                 with_hidden: bool = True) -> LineDrawing:
+                 with_hidden: bool = True, join_px: float = JOIN_PX) -> LineDrawing:
     """The drawing of window-space pieces and their kinds: layers of ordered polylines; the
-    hidden parts as one layer (one pen, dashed), whatever their kinds."""
-    layers = _layered(visible, visible_kind, height)
+    hidden parts as one layer (one pen, dashed), whatever their kinds. Ends closer than
+    ``join_px`` pixels are joined (a plotter tool's merge tolerance, or the default's
+    hairline)."""
+    layers = _layered(visible, visible_kind, height, join_px)
     drawing = LineDrawing(visible, hidden, [p for lines in layers.values() for p in lines],
                           width, height, visible_kind=visible_kind, hidden_kind=hidden_kind,
-                          layers=layers, with_hidden=with_hidden)
+                          layers=layers, with_hidden=with_hidden, join_px=join_px)
     drawing.stats = {"visible_pieces": int(len(visible)), "hidden_pieces": int(len(hidden)),
                      "polylines": len(drawing.visible_polylines),
                      "pen_travel": sum(pen_travel(lines) for lines in layers.values()),
