@@ -53,6 +53,18 @@ def _nearest_faces(points, tri_xy, tri_z, tri_face, start, items, nx, ny, cell):
     return out
 
 
+def _face_centres(scene, face_ids) -> np.ndarray:
+    """World-space centres (K, 3) of the global faces ``face_ids``."""
+    offsets = scene.face_offsets()
+    owner = instance_of(offsets, face_ids)
+    out = np.empty((len(face_ids), 3))
+    for k in np.unique(owner):
+        inst, mine = scene.instances[k], owner == k
+        corners = inst.mesh.positions[inst.mesh.faces[face_ids[mine] - offsets[k]]]
+        out[mine] = corners.mean(axis=1) @ inst.model[:3, :3].T + inst.model[:3, 3]
+    return out
+
+
 def object_borders(scene, view_proj, screen, pieces, kinds, faces, grid) -> np.ndarray:
     """(K,) uint8: OBJECT_BORDER for each visible piece (window x, y up, depth) of a
     silhouette or boundary edge that outlines its object, else 0. ``faces`` (K, 2): the
@@ -64,8 +76,8 @@ def object_borders(scene, view_proj, screen, pieces, kinds, faces, grid) -> np.n
     width, height = screen.width, screen.height
     piece = pieces[chosen]
     # The side of the piece the first face lies on, from the face's centre in the window.
-    tris = scene.world_triangles()[faces[chosen, 0]]
-    clip = np.c_[tris.mean(axis=1), np.ones(len(tris))] @ np.asarray(view_proj).T
+    clip = np.c_[_face_centres(scene, faces[chosen, 0]), np.ones(len(chosen))] \
+        @ np.asarray(view_proj).T
     w = np.where(np.abs(clip[:, 3:]) > 1e-300, clip[:, 3:], 1e-300)
     centre = np.c_[(clip[:, 0:1] / w + 1) * width / 2, (clip[:, 1:2] / w + 1) * height / 2]
     a, b = piece[:, 0, :2], piece[:, 1, :2]

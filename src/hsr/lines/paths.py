@@ -230,6 +230,28 @@ def _two_opt_kernel(first, last, here, max_passes):
     return order, flipped
 
 
+@njit(cache=True)
+def _nearest_next_kernel(ends, here):
+    """The ends picked in greedy order (each polyline's first end 2k, last end 2k + 1),
+    every free end looked at each time: O(n^2), for the sizes 2-opt takes anyway."""
+    n = ends.shape[0] // 2
+    used = np.zeros(n, dtype=np.bool_)
+    picks = np.empty(n, dtype=np.int64)
+    hx, hy = here[0], here[1]
+    for k in range(n):
+        best, pick = np.inf, -1
+        for e in range(2 * n):
+            if not used[e // 2]:
+                d = (ends[e, 0] - hx) ** 2 + (ends[e, 1] - hy) ** 2
+                if d < best:
+                    best, pick = d, e
+        used[pick // 2] = True
+        picks[k] = pick
+        other = pick + 1 if pick % 2 == 0 else pick - 1
+        hx, hy = ends[other, 0], ends[other, 1]
+    return picks
+
+
 def _nearest_next(polylines: list, start) -> list:
     """Greedy order: from ``start``, the polyline with the nearest free end next."""
     from scipy.spatial import cKDTree
@@ -240,6 +262,9 @@ def _nearest_next(polylines: list, start) -> list:
     ends = np.empty((2 * n, 2))
     ends[0::2] = [line[0] for line in polylines]
     ends[1::2] = [line[-1] for line in polylines]
+    if n <= TWO_OPT_MAX:
+        return [polylines[p // 2] if p % 2 == 0 else polylines[p // 2][::-1]
+                for p in _nearest_next_kernel(ends, np.asarray(start, dtype=np.float64))]
     tree = cKDTree(ends)
     used = np.zeros(n, dtype=bool)
     out: list = []
