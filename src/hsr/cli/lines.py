@@ -44,13 +44,15 @@ def add_parser(sub) -> None:
     g.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
-def drawing_from_args(args, check_out: bool = True) -> tuple:
+def drawing_from_args(args, check_out: bool = True, join_px: float | None = None) -> tuple:
     """``(drawing, page, colour, background)`` from ``hsr lines`` arguments: everything
-    checked (the output against the inputs, the page against the image) before drawing."""
+    checked (the output against the inputs, the page against the image) before drawing.
+    ``join_px``: polyline ends closer than this are joined (default: hidden_lines')."""
     import sys
 
     from ..geometry.state import RenderState
     from ..lines.page import parse_page
+    from ..lines.paths import JOIN_PX
     from ..lines.raster import HiddenLine
     from ..lines.vector import hidden_lines
     from ..scene import builtin
@@ -80,7 +82,8 @@ def drawing_from_args(args, check_out: bool = True) -> tuple:
     state = RenderState(cull=args.cull, front_face=args.front_face)
     drawing = hidden_lines(scene, camera, width, height, settings, state, threads=args.threads,
                            with_hidden=args.hidden_layer,
-                           progress=not args.quiet and sys.stderr.isatty())
+                           progress=not args.quiet and sys.stderr.isatty(),
+                           join_px=JOIN_PX if join_px is None else join_px)
     return drawing, page, color, background
 
 

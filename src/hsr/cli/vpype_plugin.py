@@ -20,7 +20,7 @@ import vpype_cli
 
 from ..errors import HsrError
 from ..geometry.state import CullMode, FrontFace
-from ..lines.drawing import LAYERS, make_drawing
+from ..lines.drawing import LAYERS
 from ..lines.paths import JOIN_PX
 from ..lines.svg import HIDDEN_LAYER
 
@@ -101,13 +101,11 @@ def hsr_command(document: vpype.Document, model, **options) -> vpype.Document:
         raise click.BadParameter(f"must be >= 0, got {join}", param_hint="--join-tolerance")
     try:
         args = build_parser().parse_args(_argv(model, options))
-        exact, _, _, _ = drawing_from_args(args, check_out=False)
+        # vpype's pixels are CSS pixels and the drawing's are the image's: one to one.
+        drawing, _, _, _ = drawing_from_args(args, check_out=False,
+                                             join_px=max(float(join), JOIN_PX))
     except HsrError as exc:
         raise click.UsageError(f"hsr: {exc}") from None
-    # vpype's pixels are CSS pixels and the drawing's are the image's: one to one.
-    drawing = make_drawing(exact.visible, exact.visible_kind, exact.hidden, exact.hidden_kind,
-                           exact.width, exact.height, bool(options.get("hidden_layer")),
-                           join_px=max(float(join), JOIN_PX))
     numbers = {name: number for name, _, number in LAYERS}
     layers = [(numbers[name], name, lines) for name, lines in drawing.layers.items()]
     if options.get("hidden_layer") and drawing.hidden_polylines:

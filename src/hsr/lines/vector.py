@@ -28,6 +28,7 @@ from ..scene.mesh import SceneLike, as_scene
 from .border import object_borders
 from .drawing import LineDrawing, make_drawing
 from .grid import window_grid
+from .paths import JOIN_PX
 from .raster import HiddenLine, chosen_edges, clip_segments
 
 __all__ = ["LineDrawing", "hidden_lines", "visible_pieces"]
@@ -283,11 +284,14 @@ def visible_pieces(screen, view_proj, ends_world, own_faces, workers, cell=None)
 def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
                  settings: HiddenLine | None = None, state: RenderState | None = None,
                  threads: int | None = None, with_hidden: bool = True,
-                 cell: int | None = None, progress: bool | None = None) -> LineDrawing:
+                 cell: int | None = None, progress: bool | None = None,
+                 join_px: float = JOIN_PX) -> LineDrawing:
     """Exact visible (and hidden) parts of the scene's edges (all or feature edges, per
     ``settings``) as seen by ``camera`` in a ``width`` x ``height`` image. ``state``
     supplies culling and winding (culled faces neither occlude nor contribute edges).
     ``progress`` (default: when stderr is a terminal) shows a bar on big meshes.
+    ``join_px``: polyline ends closer than this many pixels are joined (a plotter tool's
+    merge tolerance; by default only the ends that meet, within 0.01 px).
 
     Raises :class:`~hsr.errors.RenderError`, :class:`~hsr.errors.CameraError` or
     :class:`~hsr.errors.MeshError` for invalid arguments, as :func:`hsr.render` does.
@@ -318,7 +322,8 @@ def hidden_lines(scene: SceneLike, camera: Camera, width: int, height: int,
                                                    kind[vis_edge], faces[vis_edge], grid)
     # Plotter order: per layer, the pen goes to the nearest free end next.
     drawing = make_drawing(visible, visible_kind, hidden[keep_hidden],
-                           kind[hidden_edge[keep_hidden]], width, height, with_hidden)
+                           kind[hidden_edge[keep_hidden]], width, height, with_hidden,
+                           join_px)
     drawing.stats.update(edges=int(len(ends)), triangles=int(len(screen)),
                          grid_cell=int(grid[4]))
     return drawing
