@@ -25,6 +25,7 @@ from numba import njit
 
 from ..choices import Light, Shading, TextureFilter, TextureWrap
 from ..errors import RenderError, check_choice
+from ..geometry.weld import weld
 from ..parallel import Workers
 from ..scene.images import load_texture
 from ..scene.mesh import instance_of, normal_matrix
@@ -452,8 +453,7 @@ def vertex_normals(mesh, crease_angle: float = CREASE_ANGLE) -> np.ndarray:
     the normals of the faces round its vertex that lie within ``crease_angle`` degrees of
     the corner's own face (a crease stays sharp, as with Blender's auto smooth); vertices
     welded by exact position, so a mesh stored with split vertices is smoothed too."""
-    _, weld = np.unique(mesh.positions, axis=0, return_inverse=True)
-    corner_vertex = weld.reshape(-1)[mesh.faces].astype(np.int64)
+    corner_vertex = weld(mesh.positions)[1][mesh.faces]
     tri = mesh.positions[mesh.faces]
     area_normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # 2 x area
     length = np.linalg.norm(area_normal, axis=1, keepdims=True)

@@ -31,7 +31,7 @@ from .raster import (
     SILHOUETTE,
 )
 
-__all__ = ["LAYERS", "LineDrawing", "layer_names", "layer_of", "make_drawing"]
+__all__ = ["LAYERS", "LineDrawing", "layer_of", "make_drawing"]
 
 # (name, kind bit, layer number), in the order an edge of several kinds is assigned;
 # "border" is the visible silhouettes and boundaries that outline an object against the
@@ -40,11 +40,6 @@ __all__ = ["LAYERS", "LineDrawing", "layer_names", "layer_of", "make_drawing"]
 LAYERS = (("border", OBJECT_BORDER, 9), ("silhouette", SILHOUETTE, 1), ("boundary", BOUNDARY, 2),
           ("nonmanifold", NONMANIFOLD, 5), ("intersection", INTERSECTION, 4),
           ("crease", CREASE, 3), ("model", MODEL, 6), ("edge", 0, 8))
-
-
-def layer_names() -> tuple:
-    """The layer names in layer-number order (silhouette, boundary, crease, ...)."""
-    return tuple(name for name, _, _ in sorted(LAYERS, key=lambda layer: layer[2]))
 
 
 @dataclass

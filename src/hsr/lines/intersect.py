@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..geometry.weld import weld
+
 _CELL_FACES = 2.0  # about this many faces' boxes per grid cell
 _MAX_PAIRS = 50_000_000  # candidate pairs before a scene is refused (memory)
 
@@ -158,8 +160,7 @@ def intersection_edges(tris: np.ndarray, workers=None) -> tuple:
     from ..parallel import Workers
 
     tris = np.ascontiguousarray(tris, dtype=np.float64)
-    _, key = np.unique(tris.reshape(-1, 3), axis=0, return_inverse=True)
-    pairs = _candidate_pairs(tris, key.reshape(-1, 3))
+    pairs = _candidate_pairs(tris, weld(tris.reshape(-1, 3))[1].reshape(-1, 3))
     if not len(pairs):
         return np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64)
     size = np.abs(tris).max(axis=(1, 2))

@@ -76,8 +76,8 @@ def _nodes(points: np.ndarray, tol: float) -> np.ndarray:
 
 def join_polylines(segments: np.ndarray, height: int, tol=JOIN_PX) -> list:
     """Chain segments whose ends meet (within ``tol`` pixels, :data:`JOIN_PX`) into
-    polylines (image coordinates, y down) and drop
-    interior points where the direction does not change."""
+    polylines (image coordinates, y down) and drop interior points where the direction
+    does not change."""
     if len(segments) == 0:
         return []
     node = _nodes(segments[:, :, :2].reshape(-1, 2), tol).reshape(-1, 2)
@@ -90,7 +90,6 @@ def join_polylines(segments: np.ndarray, height: int, tol=JOIN_PX) -> list:
     position = np.zeros((n_nodes, 2))
     position[node[:, 0]] = segments[:, 0, :2]
     position[node[:, 1]] = segments[:, 1, :2]
-    lines = []
 
     def walk(start_node):
         chain = [start_node]
@@ -114,10 +113,9 @@ def join_polylines(segments: np.ndarray, height: int, tol=JOIN_PX) -> list:
     for start_node in list(np.flatnonzero(degree % 2 == 1)) + list(range(n_nodes)):
         while any(not used[s] for s in adjacency[start_node]):
             chains.append(walk(start_node))
-    lines = [_simplify(position[chain]) for chain in _joined_at_ends(chains)]
     out = []
-    for line in lines:
-        line = line.copy()
+    for chain in _joined_at_ends(chains):
+        line = _simplify(position[chain])  # a new array (fancy indexing): flipped in place
         line[:, 1] = height - line[:, 1]
         out.append(line)
     return out

@@ -23,14 +23,14 @@ from ..choices import EdgeKind
 from ..errors import RenderError, check_choice, check_rgb
 from ..geometry.conventions import GUARD_BAND_PIXELS
 from ..geometry.setup import ONE as _ONE
+from ..geometry.weld import weld
 from ..raster.fill import depth_passes
 from ..scene.mesh import instance_of
 
 __all__ = ["Edges", "HiddenLine", "EDGE_KINDS", "triangle_edges", "unique_edges",
            "chosen_edges", "clip_segments", "draw_lines", "draw_points", "BOUNDARY", "CREASE",
-           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "MODEL", "OBJECT_BORDER", "as_hidden_line",
-           "fill_state",
-           "check", "draw_hidden_lines"]
+           "SILHOUETTE", "NONMANIFOLD", "INTERSECTION", "MODEL", "OBJECT_BORDER",
+           "as_hidden_line", "fill_state", "check", "draw_hidden_lines"]
 
 BOUNDARY, CREASE, SILHOUETTE, NONMANIFOLD, INTERSECTION, MODEL = 1, 2, 4, 8, 16, 32
 OBJECT_BORDER = 64  # of a visible piece, not an edge: see hsr.lines.border
@@ -121,17 +121,6 @@ def triangle_edges(scene, face_ids) -> Edges:
     return Edges(ends.reshape(-1, 2, 3), faces, np.zeros(3 * len(face_ids), dtype=np.uint8))
 
 
-def _weld(positions: np.ndarray) -> tuple:
-    """``(unique positions (U, 3) in x, y, z order, id (V,) of each vertex among them)``:
-    vertices at exactly the same position welded (np.unique's rows, by one lexsort)."""
-    order = np.lexsort((positions[:, 2], positions[:, 1], positions[:, 0]))
-    ordered = positions[order]
-    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
-    weld = np.empty(len(positions), dtype=np.int64)
-    weld[order] = np.cumsum(new) - 1
-    return ordered[new], weld
-
-
 @njit(cache=True, inline="always")
 def _sub(pos, i, j):
     return pos[i, 0] - pos[j, 0], pos[i, 1] - pos[j, 1], pos[i, 2] - pos[j, 2]
@@ -140,8 +129,9 @@ def _sub(pos, i, j):
 @njit(cache=True)
 def _half_edges_by_edge(corner, n_pos):
     """Half-edges ``3 f + s`` (edge s of face f) ordered by edge (low vertex, then high),
-    faces in order within an edge: a counting sort on the low vertex, then an insertion
-    sort of each vertex's few half-edges by the high one (both stable; O(n))."""
+    faces in order within an edge, and each one's edge key (low * n_pos + high) in that
+    order: a counting sort on the low vertex, then an insertion sort of each vertex's few
+    half-edges by the high one (both stable; O(n))."""
     n_half = 3 * corner.shape[0]
     start = np.zeros(n_pos + 1, dtype=np.int64)
     for h in range(n_half):
@@ -165,7 +155,9 @@ def _half_edges_by_edge(corner, n_pos):
                 order[j + 1], high[j + 1] = order[j], high[j]
                 j -= 1
             order[j + 1], high[j + 1] = h, key
-    return order
+        for i in range(start[v], start[v + 1]):
+            high[i] += v * n_pos
+    return order, high
 
 
 @njit(cache=True)
@@ -176,12 +168,7 @@ def _edge_kinds(corner, world_pos, view, orthographic, cos_crease, features_only
     more). ``view``: the eye, or the view direction when ``orthographic``. With
     ``features_only``, ordinary edges (kind 0) are left out."""
     n_faces, n_pos = corner.shape[0], world_pos.shape[0]
-    order = _half_edges_by_edge(corner, n_pos)
-    key = np.empty(3 * n_faces, dtype=np.int64)
-    for f in range(n_faces):
-        for s in range(3):
-            a, b = corner[f, s], corner[f, (s + 1) % 3]
-            key[3 * f + s] = min(a, b) * n_pos + max(a, b)
+    order, key = _half_edges_by_edge(corner, n_pos)
     n_half = 3 * n_faces
     lo = np.empty(n_half, dtype=np.int64)
     hi = np.empty(n_half, dtype=np.int64)
@@ -191,7 +178,7 @@ def _edge_kinds(corner, world_pos, view, orthographic, cos_crease, features_only
     n_out, i = 0, 0
     while i < n_half:
         j = i
-        while j + 1 < n_half and key[order[j + 1]] == key[order[i]]:
+        while j + 1 < n_half and key[j + 1] == key[i]:
             j += 1
         f1, s1 = order[i] // 3, order[i] % 3
         a, b = corner[f1, s1], corner[f1, (s1 + 1) % 3]
@@ -258,11 +245,11 @@ def unique_edges(scene, camera, crease_angle: float = 30.0, drawn=None,
         local = np.flatnonzero(keep)
         if len(local) == 0:
             continue
-        unique_pos, weld = _weld(mesh.positions)
+        unique_pos, welded = weld(mesh.positions)
         world_pos = np.ascontiguousarray(_world(inst, unique_pos))
         cad = mesh.feature_lines is not None
         lo, hi, first, second, kind = _edge_kinds(
-            np.ascontiguousarray(weld[mesh.faces[local]]), world_pos, view,
+            np.ascontiguousarray(welded[mesh.faces[local]]), world_pos, view,
             camera.is_orthographic, cos_crease, features_only and not cad)
         ends = np.stack([world_pos[lo], world_pos[hi]], axis=1)
         faces = np.stack([local[first] + offsets[k],
@@ -290,9 +277,7 @@ def _model_lines(inst, unique_pos, edge_lo, edge_hi, edge_faces) -> Edges:
     lines = inst.mesh.feature_lines
     if len(lines) == 0:
         return Edges(np.zeros((0, 2, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.uint8))
-    both, ids = np.unique(np.concatenate([unique_pos, lines.reshape(-1, 3)]), axis=0,
-                          return_inverse=True)
-    ids = ids.reshape(-1)
+    both, ids = weld(np.concatenate([unique_pos, lines.reshape(-1, 3)]))
     mesh_id, ends_id = ids[:len(unique_pos)], ids[len(unique_pos):].reshape(-1, 2)
     n = len(both)
 

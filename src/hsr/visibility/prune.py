@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..choices import Algorithm
+from ..geometry.weld import weld
 from ..scene.mesh import Mesh, Scene, SceneLike, _kept, as_scene
 from ..scene.partitioned import PartitionedScene
 from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
@@ -273,8 +274,8 @@ def _edge_groups(mesh: Mesh) -> tuple:
     while its arrays are the same (ring growth runs once per decision round)."""
 
     def compute():
-        _, vertex = np.unique(mesh.positions, axis=0, return_inverse=True)
-        corners = vertex.reshape(-1)[mesh.faces]
+        vertex = weld(mesh.positions)[1]
+        corners = vertex[mesh.faces]
         a = corners[:, [0, 1, 2]].reshape(-1)
         b = corners[:, [1, 2, 0]].reshape(-1)
         n = int(vertex.max()) + 1 if len(vertex) else 1
