@@ -34,7 +34,7 @@ def add_parser(sub) -> None:
     g.add_argument("--page", metavar="PAPER", help="A4, A3, letter, ... (turned to fit; "
                    "A4-portrait, A4-landscape to choose) or WxHmm; default: the image in "
                    "pixels")
-    g.add_argument("--margin", type=float, default=10.0, help="page margin in mm")
+    g.add_argument("--margin", type=float, help="page margin in mm (default 10)")
     g.add_argument("--stroke-width", type=float, help="pen width (default 0.3 mm on a "
                    "page, else 1 px)")
     g.add_argument("--line-color", default="0,0,0", help="line colour r,g,b")
@@ -63,9 +63,10 @@ def drawing_from_args(args, check_out: bool = True, join_px: float | None = None
     if check_out:
         check_output(args.output, (".svg",))
     check_threads(args)
-    if args.page is None and args.margin != 10.0:
+    if args.page is None and args.margin is not None:
         raise CliError("--margin goes with --page")
-    page = parse_page(args.page, args.margin) if args.page else None
+    page = parse_page(args.page, 10.0 if args.margin is None else args.margin) \
+        if args.page else None
     settings = HiddenLine(args.edges, args.crease_angle, intersections=args.intersections)
     color = rgb(args.line_color, "--line-color")
     background = rgb(args.background, "--background") if args.background else None
