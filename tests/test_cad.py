@@ -252,3 +252,42 @@ def test_iges_and_brep_read_as_the_step_they_were_written_from(tmp_path, step_fi
         np.testing.assert_allclose(mesh.bounds(), reference.bounds(), atol=1e-6)
         assert abs(area(mesh) / area(reference) - 1) < tolerance, name
         assert abs(length(mesh) / length(reference) - 1) < tolerance, name
+
+
+def test_outputs_never_land_on_the_step_file(tmp_path, step_files):
+    """`hsr lines` and `hsr render` of a STEP file: an output named as the model, or as a
+    link to it under the output's own extension, is refused (exit 2, one line) and the
+    model is unchanged."""
+    import shutil
+
+    step = tmp_path / "part.stp"
+    shutil.copy(step_files["face_recognition_sample_part.stp"], step)
+    before = step.read_bytes()
+    (tmp_path / "link.svg").symlink_to(step)
+    (tmp_path / "link.png").symlink_to(step)
+    for args in (["lines", str(step), "-o", str(tmp_path / "link.svg")],
+                 ["lines", str(step), "-o", str(step)],
+                 ["render", str(step), "--size", "32x24", "-o", str(tmp_path / "link.png")]):
+        code, err = run_cli(args)
+        assert code == 2 and len(err) == 1 and err[0].startswith("hsr: error: "), (args, err)
+    assert step.read_bytes() == before
+
+
+def test_cad_files_meet_hsr_load_checks(tmp_path, step_files):
+    """The CAD reader is hsr.load's: the same size cap (check_regular), refused in the same
+    words as an OBJ file (but for naming the kind of file), before OCCT sees the file."""
+    import re
+    import shutil
+
+    step = tmp_path / "part.step"
+    shutil.copy(step_files["face_recognition_sample_part.stp"], step)
+    obj = tmp_path / "part.obj"
+    obj.write_bytes(b"v 0 0 0\n" * (step.stat().st_size // 8 + 1))
+    messages = []
+    for path in (step, obj):
+        with pytest.raises(hsr.MeshError) as info:
+            hsr.load(path, max_bytes=1000)
+        messages.append(str(info.value).replace(str(path), "PATH"))
+    shapes = {re.sub(r"[\d,]+ bytes", "N bytes", m).replace("CAD file", "mesh file")
+              for m in messages}
+    assert shapes == {"PATH is N bytes, more than the N bytes hsr reads for a mesh file"}
