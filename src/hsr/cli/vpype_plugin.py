@@ -20,9 +20,8 @@ import vpype_cli
 
 from ..errors import HsrError
 from ..geometry.state import CullMode, FrontFace
-from ..lines.drawing import LAYERS
+from ..lines.drawing import HIDDEN_LAYER, LAYERS
 from ..lines.paths import JOIN_PX
-from ..lines.svg import HIDDEN_LAYER
 
 __all__ = ["hsr_command"]
 

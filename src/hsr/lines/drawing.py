@@ -31,7 +31,7 @@ from .raster import (
     SILHOUETTE,
 )
 
-__all__ = ["LAYERS", "LineDrawing", "layer_of", "make_drawing"]
+__all__ = ["HIDDEN_LAYER", "LAYERS", "LineDrawing", "layer_of", "make_drawing"]
 
 # (name, kind bit, layer number), in the order an edge of several kinds is assigned;
 # "border" is the visible silhouettes and boundaries that outline an object against the
@@ -40,6 +40,7 @@ __all__ = ["LAYERS", "LineDrawing", "layer_of", "make_drawing"]
 LAYERS = (("border", OBJECT_BORDER, 9), ("silhouette", SILHOUETTE, 1), ("boundary", BOUNDARY, 2),
           ("nonmanifold", NONMANIFOLD, 5), ("intersection", INTERSECTION, 4),
           ("crease", CREASE, 3), ("model", MODEL, 6), ("edge", 0, 8))
+HIDDEN_LAYER = 7  # the hidden parts, whatever their kinds
 
 
 @dataclass

@@ -15,12 +15,11 @@ import numpy as np
 
 from ..errors import OutputError, check_rgb
 from ..scene.outputs import staged
-from .drawing import LAYERS, LineDrawing
+from .drawing import HIDDEN_LAYER, LAYERS, LineDrawing
 from .page import Page
 
 __all__ = ["write_lines_svg", "write_polygons_svg", "write_svg"]
 
-HIDDEN_LAYER = 7  # after every kind's layer number in LAYERS
 _INKSCAPE = "http://www.inkscape.org/namespaces/inkscape"
 
 
