@@ -214,19 +214,14 @@ def visible_regions(scene: SceneLike, camera: Camera, width: int, height: int,
                         width, height, func == "lequal", stats, workers)
 
 
-def _planes(xy: np.ndarray, depth: np.ndarray) -> tuple:
-    """(T, 3) coefficients (a, b, c) of depth = a x + b y + c over each triangle, and
-    (T,) twice its signed area (0 for a triangle seen edge-on)."""
-    x, y = xy[..., 0], xy[..., 1]
-    e1x, e1y = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0]
-    e2x, e2y = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
-    dz1, dz2 = depth[:, 1] - depth[:, 0], depth[:, 2] - depth[:, 0]
-    det = e1x * e2y - e2x * e1y
-    safe = np.where(det != 0.0, det, 1.0)
-    a = (dz1 * e2y - dz2 * e1y) / safe
-    b = (e1x * dz2 - e2x * dz1) / safe
-    c = depth[:, 0] - a * x[:, 0] - b * y[:, 0]
-    return np.stack([a, b, c], axis=1), det
+class ScreenTriangles(NamedTuple):
+    """The window-space triangles the regions are cut from (image geometry, y down)."""
+
+    xy: np.ndarray  # (T, 3, 2) float64
+    planes: np.ndarray  # (T, 3): depth = a x + b y + c
+    zmax: np.ndarray  # (T,) greatest depth
+    box: np.ndarray  # (T, 4): x0, y0, x1, y1
+    face: np.ndarray  # (T,) int64, global face id
 
 
 class CellGrid(NamedTuple):
@@ -244,49 +239,86 @@ class CellGrid(NamedTuple):
     face: np.ndarray  # (E,) int64
 
 
+@njit(cache=True, nogil=True)
+def _screen_setup(xy_window, depth_window, face_id, height):
+    """The :class:`ScreenTriangles` of window-space triangles (x right, y up; a face seen
+    edge-on, which covers no area, left out), and each one's least depth."""
+    n = len(face_id)
+    xy = np.empty((n, 3, 2))
+    planes = np.empty((n, 3))
+    zmin, zmax = np.empty(n), np.empty(n)
+    box = np.empty((n, 4))
+    face = np.empty(n, np.int64)
+    m = 0
+    for i in range(n):
+        x0, x1, x2 = xy_window[i, 0, 0], xy_window[i, 1, 0], xy_window[i, 2, 0]
+        # Image geometry: y down from the top edge.
+        y0, y1 = height - xy_window[i, 0, 1], height - xy_window[i, 1, 1]
+        y2 = height - xy_window[i, 2, 1]
+        e1x, e1y, e2x, e2y = x1 - x0, y1 - y0, x2 - x0, y2 - y0
+        det = e1x * e2y - e2x * e1y  # twice the signed area
+        if det == 0.0:
+            continue
+        d0, d1, d2 = depth_window[i, 0], depth_window[i, 1], depth_window[i, 2]
+        dz1, dz2 = d1 - d0, d2 - d0
+        # depth = a x + b y + c through the three corners (Cramer's rule).
+        a = (dz1 * e2y - dz2 * e1y) / det
+        b = (e1x * dz2 - e2x * dz1) / det
+        planes[m, 0], planes[m, 1], planes[m, 2] = a, b, d0 - a * x0 - b * y0
+        xy[m, 0, 0], xy[m, 0, 1], xy[m, 1, 0], xy[m, 1, 1] = x0, y0, x1, y1
+        xy[m, 2, 0], xy[m, 2, 1] = x2, y2
+        box[m, 0], box[m, 1] = min(x0, x1, x2), min(y0, y1, y2)
+        box[m, 2], box[m, 3] = max(x0, x1, x2), max(y0, y1, y2)
+        zmin[m], zmax[m] = min(d0, d1, d2), max(d0, d1, d2)
+        face[m] = face_id[i]
+        m += 1
+    return ScreenTriangles(xy[:m], planes[:m], zmax[:m], box[:m], face[:m]), zmin[:m]
+
+
 def _grid(box: np.ndarray, zmin: np.ndarray, tri_face: np.ndarray, width: int, height: int,
           members: np.ndarray | None = None) -> CellGrid:
     """The :class:`CellGrid` of the triangles ``members`` (default all) with boxes ``box``
     (T, 4), least depths ``zmin`` and faces ``tri_face``."""
     if members is None:
         members = np.arange(len(box))
-    mbox = box[members]
-    n = max(len(mbox), 1)
-    cell = max(1.0 / 64, math.sqrt(width * height * _CELL_TRIANGLES / n))
+    cell = max(1.0 / 64, math.sqrt(width * height * _CELL_TRIANGLES / max(len(members), 1)))
     ncx, ncy = int(math.ceil(width / cell)), int(math.ceil(height / cell))
-    cx0 = np.clip(np.floor(mbox[:, 0] / cell), 0, ncx - 1).astype(np.int64)
-    cx1 = np.clip(np.floor(mbox[:, 2] / cell), 0, ncx - 1).astype(np.int64)
-    cy0 = np.clip(np.floor(mbox[:, 1] / cell), 0, ncy - 1).astype(np.int64)
-    cy1 = np.clip(np.floor(mbox[:, 3] / cell), 0, ncy - 1).astype(np.int64)
-    inside = ((mbox[:, 2] >= 0) & (mbox[:, 0] <= width) & (mbox[:, 3] >= 0)
-              & (mbox[:, 1] <= height))
-    nx, ny = cx1 - cx0 + 1, cy1 - cy0 + 1
-    count = np.where(inside, nx * ny, 0)
-    local = np.repeat(np.arange(len(mbox)), count)
-    k = np.arange(len(local)) - np.repeat(np.cumsum(count) - count, count)
-    cells = (cy0[local] + k // nx[local]) * ncx + cx0[local] + k % nx[local]
-    tri = members[local]
-    order = np.lexsort((zmin[tri], cells))  # by cell, nearest first within a cell
-    tri = tri[order]
-    start = np.searchsorted(cells[order], np.arange(ncx * ncy + 1))
-    return CellGrid(cell, ncx, ncy, start.astype(np.int64), tri, zmin[tri],
-                    np.ascontiguousarray(box[tri]), tri_face[tri])
+    # Nearest first, ties in submission order: a counting sort by cell keeps that order.
+    members = members[np.argsort(zmin[members], kind="stable")]
+    start, tri = _fill_grid(box, members, cell, ncx, ncy, float(width), float(height))
+    return CellGrid(cell, ncx, ncy, start, tri, zmin[tri], box[tri], tri_face[tri])
+
+
+@njit(cache=True, nogil=True)
+def _fill_grid(box, members, cell, ncx, ncy, width, height):
+    """(start (C + 1,), tri (E,)): the ``members`` whose box meets each cell, in their
+    order (a counting sort; boxes wholly outside the view in no cell)."""
+    start = np.zeros(ncx * ncy + 1, np.int64)
+    for i in members:
+        if box[i, 2] >= 0 and box[i, 0] <= width and box[i, 3] >= 0 and box[i, 1] <= height:
+            for gy in range(_cell_of(box[i, 1], cell, ncy), _cell_of(box[i, 3], cell, ncy) + 1):
+                for gx in range(_cell_of(box[i, 0], cell, ncx),
+                                _cell_of(box[i, 2], cell, ncx) + 1):
+                    start[gy * ncx + gx + 1] += 1
+    for g in range(ncx * ncy):
+        start[g + 1] += start[g]
+    fill = start[:-1].copy()
+    tri = np.empty(start[-1], np.int64)
+    for i in members:
+        if box[i, 2] >= 0 and box[i, 0] <= width and box[i, 3] >= 0 and box[i, 1] <= height:
+            for gy in range(_cell_of(box[i, 1], cell, ncy), _cell_of(box[i, 3], cell, ncy) + 1):
+                for gx in range(_cell_of(box[i, 0], cell, ncx),
+                                _cell_of(box[i, 2], cell, ncx) + 1):
+                    g = gy * ncx + gx
+                    tri[fill[g]] = i
+                    fill[g] += 1
+    return start, tri
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _cell_of(v, cell, count):
     """The grid column (or row) of coordinate ``v``, clamped as :func:`_grid` clamps."""
     return min(max(int(math.floor(v / cell)), 0), count - 1)
-
-
-class ScreenTriangles(NamedTuple):
-    """The window-space triangles the regions are cut from (image geometry, y down)."""
-
-    xy: np.ndarray  # (T, 3, 2) float64
-    planes: np.ndarray  # (T, 3): depth = a x + b y + c
-    zmax: np.ndarray  # (T,) greatest depth
-    box: np.ndarray  # (T, 4): x0, y0, x1, y1
-    face: np.ndarray  # (T,) int64, global face id
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -454,22 +486,16 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
              workers, hides=None) -> Regions:
     """The regions of the screen triangles; ``hides`` (F,) bool, optional: the faces that
     may hide others (the rest are cut by them but cut nothing: transparent surfaces)."""
-    xy = np.array(xy_window, dtype=np.float64).reshape(-1, 3, 2)
-    xy[..., 1] = height - xy[..., 1]  # image geometry: y down from the top edge
-    depth = np.asarray(depth_window, dtype=np.float64).reshape(-1, 3)
-    tri_face = np.asarray(face_id, dtype=np.int64)
-    planes, det = _planes(xy, depth)
-    keep = det != 0.0  # a face seen edge-on covers no area
-    xy, depth, planes, tri_face = xy[keep], depth[keep], planes[keep], tri_face[keep]
-    box = np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
-    zmin, zmax = depth.min(axis=1), depth.max(axis=1)
+    tris, zmin = _screen_setup(np.asarray(xy_window, dtype=np.float64).reshape(-1, 3, 2),
+                               np.asarray(depth_window, dtype=np.float64).reshape(-1, 3),
+                               np.asarray(face_id, dtype=np.int64), float(height))
+    xy, box, tri_face = tris.xy, tris.box, tris.face
     # Only hiders in the grid: the others (transparent surfaces) are never a candidate.
     members = None if hides is None else np.flatnonzero(np.asarray(hides, bool)[tri_face])
     grid = _grid(box, zmin, tri_face, width, height, members)
     # Eight chunks a thread, taken as threads come free: the work per triangle is uneven
     # (a buried region stops early, a visible one meets all its candidates).
     bounds = split_range(len(xy), min(8 * workers.threads, max(1, len(xy) // 256)))
-    tris = ScreenTriangles(xy, planes, zmax, box, tri_face)
     parts = workers.run(_regions_range, bounds, tris, grid, later_wins, width, height)
     if any(part[3] for part in parts):
         raise RegionsError(f"visible_regions: a face's visible part broke into more than "
@@ -542,8 +568,13 @@ def _view_areas(xy, width, height):
         for k in range(3):
             a[k, 0] = xy[i, k, 0]
             a[k, 1] = xy[i, k, 1]
-        n = clip_to_view(a, 3, width, height, b)
-        out[i] = abs(signed_area(a, n)) if n else 0.0
+        if (min(a[0, 0], a[1, 0], a[2, 0]) < 0.0 or max(a[0, 0], a[1, 0], a[2, 0]) > width
+                or min(a[0, 1], a[1, 1], a[2, 1]) < 0.0
+                or max(a[0, 1], a[1, 1], a[2, 1]) > height):
+            n = clip_to_view(a, 3, width, height, b)
+            out[i] = abs(signed_area(a, n)) if n else 0.0
+        else:  # inside the view: clipping would keep the corners as they are
+            out[i] = abs(signed_area(a, 3))
     return out
 
 
