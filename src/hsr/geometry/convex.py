@@ -43,6 +43,18 @@ def clip_half_plane(src, n, a, b, c, dst) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def side_of_line(poly, n, a, b, c) -> int:
+    """1 when every vertex of ``poly[:n]`` has ``a x + b y + c > 0``, -1 when every one has
+    it < 0, else 0: a polygon strictly on one side, which :func:`clip_half_plane` would
+    keep whole or drop whole (its arithmetic, so the answers agree)."""
+    lo, hi = math.inf, -math.inf
+    for k in range(n):
+        d = a * poly[k, 0] + b * poly[k, 1] + c
+        lo, hi = min(lo, d), max(hi, d)
+    return 1 if lo > 0.0 else (-1 if hi < 0.0 else 0)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _emit(dst, m, x, y) -> int:
     """Append (x, y) unless it repeats the last vertex (or there is no room)."""
     if m >= MAX_VERTICES or (m > 0 and dst[m - 1, 0] == x and dst[m - 1, 1] == y):
@@ -93,14 +105,16 @@ def bounds_overlap(p, n, q, m) -> bool:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _outside_edge(t, k, u, sign) -> bool:
-    """Whether triangle u lies wholly outside (or on) edge k of triangle t, wound ``sign``."""
+def _beyond_edge(t, k, u, sign) -> float:
+    """How far triangle u reaches inside edge k of triangle t, wound ``sign``: the largest
+    of its corners' signed cross products (<= 0 when u lies wholly outside or on the
+    edge's line). Without branches: the separating-axis test below takes all six."""
     ax, ay = t[k, 0], t[k, 1]
-    ex, ey = t[(k + 1) % 3, 0] - ax, t[(k + 1) % 3, 1] - ay
-    for m in range(3):
-        if sign * (ex * (u[m, 1] - ay) - ey * (u[m, 0] - ax)) > 0.0:
-            return False
-    return True
+    k1 = k + 1 if k < 2 else 0
+    ex, ey = sign * (t[k1, 0] - ax), sign * (t[k1, 1] - ay)
+    return max(ex * (u[0, 1] - ay) - ey * (u[0, 0] - ax),
+               ex * (u[1, 1] - ay) - ey * (u[1, 0] - ax),
+               ex * (u[2, 1] - ay) - ey * (u[2, 0] - ax))
 
 
 @njit(cache=True, nogil=True)
@@ -114,10 +128,10 @@ def triangles_apart(t, u) -> bool:
         return False
     sign_t = 1.0 if st > 0.0 else -1.0
     sign_u = 1.0 if su > 0.0 else -1.0
-    for k in range(3):
-        if _outside_edge(t, k, u, sign_t) or _outside_edge(u, k, t, sign_u):
-            return True
-    return False
+    reach = min(_beyond_edge(t, 0, u, sign_t), _beyond_edge(t, 1, u, sign_t),
+                _beyond_edge(t, 2, u, sign_t), _beyond_edge(u, 0, t, sign_u),
+                _beyond_edge(u, 1, t, sign_u), _beyond_edge(u, 2, t, sign_u))
+    return reach <= 0.0
 
 
 @njit(cache=True, nogil=True)

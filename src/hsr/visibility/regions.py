@@ -47,6 +47,7 @@ from ..geometry.convex import (
     clip_half_plane,
     clip_to_view,
     edge_lines,
+    side_of_line,
     signed_area,
     triangles_apart,
 )
@@ -237,6 +238,7 @@ class CellGrid(NamedTuple):
     zmin: np.ndarray  # (E,) float64, ascending within a cell
     box: np.ndarray  # (E, 4) float64: x0, y0, x1, y1
     face: np.ndarray  # (E,) int64
+    xy: np.ndarray  # (E, 3, 2) float64, the corners
 
 
 @njit(cache=True, nogil=True)
@@ -275,10 +277,11 @@ def _screen_setup(xy_window, depth_window, face_id, height):
     return ScreenTriangles(xy[:m], planes[:m], zmax[:m], box[:m], face[:m]), zmin[:m]
 
 
-def _grid(box: np.ndarray, zmin: np.ndarray, tri_face: np.ndarray, width: int, height: int,
+def _grid(tris: ScreenTriangles, zmin: np.ndarray, width: int, height: int,
           members: np.ndarray | None = None) -> CellGrid:
-    """The :class:`CellGrid` of the triangles ``members`` (default all) with boxes ``box``
-    (T, 4), least depths ``zmin`` and faces ``tri_face``."""
+    """The :class:`CellGrid` of the triangles ``members`` (default all) of ``tris``, whose
+    least depths are ``zmin``."""
+    box = tris.box
     if members is None:
         members = np.arange(len(box))
     cell = max(1.0 / 64, math.sqrt(width * height * _CELL_TRIANGLES / max(len(members), 1)))
@@ -286,7 +289,8 @@ def _grid(box: np.ndarray, zmin: np.ndarray, tri_face: np.ndarray, width: int, h
     # Nearest first, ties in submission order: a counting sort by cell keeps that order.
     members = members[np.argsort(zmin[members], kind="stable")]
     start, tri = _fill_grid(box, members, cell, ncx, ncy, float(width), float(height))
-    return CellGrid(cell, ncx, ncy, start, tri, zmin[tri], box[tri], tri_face[tri])
+    return CellGrid(cell, ncx, ncy, start, tri, zmin[tri], box[tri], tris.face[tri],
+                    tris.xy[tri])
 
 
 @njit(cache=True, nogil=True)
@@ -337,12 +341,12 @@ def _regions_range(lo, hi, tris, grid, later_wins, width, height):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, lines):
     """:func:`_regions_range` in the scratch arrays it allocated (kept alive there)."""
-    cell, ncx, ncy, cell_start, cell_tri, cell_zmin, cell_box, cell_face = grid
+    cell, ncx, ncy, cell_start, cell_tri, cell_zmin, cell_box, cell_face, cell_xy = grid
     planes, zmax, box, tri_face = tris.planes, tris.zmax, tris.box, tris.face
     # Views without reference counts: each slice handed to a helper in the loops below
     # would otherwise cost two atomic instructions (1.32 -> 0.38 s at 180k triangles).
-    xy, work, counts, lines = borrowed(tris.xy), borrowed(work), borrowed(counts), borrowed(
-        lines)
+    xy, cell_xy = borrowed(tris.xy), borrowed(cell_xy)
+    work, counts, lines = borrowed(work), borrowed(counts), borrowed(lines)
     cur, nxt = work[:_MAX_PIECES], work[_MAX_PIECES:2 * _MAX_PIECES]
     cur_n, nxt_n = counts[0], counts[1]
     tri, tmp = work[2 * _MAX_PIECES], work[2 * _MAX_PIECES + 1]
@@ -391,20 +395,21 @@ def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, line
                     j = cell_tri[e]
                     # Neighbours in a mesh share an edge or a corner and no area: most
                     # candidates of a fine surface (separating axes, before any clipping).
-                    if triangles_apart(xy[i], xy[j]):
+                    hider_xy = cell_xy[e]  # read in order: xy[j] would miss the cache
+                    if triangles_apart(xy[i], hider_xy):
                         continue
                     # d = z_i - z_j, affine: > 0 where j is nearer.
                     big = 0.0
                     scale = 1.0
                     for k in range(3):
-                        d = ai * xy[j, k, 0] + bi * xy[j, k, 1] + ci - (
-                            planes[j, 0] * xy[j, k, 0] + planes[j, 1] * xy[j, k, 1]
-                            + planes[j, 2])
+                        x, y = hider_xy[k, 0], hider_xy[k, 1]
+                        d = ai * x + bi * y + ci - (planes[j, 0] * x + planes[j, 1] * y
+                                                    + planes[j, 2])
                         big = max(big, abs(d))
                         scale = max(scale, abs(planes[j, 2]))
                     for k in range(3):
-                        hider[k, 0] = xy[j, k, 0]
-                        hider[k, 1] = xy[j, k, 1]
+                        hider[k, 0] = hider_xy[k, 0]
+                        hider[k, 1] = hider_xy[k, 1]
                     if big <= _TIE * scale:
                         # One plane: OpenGL's tie rule (less: the first drawn stays).
                         hides = (tri_face[j] > tri_face[i]) if later_wins else (
@@ -437,6 +442,16 @@ def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, line
                         for h in range(hn):
                             if m == _MAX_PIECES:
                                 overflow = True
+                                break
+                            side = side_of_line(rest, rn, lines[h, 0], lines[h, 1],
+                                                lines[h, 2])
+                            if side < 0:
+                                continue  # inside this edge: nothing to cut off (most)
+                            if side > 0:  # outside it: all of the rest is one piece
+                                nxt[m, :rn] = rest[:rn]
+                                if abs(signed_area(nxt[m], rn)) > 0.0:
+                                    nxt_n[m] = rn
+                                    m += 1
                                 break
                             on = clip_half_plane(rest, rn, lines[h, 0], lines[h, 1],
                                                  lines[h, 2], nxt[m])
@@ -489,10 +504,10 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
     tris, zmin = _screen_setup(np.asarray(xy_window, dtype=np.float64).reshape(-1, 3, 2),
                                np.asarray(depth_window, dtype=np.float64).reshape(-1, 3),
                                np.asarray(face_id, dtype=np.int64), float(height))
-    xy, box, tri_face = tris.xy, tris.box, tris.face
+    xy, tri_face = tris.xy, tris.face
     # Only hiders in the grid: the others (transparent surfaces) are never a candidate.
     members = None if hides is None else np.flatnonzero(np.asarray(hides, bool)[tri_face])
-    grid = _grid(box, zmin, tri_face, width, height, members)
+    grid = _grid(tris, zmin, width, height, members)
     # Eight chunks a thread, taken as threads come free: the work per triangle is uneven
     # (a buried region stops early, a visible one meets all its candidates).
     bounds = split_range(len(xy), min(8 * workers.threads, max(1, len(xy) // 256)))
