@@ -15,14 +15,13 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def _next_in_piece(piece_start, p0, p1, e0):
-    """For each vertex of pieces p0..p1 (numbered from e0), the index of the next one."""
-    nxt = np.empty(piece_start[p1] - e0, dtype=np.int64)
+def _next_in_piece(piece_start, p0, p1, e0, nxt):
+    """Into ``nxt``: for each vertex of pieces p0..p1 (numbered from e0), the index of the
+    next one."""
     for p in range(p0, p1):
         a, b = piece_start[p], piece_start[p + 1]
         for i in range(a, b):
             nxt[i - e0] = (i + 1 if i + 1 < b else a) - e0
-    return nxt
 
 
 SNAP = 2.0 ** 20  # grid steps per pixel for matching vertices
@@ -37,15 +36,12 @@ def merge_pieces(vertices, piece_start, group_start):
 
 
 @njit(cache=True, nogil=True)
-def _group_edges(key, piece_start, p0, p1, nxt, e0):
-    """Directed edges (M, 4) int64 (start x, y, end x, y on the snap grid) of the group's
-    pieces, each split at every group vertex lying inside it (T-junctions), zero-length
-    ones dropped."""
+def _group_edges(key, piece_start, p0, p1, nxt, e0, out, ts, idx):
+    """Into ``out``: the directed edges (start x, y, end x, y on the snap grid) of the
+    group's pieces, each split at every group vertex lying inside it (T-junctions),
+    zero-length ones dropped; returns their count. ``ts``, ``idx``: scratch."""
     n_e = piece_start[p1] - e0
-    out = np.empty((4 * n_e * n_e + 1, 4), dtype=np.int64)
     m = 0
-    ts = np.empty(n_e)
-    idx = np.empty(n_e, dtype=np.int64)
     for i in range(n_e):
         ax, ay = key[e0 + i, 0], key[e0 + i, 1]
         bx, by = key[e0 + nxt[i], 0], key[e0 + nxt[i], 1]
@@ -64,10 +60,17 @@ def _group_edges(key, piece_start, p0, p1, nxt, e0):
                 continue
             ts[k], idx[k] = t, j
             k += 1
-        order = np.argsort(ts[:k])
+        # Along the edge (insertion sort, stable as argsort's: a handful of points).
+        for r in range(1, k):
+            t, j = ts[r], idx[r]
+            q = r
+            while q > 0 and ts[q - 1] > t:
+                ts[q], idx[q] = ts[q - 1], idx[q - 1]
+                q -= 1
+            ts[q], idx[q] = t, j
         cx, cy = ax, ay
         for r in range(k):
-            j = idx[order[r]]
+            j = idx[r]
             vx, vy = key[e0 + j, 0], key[e0 + j, 1]
             if vx != cx or vy != cy:
                 out[m, 0], out[m, 1], out[m, 2], out[m, 3] = cx, cy, vx, vy
@@ -76,7 +79,7 @@ def _group_edges(key, piece_start, p0, p1, nxt, e0):
         if bx != cx or by != cy:
             out[m, 0], out[m, 1], out[m, 2], out[m, 3] = cx, cy, bx, by
             m += 1
-    return out[:m]
+    return m
 
 
 @njit(cache=True, nogil=True)
@@ -88,17 +91,26 @@ def _merge(vertices, key, piece_start, group_start):
     group_ring = np.empty(n_groups + 1, dtype=np.int64)
     nv, nr = 0, 0
     ring_start[0] = 0
+    # Scratch for the largest group, allocated once (a figure has thousands of groups).
+    most = 1
+    for g in range(n_groups):
+        most = max(most, piece_start[group_start[g + 1]] - piece_start[group_start[g]])
+    nxt = np.empty(most, dtype=np.int64)
+    edges = np.empty((4 * most * most + 1, 4), dtype=np.int64)
+    used = np.empty(4 * most * most + 1, dtype=np.bool_)
+    ts = np.empty(most)
+    idx = np.empty(most, dtype=np.int64)
+    keep = np.empty(4 * most * most + 1, dtype=np.bool_)
     for g in range(n_groups):
         group_ring[g] = nr
         p0, p1 = group_start[g], group_start[g + 1]
         e0 = piece_start[p0]
-        nxt = _next_in_piece(piece_start, p0, p1, e0)
         ok = p1 - p0 > 1
         nv0, nr0 = nv, nr
         if ok:
-            edges = _group_edges(key, piece_start, p0, p1, nxt, e0)
-            n_m = edges.shape[0]
-            used = np.zeros(n_m, dtype=np.bool_)
+            _next_in_piece(piece_start, p0, p1, e0, nxt)
+            n_m = _group_edges(key, piece_start, p0, p1, nxt, e0, edges, ts, idx)
+            used[:n_m] = False
             for i in range(n_m):
                 if used[i]:
                     continue
@@ -135,7 +147,7 @@ def _merge(vertices, key, piece_start, group_start):
                     cur = found
                 if not ok:
                     break
-                nv = first + _drop_collinear(out, first, nv)
+                nv = first + _drop_collinear(out, first, nv, keep)
                 nr += 1
                 ring_start[nr] = nv
         if not ok:  # one piece, or edges that do not chain: the pieces as they are
@@ -151,17 +163,17 @@ def _merge(vertices, key, piece_start, group_start):
 
 
 @njit(cache=True, nogil=True)
-def _drop_collinear(out, first, end):
+def _drop_collinear(out, first, end, keep):
     """Remove ring vertices out[first:end] on the line through their neighbours (twice
-    the triangle's area under 1e-9 px^2); returns the ring's new length."""
+    the triangle's area under 1e-9 px^2); returns the ring's new length. ``keep``:
+    scratch."""
     n = end - first
-    keep = np.ones(n, dtype=np.bool_)
     for i in range(n):
         px, py = out[first + (i - 1) % n, 0], out[first + (i - 1) % n, 1]
         cx, cy = out[first + i, 0], out[first + i, 1]
         qx, qy = out[first + (i + 1) % n, 0], out[first + (i + 1) % n, 1]
         keep[i] = abs((cx - px) * (qy - py) - (cy - py) * (qx - px)) > 1e-9
-    if keep.sum() < 3:
+    if keep[:n].sum() < 3:
         return n
     k = 0
     for i in range(n):
