@@ -216,6 +216,11 @@ def check_used_positions(positions: np.ndarray, used: np.ndarray, name: str) -> 
     """The largest absolute coordinate of the ``used`` vertices; raises
     :class:`~hsr.errors.MeshError` for one that is NaN, infinite or beyond
     :data:`MAX_COORDINATE` (unused vertices may hold anything)."""
+    chosen = positions if used.all() else positions[used]
+    with np.errstate(invalid="ignore"):
+        largest = np.abs(chosen).max() if len(chosen) else 0.0
+    if largest <= MAX_COORDINATE:  # (False for NaN) one flat pass where all is well
+        return float(largest)
     finite = np.isfinite(positions).all(axis=1)
     if not finite[used].all():
         v = int(np.argwhere(~finite & used)[0][0])
