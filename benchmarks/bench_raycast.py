@@ -32,8 +32,8 @@ import time
 import numpy as np
 
 import hsr
-import hsr.algorithms.bvh as rc
 from common import agreement_percent, load_model, timings
+from hsr.algorithms.bvh import sah
 
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 
@@ -128,8 +128,8 @@ def main(argv=None):
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for spec in args.models:
         mesh, label = load_model(spec)
-        rc.build(mesh)  # compiles
-        tree = rc.build(mesh)
+        sah.build(mesh)  # compiles
+        tree = sah.build(mesh)
         tris = hsr.Scene([mesh]).world_triangles().astype(np.float32)
         for view, (width, height) in ((v, s) for v in views for s in sizes):
             cam = view_camera(mesh, view)

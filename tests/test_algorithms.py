@@ -13,12 +13,14 @@ from numba import njit
 from test_zbuffer_reference import small_scene
 
 import hsr
-import hsr.algorithms.bvh as rc
 from conftest import against_zbuffer, coplanar_soup
 from hsr import scenes
 from hsr.algorithms import ALGORITHMS
+from hsr.algorithms.bvh import collapse, layout, sah
+from hsr.algorithms.bvh.ranking import clip_zw as _clip_zw
+from hsr.algorithms.bvh.ranking import depth32 as _depth32
+from hsr.algorithms.bvh.ranking import t_bound as _t_bound
 from hsr.algorithms.fragments import face_barycentrics
-from hsr.algorithms.rays import _clip_zw, _depth32, _t_bound
 from reference import ambiguous_pixels, compare, reference_render
 
 W, H = 96, 72
@@ -225,7 +227,7 @@ def test_bvh_ray_caster_switching_walk_ranks_hits_as_the_naive_loop():
     state's ranking carried across each switch: the same hits as
     the naive loop under culling, both depth functions and both windings (the repeated
     faces tie exactly; submission order decides)."""
-    from hsr.algorithms.rays import INTERLEAVE_BYTES
+    from hsr.algorithms.bvh.walk import INTERLEAVE_BYTES
 
     mesh = scenes.terrain_mesh(60_000)
     n = len(mesh.faces)
@@ -298,15 +300,15 @@ def _bound_misses(rank, o, d, ts):
 def test_ray_caster_bound_keeps_every_hit_that_could_rank_first(seed, ratio, ortho,
                                                                 depth_range):
     """The ray caster prunes a pixel ray's walk past the bound of its best hit
-    (hsr.algorithms.rays._t_bound): no point past it may have a float32 window depth
+    (hsr.algorithms.bvh.ranking.t_bound): no point past it may have a float32 window depth
     as near as the hit's (a tie, which submission order decides, or nearer). Checked
     with the walk's own depth arithmetic on the rays the ray caster makes, for hits
     all along random pixel rays, with far / near from 1.01 to 1e7 (the rays' tie reach
     where it is small enough, else solving at each hit), perspective and orthographic,
     and depth ranges wide and narrow. Where the reach is used the bound stays within
     REACH_MAX of the hit (it prunes)."""
+    from hsr.algorithms.bvh.ranking import REACH_MAX, window_ranking
     from hsr.algorithms.raycast import row_rays
-    from hsr.algorithms.rays import REACH_MAX, window_ranking
 
     rng = np.random.default_rng(seed)
     near = float(rng.uniform(0.01, 2.0))
@@ -479,8 +481,8 @@ def test_bvh_invariants(models_dir, threads):
     """cow: 5,804 faces, so with 2 or 3 threads the subtrees below the top are built in
     parallel and their nodes renumbered; the tree must be the one thread's."""
     mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
-    bvh = rc.build(mesh, threads=threads)
-    assert _tree_shape(bvh) == _tree_shape(rc.build(mesh, threads=1))
+    bvh = sah.build(mesh, threads=threads)
+    assert _tree_shape(bvh) == _tree_shape(sah.build(mesh, threads=1))
     leaves = bvh.node_left < 0
     assert leaves.sum() * 2 - 1 == bvh.n_nodes
     # Every non-degenerate triangle in exactly one leaf.
@@ -500,9 +502,9 @@ def test_bvh_invariants(models_dir, threads):
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
         # Tight: the float32 box of the triangles, rounded outwards (the build's boxes
         # come from its bins, not from a pass over the triangles).
-        assert np.array_equal(bvh.node_min[node], rc._outwards32(tris.reshape(-1, 3).min(0),
+        assert np.array_equal(bvh.node_min[node], sah._outwards32(tris.reshape(-1, 3).min(0),
                                                                  -np.inf))
-        assert np.array_equal(bvh.node_max[node], rc._outwards32(tris.reshape(-1, 3).max(0),
+        assert np.array_equal(bvh.node_max[node], sah._outwards32(tris.reshape(-1, 3).max(0),
                                                                  np.inf))
     for node in np.flatnonzero(~leaves):
         kids = [bvh.node_left[node], bvh.node_left[node] + 1]
@@ -510,14 +512,14 @@ def test_bvh_invariants(models_dir, threads):
         assert np.array_equal(bvh.node_max[node], bvh.node_max[kids].max(0))
     # Built without the binary tree (RayScene), whose node numbers are then not closed
     # up, the walked tree is the same.
-    walked = rc.build(mesh, threads=threads, keep_tree=False)
+    walked = sah.build(mesh, threads=threads, keep_tree=False)
     assert walked.n_nodes == 0 and walked.root_ref == bvh.root_ref
-    assert np.array_equal(walked.node_box[:, :rc.REF], bvh.node_box[:, :rc.REF])
+    assert np.array_equal(walked.node_box[:, :layout.REF], bvh.node_box[:, :layout.REF])
     assert np.array_equal(walked.node_link, bvh.node_link)
     assert np.array_equal(walked.corners, bvh.corners)
     # The walked 4-wide tree's leaves hold every slot once.
-    link = bvh.node_link[:, rc.REF:]
-    refs, counts = link[:, :rc.LANES], link[:, rc.LANES:]
+    link = bvh.node_link[:, layout.REF:]
+    refs, counts = link[:, :layout.LANES], link[:, layout.LANES:]
     slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
                                                                 counts[counts > 0])])
     assert np.array_equal(np.sort(slots), np.arange(len(bvh.tri_index)))
@@ -525,7 +527,7 @@ def test_bvh_invariants(models_dir, threads):
 
 def test_bvh_reused_across_views(models_dir):
     mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
-    bvh = rc.build(mesh)
+    bvh = sah.build(mesh)
     for direction in ((0, 0, 1), (1, 0, 0), (0, 1, 0.1)):
         cam = hsr.Camera.frame(mesh.bounds(), direction=direction)
         a = hsr.render(mesh, cam, 80, 60, algorithm="raycast", options={"bvh": bvh})
@@ -555,8 +557,8 @@ def test_deep_unbalanced_bvh_walks_like_the_naive_loop():
     corners = np.stack([np.stack([x, -one, z], 1), np.stack([1.5 * x, -one, z], 1),
                         np.stack([x, one, z], 1)], 1)
     mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    bvh = rc.build(mesh)
-    assert bvh.wide_depth > 3 * np.log(n) / np.log(rc.LANES)
+    bvh = sah.build(mesh)
+    assert bvh.wide_depth > 3 * np.log(n) / np.log(layout.LANES)
     seen = set()
     for eye_x in (1e-3, 0.3, 40.0, 300.0):
         cam = hsr.Camera(eye=(eye_x, 0, 2), target=(eye_x, 0, -1), up=(0, 1, 0), fov_y=60,
@@ -580,9 +582,9 @@ def test_deep_unbalanced_bvh_built_in_parallel_is_the_same_tree():
     corners = np.stack([np.stack([x, -one, z], 1), np.stack([1.5 * x, -one, z], 1),
                         np.stack([x, one, z], 1)], 1)
     mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    one_thread = _tree_shape(rc.build(mesh, threads=1))
+    one_thread = _tree_shape(sah.build(mesh, threads=1))
     for threads in (2, 3):
-        bvh = rc.build(mesh, threads=threads)
+        bvh = sah.build(mesh, threads=threads)
         assert _tree_shape(bvh) == one_thread
     assert bvh.wide_depth > 2 * np.log(n) / np.log(4)
     cam = hsr.Camera(eye=(1e-3, 0, 2), target=(1e-3, 0, -1), up=(0, 1, 0), fov_y=60,
@@ -613,7 +615,7 @@ def _least_collapse_cost(bvh):
             c = stack.pop()
             if bvh.node_left[c] < 0 or kind[c] == "leaf":
                 count += 1
-                leaves += rc.C_LEAF_TRIANGLE * area[c] * bvh.node_count[c]
+                leaves += collapse.C_LEAF_TRIANGLE * area[c] * bvh.node_count[c]
             elif kind[c] == "wide":
                 count += 1
             else:
@@ -621,15 +623,15 @@ def _least_collapse_cost(bvh):
         return count, leaves
 
     best = np.inf
-    options = [("wide", "merged", "leaf") if bvh.node_count[b] <= rc.LEAF_MAX
+    options = [("wide", "merged", "leaf") if bvh.node_count[b] <= collapse.LEAF_MAX
                else ("wide", "merged") for b in inner]
     for kinds in itertools.product(*options):
         kind = dict(zip(inner, kinds))
         total, fits = 0.0, True
         for b in [0] + [b for b in inner if kind[b] == "wide"]:
             count, leaves = lanes(b, kind)
-            fits &= count <= rc.LANES
-            total += leaves + (rc.C_NODE * area[b] if b != 0 else 0.0)
+            fits &= count <= layout.LANES
+            total += leaves + (collapse.C_NODE * area[b] if b != 0 else 0.0)
         if fits:
             best = min(best, total)
     return best
@@ -648,7 +650,7 @@ def test_wide_tree_is_the_least_cost_collapse_of_the_binary_tree(seed):
         size=n) * 0.3], 1)
     corners = base[:, None, :] + rng.normal(size=(n, 3, 3)) * 0.2
     mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    bvh = rc.build(mesh, threads=1)
+    bvh = sah.build(mesh, threads=1)
     if int((bvh.node_left >= 0).sum()) > 11:
         pytest.skip("tree too large to try every collapse")
     boxes = {tuple(np.r_[bvh.node_min[b], bvh.node_max[b]]): b for b in range(bvh.n_nodes)}
@@ -656,22 +658,22 @@ def test_wide_tree_is_the_least_cost_collapse_of_the_binary_tree(seed):
     while stack:
         w = stack.pop()
         box, link = bvh.node_box[w], bvh.node_link[w]
-        for lane in range(rc.LANES):
-            count = link[rc.COUNT_AT + lane]
+        for lane in range(layout.LANES):
+            count = link[layout.COUNT_AT + lane]
             if count < 0:
                 continue
-            lo = box[lane:3 * rc.LANES:rc.LANES]
-            hi = box[3 * rc.LANES + lane:6 * rc.LANES:rc.LANES]
+            lo = box[lane:3 * layout.LANES:layout.LANES]
+            hi = box[3 * layout.LANES + lane:6 * layout.LANES:layout.LANES]
             b = boxes[tuple(np.r_[lo, hi])]  # a binary node's box
             if count == 0:
-                total += rc.C_NODE * _box_area(lo, hi)
-                stack.append(link[rc.REF + lane])
+                total += collapse.C_NODE * _box_area(lo, hi)
+                stack.append(link[layout.REF + lane])
             else:
                 # A leaf: the binary node's slots, all of them.
-                assert (link[rc.REF + lane], count) == (bvh.node_start[b], bvh.node_count[b])
-                assert count <= max(rc.LEAF_MAX, rc.LEAF_SIZE)
-                total += rc.C_LEAF_TRIANGLE * _box_area(lo, hi) * count
-                slots += range(link[rc.REF + lane], link[rc.REF + lane] + count)
+                assert (link[layout.REF + lane], count) == (bvh.node_start[b], bvh.node_count[b])
+                assert count <= max(collapse.LEAF_MAX, sah.LEAF_SIZE)
+                total += collapse.C_LEAF_TRIANGLE * _box_area(lo, hi) * count
+                slots += range(link[layout.REF + lane], link[layout.REF + lane] + count)
     assert sorted(slots) == list(range(len(bvh.tri_index)))
     assert total <= _least_collapse_cost(bvh) * (1 + 1e-6)
 
@@ -686,14 +688,14 @@ def test_few_overlapping_faces_make_a_wide_root_of_their_leaves(copies):
     last column). Every slot in one leaf, and the walks answer as the naive loop."""
     tri = np.array([[0.0, 0.0, -5.0], [1.0, 0.0, -5.0], [0.0, 1.0, -5.0]])
     mesh = hsr.Mesh(np.concatenate([tri] * copies), np.arange(3 * copies).reshape(-1, 3))
-    bvh = rc.build(mesh, threads=1)
+    bvh = sah.build(mesh, threads=1)
     assert bvh.node_left[0] >= 0 and bvh.root_count == 0
-    _, _, choice, split = rc._collapse_plan(
+    _, _, choice, split = collapse._collapse_plan(
         bvh.node_min.astype(np.float64), bvh.node_max.astype(np.float64),
         bvh.node_left.astype(np.int64), bvh.node_count.astype(np.int64))
-    assert choice[0, rc.LANES - 1] == -1 and 1 <= split[0] < rc.LANES
-    link = bvh.node_link[:, rc.REF:]
-    refs, counts = link[:, :rc.LANES], link[:, rc.LANES:]
+    assert choice[0, layout.LANES - 1] == -1 and 1 <= split[0] < layout.LANES
+    link = bvh.node_link[:, layout.REF:]
+    refs, counts = link[:, :layout.LANES], link[:, layout.LANES:]
     slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
                                                                 counts[counts > 0])])
     assert np.array_equal(np.sort(slots), np.arange(copies))
@@ -719,8 +721,8 @@ def test_wide_tree_fills_its_nodes():
     k = np.arange(n * (n + 1)).reshape(n, n + 1)[:, :n].ravel()
     faces = np.concatenate([np.stack([k, k + 1, k + n + 2], 1),
                             np.stack([k, k + n + 2, k + n + 1], 1)])
-    bvh = rc.build(hsr.Mesh(positions, faces))
-    counts = bvh.node_link[:, rc.COUNT_AT:]
+    bvh = sah.build(hsr.Mesh(positions, faces))
+    counts = bvh.node_link[:, layout.COUNT_AT:]
     assert (counts >= 0).sum() / bvh.n_wide_nodes > 6.5
 
 
@@ -731,7 +733,8 @@ def test_wide_boxes_round_outwards_as_numpy_does():
     and the rounding of float64 bounds it serves is _outwards32's."""
     from numba import njit
 
-    from hsr.algorithms.bvh import _down32, _up32
+    from hsr.algorithms.bvh.layout import down32 as _down32
+    from hsr.algorithms.bvh.layout import up32 as _up32
     from hsr.algorithms.simd import next_float32
 
     @njit
@@ -758,8 +761,8 @@ def test_wide_boxes_round_outwards_as_numpy_does():
     values = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-50, 50, 5000),
                              [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
     down, up = rounded(values)
-    assert np.array_equal(down, rc._outwards32(values, -np.inf))
-    assert np.array_equal(up, rc._outwards32(values, np.inf))
+    assert np.array_equal(down, sah._outwards32(values, -np.inf))
+    assert np.array_equal(up, sah._outwards32(values, np.inf))
 
 
 def test_binary_boxes_kept_in_float32_hold_what_they_bound():
@@ -769,7 +772,7 @@ def test_binary_boxes_kept_in_float32_hold_what_they_bound():
     rng = np.random.default_rng(8)
     values = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-50, 50, 2000),
                              [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
-    down, up = rc._outwards32(values, -np.inf), rc._outwards32(values, np.inf)
+    down, up = sah._outwards32(values, -np.inf), sah._outwards32(values, np.inf)
     assert down.dtype == up.dtype == np.float32
     assert (down.astype(np.float64) <= values).all() and (up.astype(np.float64) >= values).all()
     exact = down.astype(np.float64) == values
@@ -787,6 +790,6 @@ def test_bvh_refuses_faces_changed_to_index_past_the_vertices():
         mesh = hsr.Mesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
         mesh.faces[0, 2] = bad
         with pytest.raises(hsr.MeshError, match="indexes a vertex"):
-            rc.build(mesh)
+            sah.build(mesh)
         with pytest.raises(hsr.MeshError, match="indexes a vertex"):
             hsr.RayScene(mesh)

@@ -87,6 +87,48 @@ def test_no_import_cycles():
             visit(module, [module])
 
 
+# The ray core's modules, top first: each may import only those before it (issue #66).
+RAY_CORE = ["layout", "triangle", "boxes", "stack", "collapse", "sah", "ranking", "hits",
+            "walk", "packets"]
+
+
+def test_the_ray_core_imports_only_down_its_list():
+    graph = _graph()
+    package = "hsr.algorithms.bvh"
+    present = sorted(m.rsplit(".", 1)[1] for m in graph if m.startswith(package + "."))
+    assert present == sorted(RAY_CORE), "a ray-core module missing from RAY_CORE or gone"
+    wrong = [(m, t) for m in graph if m.startswith(package + ".")
+             for t in graph[m] if t.startswith(package + ".")
+             and RAY_CORE.index(t.rsplit(".", 1)[1]) >= RAY_CORE.index(m.rsplit(".", 1)[1])]
+    assert not wrong, f"ray-core imports that do not go down its list: {wrong}"
+
+
+def _private_imports(path):
+    """(module, name) of every private name imported from an hsr module in ``path``."""
+    found = []
+    for node in ast.walk(ast.parse(open(path).read())):
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith(
+                "hsr")):
+            found += [(node.module, a.name) for a in node.names
+                      if a.name.startswith("_") and not a.name.startswith("__")]
+    return found
+
+
+def test_the_ray_core_imports_no_private_name():
+    ray_core = [m for m in _modules() if m.startswith("hsr.algorithms.bvh")
+                or m in ("hsr.algorithms.raycast", "hsr.algorithms.simd",
+                         "hsr.visibility.rays")]
+    assert len(ray_core) > 10
+    wrong = {m: _private_imports(_modules()[m]) for m in ray_core}
+    assert not any(wrong.values()), f"private names imported: {wrong}"
+
+
+def test_the_private_import_check_can_fail(tmp_path):
+    path = tmp_path / "m.py"
+    path.write_text("from .walk import _secret, public\nfrom hsr.x import __all__\n")
+    assert _private_imports(str(path)) == [("walk", "_secret")]
+
+
 def test_the_layout_test_sees_lazy_imports():
     """The checker must be able to fail: a lazy import inside a function is found."""
     graph = _graph()
@@ -98,18 +140,21 @@ def test_architecture_tree_names_every_module_and_only_files_that_exist():
     page = open(os.path.join(SRC, "..", "..", "docs", "architecture.md")).read()
     section = page.split("## The data path and the source tree", 1)[1].split("\n## ", 1)[0]
     tree = section.split("src/hsr/", 1)[1].split("```", 1)[0]
-    folder, named = "", []
+    folders, named = {}, []  # indent -> the folder opened at that indent
     for line in tree.splitlines():
         if not line.strip():
             continue
         words = line.split()
+        indent = len(line) - len(line.lstrip())
+        inside = [folders[i] for i in sorted(folders) if i < indent]
         if words[0].endswith("/"):
-            folder = words[0]
+            folders = {i: f for i, f in folders.items() if i < indent}
+            folders[indent] = words[0]
             continue
         for word in words:
             if not word.endswith(".py"):
                 break
-            named.append(os.path.join(folder if line.startswith("    ") else "", word))
+            named.append(os.path.join(*inside, word))
     assert len(named) > 30
     missing = [n for n in named if not os.path.isfile(os.path.join(SRC, n))]
     assert not missing, f"docs/architecture.md names files that do not exist: {missing}"

@@ -73,7 +73,7 @@ def walk_model(request):
     """(mesh, RayScene) on either side of INTERLEAVE_BYTES: the bunny, whose walks go a
     ray at a time to their end, and a 120k-face terrain, whose walks switch between
     eight rays in turn (checked here, so each test runs both walks)."""
-    from hsr.algorithms.rays import INTERLEAVE_BYTES
+    from hsr.algorithms.bvh.walk import INTERLEAVE_BYTES
 
     if request.param == "bunny":
         mesh = request.getfixturevalue("bunny")
@@ -110,7 +110,7 @@ def test_cast_agrees_with_embree_on_200k_random_rays(bunny):
 
 def test_camera_rays_go_in_packets_and_agree_with_embree(bunny):
     """A camera's 200k pixel rays are coherent: RayScene walks them four at a time
-    (hsr.algorithms.rays.trace_packets); the answers are checked as the random rays'."""
+    (hsr.algorithms.bvh.packets.trace_packets); the answers are checked as the random rays'."""
     origins, directions = pixel_rays(hsr.Camera.frame(bunny.bounds()), 480, 420)
     rays = hsr.RayScene(bunny)
     assert _coherent(origins, directions, rays.scene_size)
@@ -160,7 +160,8 @@ def test_camera_rays_walk_in_packets_while_triangles_are_not_much_smaller_than_p
     the interleaved walk; edge-on (many triangles a pixel where the rays land) too.
     The footprint estimate follows the triangles a pixel counted from the view, and
     the answers of the packet-walked query equal Embree's."""
-    from hsr.algorithms.rays import trace_packets, trace_range
+    from hsr.algorithms.bvh.packets import trace_packets
+    from hsr.algorithms.bvh.walk import trace_range
     from hsr.visibility.rays import _sample_runs
 
     mesh = hsr.scenes.terrain(100_000)[0].instances[0].mesh
@@ -199,7 +200,8 @@ def test_camera_queries_answer_the_same_on_either_walk(seed, n, side, t_cut):
     hits of a sample equal brute force."""
     from unittest import mock
 
-    from hsr.algorithms.rays import trace_packets, trace_range
+    from hsr.algorithms.bvh.packets import trace_packets
+    from hsr.algorithms.bvh.walk import trace_range
 
     rng = np.random.default_rng(seed)
     corners = rng.uniform(-1, 1, (n, 3, 3)) * rng.uniform(0.02, 0.8, (n, 1, 1))
@@ -241,7 +243,7 @@ def test_surface_area_sums_the_triangles_or_samples_them_evenly(bunny):
     """The area behind the walk's footprint estimate: every triangle when the samples
     are as many (float32 and float64 corners alike), and within 3% of the sum from
     4096 evenly spread ones at the bunny's 69k."""
-    from hsr.algorithms.rays import surface_area
+    from hsr.algorithms.bvh.hits import surface_area
 
     tris = bunny.positions[bunny.faces]
     exact = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
@@ -400,7 +402,7 @@ def test_results_do_not_depend_on_threads_or_chunks(bunny):
 def test_a_ray_scene_keeps_only_the_walked_tree(bunny):
     """RayScene drops the binary tree (no walk reads it): the walked arrays are those
     of a build that keeps it, and the scene box it keeps is the mesh's own bounds."""
-    from hsr.algorithms.bvh import build
+    from hsr.algorithms.bvh.sah import build
 
     rays = hsr.RayScene(bunny)
     full = build(bunny)
@@ -632,7 +634,7 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
     the key of its walking rays' nearest entry."""
     from numba import njit
 
-    from hsr.algorithms.bvh import careful_packet_keys8
+    from hsr.algorithms.bvh.boxes import careful_packet_keys8
     from hsr.algorithms.simd import packet_keys8
 
     @njit
@@ -696,7 +698,8 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
     edge values), and degenerate triangles (zero sum)."""
     from numba import njit
 
-    from hsr.algorithms.bvh import _intersect, ray_frame
+    from hsr.algorithms.bvh.triangle import intersect as _intersect
+    from hsr.algorithms.bvh.triangle import ray_frame
     from hsr.algorithms.simd import leaf_filter4
 
     @njit
@@ -749,7 +752,7 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
 
     from numba import njit
 
-    from hsr.algorithms.bvh import careful_keys8
+    from hsr.algorithms.bvh.boxes import careful_keys8
     from hsr.algorithms.simd import box_keys8
 
     @njit
@@ -839,7 +842,8 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
     plane, rays from the eye (packets from one origin, whose box and leaf tests share
     their first steps), rays parallel to axes (the packet's careful box test) and a
     last packet of three rays."""
-    from hsr.algorithms.rays import trace_packets, trace_range
+    from hsr.algorithms.bvh.packets import trace_packets
+    from hsr.algorithms.bvh.walk import trace_range
 
     rays = hsr.RayScene(bunny)
     bvh = rays.bvh
@@ -884,7 +888,8 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(walk_model):
     range of one ray), with random and axis-parallel rays (the careful box test) mixed
     and per-ray intervals; a sample's any-hit answers equal brute force. The bunny, below
     INTERLEAVE_BYTES, walks each ray to its end: the same holds."""
-    from hsr.algorithms.rays import HOT_NODES, SLOTS, trace_range
+    from hsr.algorithms.bvh.layout import HOT_NODES
+    from hsr.algorithms.bvh.walk import SLOTS, trace_range
 
     mesh, rays = walk_model
     bvh = rays.bvh
@@ -937,7 +942,8 @@ def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(wal
     walk's, which has no such shortcut; the rays stopped short answer as misses, and
     the nearest hits of a sample equal brute force. The bunny is walked a ray at a time,
     a 120k-face terrain (above INTERLEAVE_BYTES) eight rays in turn."""
-    from hsr.algorithms.rays import trace_packets, trace_range
+    from hsr.algorithms.bvh.packets import trace_packets
+    from hsr.algorithms.bvh.walk import trace_range
 
     mesh, rays = walk_model
     bvh = rays.bvh
@@ -984,7 +990,8 @@ def test_camera_rays_cut_short_answer_occluded_as_brute_force(bunny):
     packets), a third of them stopped around where they meet the model: rays of one
     packet stop at different depths, and one ray's hit must not answer its neighbour.
     ``occluded`` equals the one-ray walk on all and brute force on a sample."""
-    from hsr.algorithms.rays import ANY, trace_range
+    from hsr.algorithms.bvh.hits import ANY
+    from hsr.algorithms.bvh.walk import trace_range
     from hsr.visibility.rays import _coherent
 
     rays = hsr.RayScene(bunny)
@@ -1078,7 +1085,7 @@ def test_float32_vertices_keep_float32_corners_and_every_answer(bunny):
     them) keeps its BVH corners in float32; every query and the ray caster (with back
     faces culled, whose facing test reads the corners) answer bit for bit as with the
     same corners in float64, on random rays, camera rays and rays through vertices."""
-    from hsr.algorithms.bvh import build
+    from hsr.algorithms.bvh.sah import build
 
     mesh32 = hsr.Mesh(bunny.positions.astype(np.float32).astype(np.float64), bunny.faces)
     rays32 = hsr.RayScene(mesh32)
@@ -1117,7 +1124,8 @@ def test_the_facing_test_reads_float32_corners_in_float64():
     exactly the float64 corners' answers, so the arithmetic is float64 in both."""
     from numba import njit
 
-    from hsr.algorithms.bvh import _intersect, ray_frame
+    from hsr.algorithms.bvh.triangle import intersect as _intersect
+    from hsr.algorithms.bvh.triangle import ray_frame
 
     @njit
     def test_all(tris, origins, directions, cull_code):

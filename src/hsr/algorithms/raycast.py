@@ -11,18 +11,15 @@ from ..errors import RenderError
 from ..geometry.stage import ScreenTriangles
 from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
-from .bvh import BVH, COUNT_AT, LANES, NODE_WORDS, REF, _intersect, build, ray_frame
+from .bvh.hits import NEAREST
+from .bvh.layout import COUNT_AT, LANES, NODE_WORDS, REF
+from .bvh.packets import trace_packets
+from .bvh.ranking import clip_zw, depth32, ranks_before, window_ranking
+from .bvh.sah import BVH, build
+from .bvh.triangle import intersect, ray_frame
+from .bvh.walk import trace_range
 from .fragments import Fragments
 from .hiz import pixel_rect
-from .rays import (
-    NEAREST,
-    _clip_zw,
-    _depth32,
-    _ranks_before,
-    trace_packets,
-    trace_range,
-    window_ranking,
-)
 from .support import Needs, refuse_unless_nearest_wins, refuse_unsupported
 
 NAME = "raycast"
@@ -61,8 +58,8 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         used = None
     else:
         if bvh is None:
-            # The walked tree only: closing up and keeping the binary one cost the 1M-face
-            # terrain's frame 65 ms (309 -> 244 ms to build), and no walk reads it.
+            # The walked tree only: closing up and keeping the binary one costs time no walk uses.
+            # (Measurements: docs/history.md, "Ray core".)
             bvh = build(view.scene, workers.threads, keep_tree=False)
         elif not isinstance(bvh, BVH):
             raise RenderError(f"raycast option bvh must be an hsr.raycast.BVH (from "
@@ -84,19 +81,10 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 # The walks of the pixels' rays (stats["ray_walk"] names them).
 NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
-# Packets unless the faces are more than this many a pixel. Neighbouring pixels meet
-# neighbouring triangles (a packet's node reads serve four rays, and what it pushes is
-# fetched while it walks the nearest box) until the triangles get much smaller than a
-# pixel, when each ray meets triangles of its own and the interleaved walk, which
-# overlaps their cache misses, wins. Measured with the least-cost 8-wide tree and
-# packets fetching what they push (2 threads, min ms of hsr.render packets /
-# interleaved, the benchmark's filling / framed views): the 1M-face terrain at
-# 1920x1080 (0.48 faces a pixel) filling 123 / 189, at 1024x1024 (0.95) 123 / 156, at
-# 724x724 (1.9) 67 / 83, at 600x600 (2.8) 52 / 59, at 512x512 (3.8) 42 / 45, at 400x400
-# (6.3) 38.0 / 38.2 and framed 7.5 / 7.3, at 300x300 (11) 29.0 / 24.9 and 5.2 / 4.5; the
-# bunny filling 256x256 (1.1) 7.6 / 9.4, 128x128 (4.2) 3.2 / 3.5, 96x96 (7.5) 2.4 / 2.3.
-# (With the greedy tree and no fetching the change was at about 2 faces a pixel; with
-# packets testing a box for four rays at a time, at about half a face.)
+# Packets unless the faces are more than this many a pixel: neighbouring pixels meet
+# neighbouring triangles until they get much smaller than a pixel, when each ray meets
+# triangles of its own and the interleaved walk, which overlaps their misses, wins.
+# (Measurements: docs/history.md, "Ray core".)
 PACKET_FACES_PER_PIXEL = 5
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
@@ -118,11 +106,11 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     Hits are ranked as the z-buffer ranks fragments: by float32 window depth, equal
     depths by submission order (GL_LEQUAL: the later face; GL_LESS: the earlier), so
     coplanar faces resolve alike. With a ``bvh`` the rays go through the walks of
-    :mod:`hsr.algorithms.rays` with the render state as their ``raster``: in packets
-    of four neighbouring pixels (:func:`hsr.algorithms.rays.trace_packets`), whose rays
+    :mod:`hsr.algorithms.bvh.walk` with the render state as their ``raster``: in packets
+    of four neighbouring pixels (:func:`hsr.algorithms.bvh.packets.trace_packets`), whose rays
     meet the same boxes, unless there are more than :data:`PACKET_FACES_PER_PIXEL`
     faces a pixel; then interleaved one by one
-    (:func:`hsr.algorithms.rays.trace_range`), which overlaps the cache misses of rays
+    (:func:`hsr.algorithms.bvh.walk.trace_range`), which overlaps the cache misses of rays
     that each meet triangles of their own."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
     inv = np.linalg.inv(view_proj)
@@ -155,15 +143,10 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
         _pixel_spans(bvh.node_box, bvh.node_link, bvh.root_ref, bvh.root_count,
                      len(bvh.leaf_face), bvh.bounds, view_proj, width, height, SPAN_LEVELS,
                      spans)
-    # A perspective camera's rays start at its eye, all at one point: a packet's four
-    # rays then test a node's boxes and a leaf's corners less one origin
-    # (hsr.algorithms.simd.packet_keys8_shared, leaf_filter4_rays), as RayScene's camera
-    # rays do. Started on the near plane instead, each at its own point, the 1M-face
-    # terrain filling 1024 x 1024 took 210 ms on one thread against 205, the bunny's
-    # close view 88 against 78. The frames are the same but on shared edges, where the
-    # last bit of a ray picks the side (16 pixels of the terrain's 2M at 1080p, at equal
-    # depths). The near plane lies at the fraction near / far of the way from the eye
-    # to the far plane, on every pixel's ray.
+    # A perspective camera's rays start at its eye, all at one point, so a packet's tests
+    # share the origin (simd.packet_keys8_shared, leaf_filter4_rays). The near plane lies at
+    # the fraction near / far of the way from the eye to the far plane, on every pixel's ray.
+    # (Measurements: docs/history.md, "Ray core".)
     t_near = 0.0 if camera.is_orthographic else float(camera.near) / float(camera.far)
     tests = workers.run(_cast_rows, rows, inv, width, height, raster, walk, *nodes, eye,
                         camera.is_orthographic, forward, face, depth, distance, bary, clear,
@@ -320,7 +303,7 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
                face_buf, depth_buf, dist_buf, bary_buf, clear_depth, extras, spans, t_near):
     """Rows r_lo .. r_hi - 1, a block of rows at a time: the block's rays made, walked
     (``walk``: :data:`PACKETS` and :data:`INTERLEAVED` through the BVH with
-    :func:`hsr.algorithms.rays.trace_packets` / ``trace_range`` and ``raster``;
+    :func:`hsr.algorithms.bvh.packets.trace_packets` / ``trace_range`` and ``raster``;
     :data:`NAIVE` by :func:`_naive_walk`, ``tris`` then the faces in order) and their
     answers written to the buffers. Returns the triangle tests made, or -1 for rays
     the walk refused (not finite)."""
@@ -384,8 +367,8 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
                 # The walk's window depth of the hit, recomputed from the same numbers.
                 ox, oy, oz = origins[k, 0], origins[k, 1], origins[k, 2]
                 dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
-                zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
-                z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                zc0, zc1, wc0, wc1 = clip_zw(rank, ox, oy, oz, dx, dy, dz)
+                z = depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
                 if not (z < clear_depth or (lequal and z == clear_depth)):
                     continue
                 face_buf[r, c] = f
@@ -410,15 +393,15 @@ def _naive_walk(n, origins, directions, t_near, raster, tris, out_t, out_face, o
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
         dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
         kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(ox, oy, oz, dx, dy, dz)
-        zc0, zc1, wc0, wc1 = _clip_zw(rank, ox, oy, oz, dx, dy, dz)
+        zc0, zc1, wc0, wc1 = clip_zw(rank, ox, oy, oz, dx, dy, dz)
         best_t, best_z, best_f = np.inf, np.float32(np.inf), -1
         bv = bw = 0.0
         for f in range(tris.shape[0]):
-            t, _, v, w = _intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
+            t, _, v, w = intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz,
                                     cull_code, front_ccw, dx, dy, dz)
             if t_near <= t <= 1.0:
-                z = _depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
-                if _ranks_before(z, f, best_z, best_f, lequal):
+                z = depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                if ranks_before(z, f, best_z, best_f, lequal):
                     best_t, best_z, best_f, bv, bw = t, z, f, v, w
         out_t[i], out_face[i] = best_t, best_f
         out_uv[i, 0], out_uv[i, 1] = bv, bw

@@ -2,7 +2,7 @@
 
 Numba leaves the slab test of several boxes scalar however its loop is shaped (checked
 with ``inspect_asm``: ``vmulsd``/``vminsd`` on ``xmm``, no ``ymm``), so the walk of
-:func:`hsr.algorithms.rays.trace_range` spent most of a node on one lane at a time.
+:func:`hsr.algorithms.bvh.walk.trace_range` spent most of a node on one lane at a time.
 :func:`box_keys8` writes the same arithmetic on ``<8 x double>`` values through a Numba
 intrinsic: each operation of the scalar test (float32 bound widened to float64,
 subtract, multiply, min, max, compare) once for eight lanes, in the same order and
@@ -10,7 +10,7 @@ without fused multiply-adds, so every lane's result is bit for bit the scalar on
 (``_careful_entry`` without its NaN care). With AVX-512 the eight lanes are one
 register; on a CPU with narrower vectors LLVM splits the operations, and the results do
 not change. :func:`sort_keys8` orders a node's entered lanes without branches (the
-ordered step of :func:`hsr.algorithms.rays.trace_range`).
+ordered step of :func:`hsr.algorithms.bvh.walk.trace_range`).
 """
 
 from __future__ import annotations
@@ -270,7 +270,7 @@ def _leaf_offsets(context, builder, tris_type, array, k0_v, n_v, axes, origin):
     (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates on them
     (``origin`` okx, oky, okz, scalars): three lists of three ``<4 x double>`` (corner
     j's x, y, z; a lane per triangle, lanes past n repeat the first triangle). The
-    scalar test's first step (:func:`hsr.algorithms.bvh.sheared_corners`), corners
+    scalar test's first step (:func:`hsr.algorithms.bvh.triangle.sheared_corners`), corners
     widened to float64."""
     ary = context.make_array(tris_type)(context, builder, array)
     strides = cgutils.unpack_tuple(builder, ary.strides, 3)
@@ -330,7 +330,7 @@ def _leaf_hits(builder, offsets, sx, sy, n_v):
 def leaf_filter4(typingctx, tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy):
     """Which of the triangles ``k0 .. k0 + n - 1`` (n <= 4) of ``tris`` ((F, 3, 3),
     float64 or float32 corners) the ray can hit: bit i set unless the watertight test
-    (:func:`hsr.algorithms.bvh._intersect`, Woop, Benthin & Wald 2013) finds the edge
+    (:func:`hsr.algorithms.bvh.triangle.intersect`, Woop, Benthin & Wald 2013) finds the edge
     values of triangle k0 + i of mixed signs or their sum zero, its misses before any
     culling. The four triangles are the lanes of ``<4 x double>`` vectors, each lane
     computed with the scalar test's operations in its order (corners widened to
@@ -357,7 +357,7 @@ def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
     """:func:`leaf_filter4` for the four rays of a packet that share their origin and
     their permuted axes (a camera's rays mostly do), so that what their tests share, the
     corners read on those axes less the origin, is done once: ``frame`` (11, 4) float64
-    as :func:`hsr.algorithms.rays.trace_packets` keeps it (rows sx, sy, then okx, oky,
+    as :func:`hsr.algorithms.bvh.packets.trace_packets` keeps it (rows sx, sy, then okx, oky,
     okz; a column per ray, the origin read from ray 0's), ``axes`` (3, 4) int64 (kx,
     ky, kz of ray 0). Returns the four rays' bits of :func:`leaf_filter4`, ray r's at
     bits 4 r .. 4 r + 3; each the same bits, as the same arithmetic."""
@@ -438,7 +438,7 @@ def sort_keys8(typingctx, keys):
     how soon a hit prunes, never the answer), and ``key & ~7`` read back is the entry
     rounded down by at most seven units in the last place, never past the true entry:
     a bound compared with it keeps every box the true entry would keep (see
-    :func:`hsr.algorithms.bvh.next_box`).
+    :func:`hsr.algorithms.bvh.stack.next_box`).
 
     Batcher's odd-even merge network as six rounds of vector min and max with
     shuffles: no branch. Scalar selects written in Numba were turned into branches by
@@ -567,7 +567,7 @@ def prefetch(typingctx, array, row, offset):
     """A hint to bring the cache line at byte ``offset`` of row ``row`` of ``array``
     (rows as its first stride spaces them) towards the core (LLVM's ``llvm.prefetch``:
     read, keep in all cache levels). It reads nothing into the program and cannot fault,
-    so results never depend on it; :func:`hsr.algorithms.rays.trace_range` issues it for
+    so results never depend on it; :func:`hsr.algorithms.bvh.walk.trace_range` issues it for
     the node a ray walks next and then turns to another ray while the line comes."""
     sig = types.void(array, row, offset)
 

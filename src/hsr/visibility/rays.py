@@ -89,7 +89,7 @@ class RayScene:
     """A scene made ready for ray queries: ``RayScene(scene)`` with a :class:`~hsr.Mesh`,
     :class:`~hsr.Scene` or a mesh file's path (read with :func:`hsr.load_scene`).
 
-    The BVH (binned SAH over world-space triangles, :func:`hsr.algorithms.bvh.build`) is
+    The BVH (binned SAH over world-space triangles, :func:`hsr.algorithms.bvh.sah.build`) is
     built once here; :meth:`cast`, :meth:`occluded` and :meth:`count` all reuse it.
     Several threads may query one RayScene at once: a query changes nothing in it but
     its pool of answers' memory (:class:`hsr.parallel.OutputPool`: the arrays of
@@ -103,8 +103,8 @@ class RayScene:
 
     def __init__(self, scene: SceneLike | str | os.PathLike,
                  threads: int | None = None) -> None:
-        from ..algorithms.bvh import build
-        from ..algorithms.rays import surface_area
+        from ..algorithms.bvh.hits import surface_area
+        from ..algorithms.bvh.sah import build
         from ..scene.load import load_scene
 
         check_threads(threads)
@@ -158,7 +158,7 @@ class RayScene:
         """(N,) int32: how many times each ray crosses the surface with ``t`` in
         ``[t_min, t_max]``. Watertight: a ray through a shared edge or vertex of a
         closed mesh counts it once, so an odd count with ``t_max = inf`` means the
-        origin is inside (see :mod:`hsr.algorithms.rays`). Arguments as :meth:`cast`."""
+        origin is inside (see :mod:`hsr.algorithms.bvh.walk`). Arguments as :meth:`cast`."""
         return self._counted(2, origins, directions, t_min, t_max, progress)
 
     def _counted(self, mode, origins, directions, t_min, t_max, progress):
@@ -200,8 +200,8 @@ class RayScene:
             raise RayError(_problem(problem, ray, t0, t1))
 
     def _walk(self, origins, directions, t0, t1):
-        """The walk these rays go through: :func:`hsr.algorithms.rays.trace_packets`
-        or :func:`~hsr.algorithms.rays.trace_range` (the answers are the same on both).
+        """The walk these rays go through: :func:`hsr.algorithms.bvh.packets.trace_packets`
+        or :func:`~hsr.algorithms.bvh.walk.trace_range` (the answers are the same on both).
 
         Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
         close; :func:`_coherent`) find in cache what the ray before read, and walk in
@@ -223,7 +223,8 @@ class RayScene:
         33 / 29, 30 / 26, 61 / 53. (Until this was judged, coherent rays fewer than
         four a face all went through trace_range: the filling 1M-face terrain at 1.85x
         Open3D's cast instead of 1.29x.)"""
-        from ..algorithms.rays import trace_packets, trace_range
+        from ..algorithms.bvh.packets import trace_packets
+        from ..algorithms.bvh.walk import trace_range
 
         if not _coherent(origins, directions, self.scene_size):
             return trace_range
@@ -240,7 +241,8 @@ class RayScene:
         per unit of the scene's surface area (sampled, :data:`AREA_SAMPLES`); the
         median of the runs. 0 when no run lands whole (rays that miss are cheap on
         either walk)."""
-        from ..algorithms.rays import NEAREST, trace_range
+        from ..algorithms.bvh.hits import NEAREST
+        from ..algorithms.bvh.walk import trace_range
 
         if self._surface_area <= 0.0:
             return 0.0
@@ -333,7 +335,7 @@ def _coherent(origins, directions, size):
 
 
 def _problem(problem: int, k: int, t0: np.ndarray, t1: np.ndarray) -> str:
-    """The message for :func:`hsr.algorithms.rays.check_rays`' problem at ray k."""
+    """The message for :func:`hsr.algorithms.bvh.hits.check_rays`' problem at ray k."""
     t_min = float(t0[k if len(t0) > 1 else 0])  # plain floats: numpy's repr is np.float64(..)
     t_max = float(t1[k if len(t1) > 1 else 0])
     return {1: f"origins must be finite; ray {k} is not",

@@ -1,0 +1,370 @@
+"""The interleaved walk (:func:`trace_range`): arbitrary rays ``origin + t * direction``
+with ``t`` in ``[t_min, t_max]`` (units of the direction's length, as Embree and Open3D
+count them) against the 8-wide tree, a few rays per thread in turn so that their waits on
+memory overlap. The nearest hit, any hit, or the count of hits (:mod:`.hits`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..simd import (
+    bit_count,
+    borrowed,
+    box_keys8,
+    box_mask8,
+    leaf_filter4,
+    lowest_bit,
+    min_key8,
+    prefetch,
+    sort_keys8,
+)
+from .boxes import careful_keys8, inverse_direction
+from .hits import ANY, COUNT, LARGEST, NEAREST, check_rays, fetch_box, hit_record, plausible_ray
+from .layout import COUNT_AT, HOT_NODES, LANES, REF
+from .ranking import clip_zw, depth32, ranks_before, t_bound
+from .stack import next_box, stack_size, walk_stack
+from .triangle import intersect, owns, ray_frame
+
+__all__ = ["SLOTS", "INTERLEAVE_BYTES", "RECORD_AHEAD", "trace_range"]
+
+# Rays one thread walks at once (trace_range): a walk is a chain of memory reads, each
+# waiting on the one before, and past the cache each costs a trip to the last-level
+# cache or memory; with eight walks in turn, eight such trips overlap.
+SLOTS = 8
+
+# Scenes whose corners and nodes fit in this are walked a ray at a time, to its end:
+# their reads come from the cache, and switching rays costs more than it hides.
+# (Measurements: docs/history.md, "Ray core".)
+INTERLEAVE_BYTES = 8 << 20
+
+# How many rays ahead the pass over the hits fetches a hit's corners: far enough for a
+# miss to memory to be over when the pass gets there.
+# (Measurements: docs/history.md, "Ray core".)
+RECORD_AHEAD = 64
+
+# The columns of trace_range's slot state: float64 ...
+(_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
+ _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
+
+# ... and int64 (_I_SLOT: the BVH slot of the best hit, _I_FACE its face).
+(_I_RAY, _I_REF, _I_N, _I_TOP, _I_FACE, _I_SLOT, _I_COUNT, _I_FRAMED, _I_CAREFUL, _I_KX,
+ _I_KY, _I_KZ, _I_COLUMNS) = range(13)
+
+# error_model "numpy": IEEE division, without the zero test Numba adds to each division
+# under Python's rules (every divisor in the walks is non-zero or checked first).
+@njit(cache=True, nogil=True, error_model="numpy")
+def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
+                node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
+                out_face, out_object, out_uv, out_normal, out_count):
+    """Rays ``lo .. hi - 1`` through the 8-wide BVH of :func:`hsr.algorithms.bvh.collapse.widen`
+    in the layout of :func:`hsr.algorithms.bvh.layout.node_records` (the root a wide node
+    when ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
+    ``mode`` :data:`~hsr.algorithms.bvh.hits.NEAREST` writes ``out_t`` (+inf on a miss),
+    ``out_face`` (-1), ``out_object`` (the instance whose faces start at or before the face
+    in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and ``out_normal``
+    (the unit geometric normal as wound; 0); :data:`~hsr.algorithms.bvh.hits.ANY` writes
+    ``out_count`` 1 or 0, stopping at the first hit; :data:`~hsr.algorithms.bvh.hits.COUNT`
+    writes the number of hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or
+    one for all (length 1). Equal nearest distances go to the lower face id, so the answer
+    does not depend on the walk (nor on how rays are split between threads). ``raster`` is
+    None for these queries. The ray caster's walks pass ``(cull_code, front_ccw, lequal,
+    rank)`` with mode NEAREST (``out_t``, ``out_face`` and ``out_uv`` written): hits are
+    culled by facing as glCullFace does (cull code 0 none, 1 back, 2 front, 3 both) and
+    ranked as the z-buffer ranks fragments, by float32 window depth (``rank``:
+    :func:`hsr.algorithms.bvh.ranking.window_ranking`), equal depths by submission order
+    (the later face under GL_LEQUAL, else the earlier). Numba compiles the two kinds apart
+    (``raster is None`` is decided when compiling), so the queries' walks carry none of the
+    ray caster's code.
+
+    Each ray is checked as its walk starts (:func:`hsr.algorithms.bvh.hits.check_rays`, in
+    ray order); returns ``(tests, problem, ray)``: the triangle tests made, or the first bad
+    ray's problem and index, the rays before it traced and none after.
+
+    Each ray's walk is ordered, nearest entered box first (the step at a wide node is
+    written out below; :func:`hsr.algorithms.bvh.stack.next_box` pops), pruned by the
+    nearest hit so far (``mode`` NEAREST), by ``t_max`` otherwise. :data:`SLOTS` rays are
+    walked in turn, each with its own stack and state: when a ray's next step reads a leaf's
+    corners or a wide node past the top of the tree
+    (:data:`hsr.algorithms.bvh.layout.HOT_NODES`), that memory is prefetched
+    (:func:`hsr.algorithms.simd.prefetch`) and the next ray takes a step, so the reads of
+    several walks are under way at once instead of one after another (the interleaving of
+    independent pointer chases of Kocberber et al. 2015, "Asynchronous memory access
+    chaining"). In a scene of at most :data:`INTERLEAVE_BYTES` of corners and nodes, whose
+    reads come from the cache, each ray walks to its end before the next one starts. Each
+    ray's steps are those of its walk alone (a range of one ray), so are its answers. A ray
+    that enters none of the root's boxes is answered as it is read, without taking a slot.
+    (Coherent rays that are many for the triangles, a camera's pixels, go through
+    :func:`trace_packets` instead: RayScene sends them there from four rays a face, the ray
+    caster up to :data:`hsr.algorithms.raycast.PACKET_FACES_PER_PIXEL` faces a pixel.)"""
+    cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
+    # Views without reference counts, as in trace_packets (none were left in this walk's
+    # loop for the queries, in a profile; the ray caster's ranking had them).
+    tris, leaf_face = borrowed(tris), borrowed(leaf_face)
+    node_box, node_link = borrowed(node_box), borrowed(node_link)
+    interleave = tris.size * tris.itemsize + node_box.size * node_box.itemsize > (
+        INTERLEAVE_BYTES)
+    per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
+    one_stack = stack_size(wide_depth)
+    stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
+    keys = np.empty(LANES, dtype=np.int64)  # a node's entry keys (box_keys8)
+    # Each slot's state, in two arrays (one per type; columns named by the _F_* and
+    # _I_* constants): the ray (-1: none), where its walk stands, its bound, best hit
+    # and hit count, its origin and inverse direction for the box tests, and the
+    # triangle test's frame (ray_frame), made at its first leaf.
+    slot_f = np.empty((SLOTS, _F_COLUMNS))
+    slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
+    tests = 0
+    # The queries' nearest hits get an object and a normal (the pass after the walk):
+    # the rays that hit are listed for it.
+    records = mode == NEAREST and raster is None
+    hit_rays = np.empty(hi - lo if records else 0, dtype=np.int64)
+    n_hits = 0
+    next_ray, busy = lo, 0
+    if leaf_face.shape[0] == 0:  # no faces: every ray misses
+        for i in range(lo, hi):
+            if mode == NEAREST:
+                out_t[i], out_face[i], out_object[i] = np.inf, -1, -1
+                out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
+                if records:
+                    out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+            else:
+                out_count[i] = 0
+        next_ray = hi
+    while True:
+        for s in range(SLOTS):
+            i = slot_i[s, _I_RAY]
+            # The root's mask when this slot's ray was just tested there and entered (a
+            # ray answered before it at the intake leaves 0 here, which starts no walk).
+            root_mask = -1
+            if i < 0:  # a free slot takes the next ray, if there is one
+                while next_ray < hi:
+                    i = next_ray
+                    # Each ray is checked as its slot takes it: its data is read here anyway.
+                    # (Measurements: docs/history.md, "Ray core".)
+                    if not plausible_ray(origins, directions, t_min, t_max, i, per_ray):
+                        problem, bad = check_rays(i, i + 1, origins, directions, t_min,
+                                                  t_max)
+                        if problem:
+                            return 0, problem, bad
+                    next_ray += 1
+                    ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+                    # A ray parallel to an axis needs the slab test's NaN care (see
+                    # open_slabs).
+                    inv_dx, inv_dy, inv_dz, careful = inverse_direction(
+                        directions[i, 0], directions[i, 1], directions[i, 2])
+                    # No box entered beyond the bound can hold a hit that matters.
+                    b = min(t_max[i if per_ray[1] else 0], LARGEST)
+                    # A ray that enters none of the root's boxes is answered before it takes
+                    # a slot; one that enters starts its walk with this test's mask (and
+                    # keys) instead of a second test.
+                    # (Measurements: docs/history.md, "Ray core".)
+                    if root_count != 0 or careful:
+                        break
+                    if mode == NEAREST:
+                        root_mask = box_keys8(node_box, root_ref, ox, oy, oz, inv_dx, inv_dy,
+                                              inv_dz, b, keys)
+                    else:
+                        root_mask = box_mask8(node_box, root_ref, ox, oy, oz, inv_dx, inv_dy,
+                                              inv_dz, b)
+                    if root_mask != 0:
+                        break
+                    if mode == NEAREST:
+                        out_t[i], out_face[i], out_object[i] = np.inf, -1, -1
+                        out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
+                        if records:
+                            out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+                    else:
+                        out_count[i] = 0
+                    i = -1
+                if i < 0:
+                    continue
+                busy += 1
+                slot_i[s, _I_RAY] = i
+                slot_i[s, _I_REF], slot_i[s, _I_N] = root_ref, root_count
+                slot_i[s, _I_TOP] = s * one_stack
+                slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = -1, -1
+                slot_i[s, _I_COUNT], slot_i[s, _I_FRAMED] = 0, 0
+                slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ] = ox, oy, oz
+                slot_f[s, _F_IX], slot_f[s, _F_IY], slot_f[s, _F_IZ] = inv_dx, inv_dy, inv_dz
+                slot_i[s, _I_CAREFUL] = careful
+                slot_f[s, _F_BOUND] = b
+                slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
+                slot_f[s, _F_Z] = np.inf
+            ref, n, top = slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP]
+            b = slot_f[s, _F_BOUND]
+            ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
+            inv_dx, inv_dy, inv_dz = slot_f[s, _F_IX], slot_f[s, _F_IY], slot_f[s, _F_IZ]
+            careful = slot_i[s, _I_CAREFUL] != 0
+            done = False
+            while True:
+                if n == 0:  # a wide node: walk on into its nearest entered box
+                    if root_mask > 0:
+                        mask = root_mask  # (and keys hold its entries)
+                        root_mask = -1
+                    elif careful:
+                        mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
+                                             inv_dz, b, keys)
+                    elif mode != NEAREST:  # (the entries unused: see below)
+                        mask = box_mask8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, b)
+                    else:
+                        mask = box_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz,
+                                         b, keys)
+                    # The ordered walk (Wald et al.'s nearest child first), written out here: as an
+                    # inlined function taking the arrays, it paid a reference count per step.
+                    # (Measurements: docs/history.md, "Ray core".)
+                    if mask != 0:
+                        if mask & (mask - 1) == 0:
+                            # Most nodes a random ray visits enter one box or none.
+                            lane = lowest_bit(mask)
+                        elif mode != NEAREST:
+                            # Any hit ends an `occluded` walk and `count` walks every
+                            # entered box: the order does not matter (as in Embree's any-hit
+                            # walk), so the lowest lane is walked next, and as their bound
+                            # never shrinks every box pushed is walked: no entry key is
+                            # kept.
+                            # (Measurements: docs/history.md, "Ray core".)
+                            lane = lowest_bit(mask)
+                            rest = mask & (mask - 1)
+                            while rest != 0:
+                                other = lowest_bit(rest)
+                                rest &= rest - 1
+                                stack_ref[top] = node_link[ref, REF + other]
+                                stack_count[top] = node_link[ref, COUNT_AT + other]
+                                top += 1
+                        else:
+                            # The walk goes on into the nearest entered lane as soon
+                            # as it is known; the others' keys are ordered for the
+                            # stack meanwhile, nearest first in keys[1 .. m].
+                            m = bit_count(mask) - 1  # the entered lanes pushed
+                            if m == 1:  # two: one comparison
+                                near = keys[lowest_bit(mask)]
+                                far = keys[lowest_bit(mask & (mask - 1))]
+                                keys[1] = max(near, far)
+                                lane = min(near, far) & 7
+                            else:
+                                lane = min_key8(keys) & 7
+                                # sort_keys8: a sorting network without branches. The
+                                # entered lanes lead (a missed lane sorts last, at +inf).
+                                sort_keys8(keys)
+                            for j in range(m, 0, -1):
+                                stack_ref[top] = node_link[ref, REF + (keys[j] & 7)]
+                                stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
+                                stack_t[top] = keys[j]
+                                top += 1
+                        ref, n = (np.int64(node_link[ref, REF + lane]),
+                                  np.int64(node_link[ref, COUNT_AT + lane]))
+                        if interleave and (n != 0 or ref >= HOT_NODES):
+                            break
+                        continue
+                else:  # a leaf: slots ref .. ref + n - 1
+                    dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+                    if slot_i[s, _I_FRAMED] == 0:
+                        # Made at the first leaf: three of four random rays at the bunny
+                        # reach none.
+                        (slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ],
+                         slot_f[s, _F_SX], slot_f[s, _F_SY], slot_f[s, _F_SZ],
+                         slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]) = ray_frame(
+                            ox, oy, oz, dx, dy, dz)
+                        slot_i[s, _I_FRAMED] = 1
+                    kx, ky, kz = slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ]
+                    sx, sy, sz = slot_f[s, _F_SX], slot_f[s, _F_SY], slot_f[s, _F_SZ]
+                    okx, oky, okz = slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]
+                    t0 = t_min[i if per_ray[0] else 0]
+                    t1 = t_max[i if per_ray[1] else 0]
+                    for quad in range(ref, ref + n, 4):
+                        # The watertight test four triangles at once, then the scalar one on
+                        # the few that pass its first check (leaf_filter4).
+                        m = min(4, ref + n - quad)
+                        tests += m
+                        left = leaf_filter4(tris, quad, m, okx, oky, okz, kx, ky, kz, sx, sy)
+                        while left != 0:
+                            k = quad + lowest_bit(left)
+                            left &= left - 1
+                            t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
+                                                    sz, cull_code, front_ccw, dx, dy, dz)
+                            if not ((t0 <= t) & (t <= t1)):
+                                continue
+                            if mode == ANY:
+                                slot_i[s, _I_COUNT] = 1
+                                done = True
+                                break
+                            if mode == COUNT:
+                                if (u != 0.0 and v != 0.0 and w != 0.0) or owns(
+                                        tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+                                    slot_i[s, _I_COUNT] += 1
+                                continue
+                            f = leaf_face[k]
+                            if raster is not None:
+                                rank = raster[3]
+                                zc0, zc1, wc0, wc1 = clip_zw(rank, ox, oy, oz, dx, dy, dz)
+                                z = depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
+                                if ranks_before(z, f, slot_f[s, _F_Z], slot_i[s, _I_FACE],
+                                                 raster[2]):
+                                    slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
+                                    slot_f[s, _F_Z] = z
+                                    slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
+                                    b = t_bound(t, z, zc0, zc1, wc0, wc1, rank)
+                                continue
+                            if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
+                                                       and f < slot_i[s, _I_FACE]):
+                                slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
+                                slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
+                                b = t
+                        if done:
+                            break
+                    if done:
+                        break
+                if mode == NEAREST:
+                    ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, b,
+                                                    s * one_stack)
+                else:
+                    walking = top > s * one_stack
+                    if walking:
+                        top -= 1
+                        ref, n = np.int64(stack_ref[top]), np.int64(stack_count[top])
+                if not walking:
+                    done = True
+                    break
+                if interleave and (n != 0 or ref >= HOT_NODES):
+                    break
+            if not done:  # the next step reads memory likely not in cache: fetch it
+                slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
+                slot_f[s, _F_BOUND] = b
+                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST)
+                continue
+            # The ray's answer; out_object holds the hit's slot until the pass below.
+            # (Written out here: as a function taking the arrays, even inlined, it took
+            # 70 ns a ray.)
+            if mode == NEAREST:
+                out_t[i] = slot_f[s, _F_T]
+                out_face[i] = slot_i[s, _I_FACE]
+                out_object[i] = slot_i[s, _I_SLOT]
+                out_uv[i, 0], out_uv[i, 1] = slot_f[s, _F_U], slot_f[s, _F_V]
+                if records:
+                    if slot_i[s, _I_SLOT] >= 0:
+                        hit_rays[n_hits] = i
+                        n_hits += 1
+                    else:
+                        out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+            else:
+                out_count[i] = slot_i[s, _I_COUNT]
+            slot_i[s, _I_RAY] = -1
+            busy -= 1
+        if busy == 0 and next_ray == hi:
+            break
+    # Each hit's object and normal in a pass of its own, over the hits alone: inside
+    # the walk's loop this code slowed it.
+    # (Measurements: docs/history.md, "Ray core".)
+    if records:
+        for j in range(n_hits):
+            # The corners of the hit RECORD_AHEAD hits on are fetched meanwhile: rays
+            # that each hit a triangle of their own find it out of cache by now.
+            if j + RECORD_AHEAD < n_hits:
+                ahead = out_object[hit_rays[j + RECORD_AHEAD]]
+                prefetch(tris, ahead, 0)
+                prefetch(tris, ahead, 9 * tris.itemsize - 1)
+            i = hit_rays[j]
+            hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
+                        i)
+    return tests, 0, -1
