@@ -215,7 +215,7 @@ def visible_regions(scene: SceneLike, camera: Camera, width: int, height: int,
                         width, height, func == "lequal", stats, workers)
 
 
-class ScreenTriangles(NamedTuple):
+class CutTriangles(NamedTuple):
     """The window-space triangles the regions are cut from (image geometry, y down)."""
 
     xy: np.ndarray  # (T, 3, 2) float64
@@ -243,7 +243,7 @@ class CellGrid(NamedTuple):
 
 @njit(cache=True, nogil=True)
 def _screen_setup(xy_window, depth_window, face_id, height):
-    """The :class:`ScreenTriangles` of window-space triangles (x right, y up; a face seen
+    """The :class:`CutTriangles` of window-space triangles (x right, y up; a face seen
     edge-on, which covers no area, left out), and each one's least depth."""
     n = len(face_id)
     xy = np.empty((n, 3, 2))
@@ -274,10 +274,10 @@ def _screen_setup(xy_window, depth_window, face_id, height):
         zmin[m], zmax[m] = min(d0, d1, d2), max(d0, d1, d2)
         face[m] = face_id[i]
         m += 1
-    return ScreenTriangles(xy[:m], planes[:m], zmax[:m], box[:m], face[:m]), zmin[:m]
+    return CutTriangles(xy[:m], planes[:m], zmax[:m], box[:m], face[:m]), zmin[:m]
 
 
-def _grid(tris: ScreenTriangles, zmin: np.ndarray, width: int, height: int,
+def _grid(tris: CutTriangles, zmin: np.ndarray, width: int, height: int,
           members: np.ndarray | None = None) -> CellGrid:
     """The :class:`CellGrid` of the triangles ``members`` (default all) of ``tris``, whose
     least depths are ``zmin``."""
@@ -328,7 +328,7 @@ def _cell_of(v, cell, count):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _regions_range(lo, hi, tris, grid, later_wins, width, height):
     """Visible convex pieces of triangles ``lo:hi`` of ``tris`` (a
-    :class:`ScreenTriangles`; see the module) against the candidates of ``grid`` (a
+    :class:`CutTriangles`; see the module) against the candidates of ``grid`` (a
     :class:`CellGrid`): (piece triangle (P,), piece vertex ends (P,), vertices (V, 2),
     overflowed)."""
     # The pieces before and after a cut, then four one-polygon buffers; their counts.
