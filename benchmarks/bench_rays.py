@@ -4,29 +4,28 @@ same rays, in one run; and ``hsr.visible_vertices`` of the bunny.
     pip install -e ".[bench]"
     python benchmarks/bench_rays.py [MODEL ...] [--rays 1000000] [--repeat 3] [--rounds 3]
 
-MODEL is a mesh file or ``terrain:N`` (default: the bunny and a 1M-face terrain). Three
-ray sets per model: ``random``, origins uniform in the box grown by half its size on
-each side and directions uniform on the sphere; ``primary``, one ray per pixel centre of
-a framed 1000 x 1000 view (from the eye, directions to the far plane; the terrain is
-seen edge-on, a strip across the view); ``filling``, the same for a view along the
-box's shortest axis that the box fills (``bench_raycast.py``'s ``fill`` view: the
-terrain from above, about a triangle a pixel). Timed: the plain
-public calls with their defaults, the inputs prepared outside the timer: hsr
-``RayScene.cast`` / ``occluded`` / ``count`` (float64 in, every output), Open3D
-``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
+MODEL is a mesh file or ``terrain:N`` (default: the bunny and a 1M-face terrain). Four
+ray sets per model (``--sets`` picks some): ``random``, origins uniform in the box grown
+by half its size on each side and directions uniform on the sphere; ``inside``, the same
+with origins uniform inside the box itself (a sensor inside a scan, the inside/outside
+test); ``primary``, one ray per pixel centre of a framed 1000 x 1000 view (from the eye,
+directions to the far plane; the terrain is seen edge-on, a strip across the view);
+``filling``, the same for a view along the box's shortest axis that the box fills
+(``bench_raycast.py``'s ``fill`` view: the terrain from above, about a triangle a
+pixel). Timed: the plain public calls with their defaults, the inputs prepared outside
+the timer: hsr ``RayScene.cast`` / ``occluded`` / ``count`` (float64 in, every output),
+Open3D ``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
 (INTERSECT with output, OCCLUDED) on float32. Builds: hsr's ``RayScene(mesh)`` (after a
 first one that compiles), Open3D's ``add_triangles`` plus the first query (it commits
-its scene lazily), Embree's likewise, alternating, ``--rounds`` x ``--repeat`` each
-(min / median). Each query runs in blocks of ``--repeat`` that
-alternate over ``--rounds``; printed: min / median ms and the ratios hsr / peer of both
-(below 1: hsr is faster). Last, views per second of ``hsr batch`` of the bunny
-(``sphere:128`` at 512 x 512, ids + eye depth) against a loop of Open3D ``cast_rays``,
-``--batch-rounds`` alternating runs each (``--only-batch`` runs just that).
-``--memory`` prints instead the resident memory a ray scene adds per face, held once
-built and at the peak while building, hsr's and Open3D's, each built in a fresh
-process (the median of three). Runs on demand, never in the test suite; a missing peer
-is left out.
-"""
+its scene lazily), Embree's likewise, alternating, ``--rounds`` x ``--repeat`` each (min
+/ median). Each query runs in blocks of ``--repeat`` that alternate over ``--rounds``;
+printed: min / median ms and the ratios hsr / peer of both (below 1: hsr is faster).
+Last, views per second of ``hsr batch`` of the bunny (``sphere:128`` at 512 x 512, ids +
+eye depth) against a loop of Open3D ``cast_rays``, ``--batch-rounds`` alternating runs
+each (``--only-batch`` runs just that). ``--memory`` prints instead the resident memory
+a ray scene adds per face, held once built and at the peak while building, hsr's and
+Open3D's, each built in a fresh process (the median of three). Runs on demand, never in
+the test suite; a missing peer is left out. """
 
 from __future__ import annotations
 
@@ -37,6 +36,7 @@ import time
 
 import numpy as np
 from bench_raycast import view_camera
+from bench_regions import cpu_name
 
 import hsr
 from common import load_model, peak_gb, timings
@@ -44,15 +44,24 @@ from common import load_model, peak_gb, timings
 MODELS = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "models")
 
 
-def ray_sets(mesh, n, rng):
+RAY_SETS = ("random", "inside", "primary", "filling")
+
+
+def ray_sets(mesh, n, rng, chosen=RAY_SETS):
     lo, hi = mesh.bounds()
     pad = (hi - lo) / 2
     origins = rng.uniform(lo - pad, hi + pad, (n, 3))
     directions = rng.normal(size=(n, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    return {"random": (origins, directions),
-            "primary": camera_rays(hsr.Camera.frame(mesh.bounds()), n),
-            "filling": camera_rays(view_camera(mesh, "fill"), n)}
+    own = np.random.default_rng(1)  # the other sets' rays as before this set was added
+    inside = own.uniform(lo, hi, (n, 3))
+    inside_directions = own.normal(size=(n, 3))
+    inside_directions /= np.linalg.norm(inside_directions, axis=1, keepdims=True)
+    sets = {"random": lambda: (origins, directions),
+            "inside": lambda: (inside, inside_directions),
+            "primary": lambda: camera_rays(hsr.Camera.frame(mesh.bounds()), n),
+            "filling": lambda: camera_rays(view_camera(mesh, "fill"), n)}
+    return {name: sets[name]() for name in chosen}
 
 
 def camera_rays(cam, n):
@@ -247,6 +256,8 @@ def main(argv=None):
     parser.add_argument("--batch-rounds", type=int, default=5,
                         help="timed runs of each side of the batch comparison, alternating")
     parser.add_argument("--only-batch", action="store_true", help="just the batch comparison")
+    parser.add_argument("--sets", default=",".join(RAY_SETS),
+                        help=f"ray sets, comma-separated (default {','.join(RAY_SETS)})")
     parser.add_argument("--memory", action="store_true",
                         help="just the memory a ray scene adds per face, hsr and Open3D")
     args = parser.parse_args(argv)
@@ -269,10 +280,14 @@ def main(argv=None):
                           f"{a / b:.2f}" if a and b else "-"]
             print(f"| {os.path.basename(spec)} | {' | '.join(cells)} |")
         return 0
+    chosen = tuple(args.sets.split(","))
+    if not set(chosen) <= set(RAY_SETS):
+        parser.error(f"--sets: choose from {', '.join(RAY_SETS)}")
     rng = np.random.default_rng(0)
+    cpu = cpu_name()
     print("| model | faces | rays | query | hsr ms (min / median) | Open3D ms | hsr / Open3D "
-          "| Embree ms | hsr / Embree |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| Embree ms | hsr / Embree | CPU |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     builds = []
     for spec in args.models:
         mesh, label = load_model(spec)
@@ -295,7 +310,7 @@ def main(argv=None):
         cells.append(f"{min(mine_ms) / min(o3d_ms):.2f} / "
                      f"{np.median(mine_ms) / np.median(o3d_ms):.2f}" if o3d_ms else "-")
         builds.append((label, mesh.n_faces, *cells))
-        for kind, (o, d) in ray_sets(mesh, args.rays, rng).items():
+        for kind, (o, d) in ray_sets(mesh, args.rays, rng, chosen).items():
             mine = {"cast": lambda: rays.cast(o, d), "occluded": lambda: rays.occluded(o, d),
                     "count": lambda: rays.count(o, d)}
             theirs = {name: p[1](o, d) if p else {} for name, p in peers.items()}
@@ -311,7 +326,7 @@ def main(argv=None):
                     plo, pmed = next(measured)
                     cells += [f"{plo:.1f} / {pmed:.1f}", f"{lo / plo:.2f} / {med / pmed:.2f}"]
                 print(f"| {label} | {mesh.n_faces:,} | {len(o):,} {kind} | {query} | "
-                      f"{lo:.1f} / {med:.1f} | {' | '.join(cells)} |", flush=True)
+                      f"{lo:.1f} / {med:.1f} | {' | '.join(cells)} | {cpu} |", flush=True)
     print()
     print("| model | faces | build ms (min / median): hsr | Open3D | Embree | hsr / Open3D |")
     print("|---|---|---|---|---|---|")
