@@ -228,7 +228,8 @@ class CutTriangles(NamedTuple):
 class CellGrid(NamedTuple):
     """Cells over the image and, per cell, the triangles whose box meets it, nearest
     first: the entries of cell g are ``start[g]:start[g + 1]``, each with its triangle's
-    index, least depth, box and face copied beside it (read in order, not gathered)."""
+    index, least depth, box, face and corners copied beside it (read in order, not
+    gathered)."""
 
     cell: float  # px, square
     ncx: int
@@ -344,7 +345,8 @@ def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, line
     cell, ncx, ncy, cell_start, cell_tri, cell_zmin, cell_box, cell_face, cell_xy = grid
     planes, zmax, box, tri_face = tris.planes, tris.zmax, tris.box, tris.face
     # Views without reference counts: each slice handed to a helper in the loops below
-    # would otherwise cost two atomic instructions (1.32 -> 0.38 s at 180k triangles).
+    # would otherwise cost two atomic instructions (docs/history.md, "Exact regions without
+    # reference counts").
     xy, cell_xy = borrowed(tris.xy), borrowed(cell_xy)
     work, counts, lines = borrowed(work), borrowed(counts), borrowed(lines)
     cur, nxt = work[:_MAX_PIECES], work[_MAX_PIECES:2 * _MAX_PIECES]
@@ -530,7 +532,10 @@ def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
     object_id = (np.searchsorted(scene.face_offsets(), faces, side="right") - 1).astype(
         np.int64)
     stats.update(pieces=len(piece_tri), cells=grid.ncx * grid.ncy)
-    return Regions(faces.astype(np.int64), object_id, area, area / whole,
+    # A sliver's visible area and its whole come from different clips of it: their
+    # rounding can put the ratio a hair above 1, which no face can be.
+    fraction = np.minimum(area / whole, 1.0)
+    return Regions(faces.astype(np.int64), object_id, area, fraction,
                    piece_row.astype(np.int64), piece_start, vertices, width, height, stats)
 
 
