@@ -12,12 +12,14 @@ from .layout import LANES
 
 __all__ = ["inverse_direction", "careful_keys8", "careful_packet_keys8", "open_slabs"]
 
+
 @njit(cache=True, nogil=True, inline="always")
 def inverse_direction(dx, dy, dz):
     """(1 / dx, 1 / dy, 1 / dz, careful) for the slab tests: +inf for a zero component,
     and ``careful`` when there is one (0 * inf is NaN there; see :func:`open_slabs`)."""
     return (1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf,
             1.0 / dz if dz != 0.0 else np.inf, dx == 0.0 or dy == 0.0 or dz == 0.0)
+
 
 @njit(cache=True, nogil=True, inline="always")
 def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
@@ -29,6 +31,7 @@ def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
             (np.float64(box[w, 4 * LANES + lane]) - oy) * inv_dy,
             (np.float64(box[w, 2 * LANES + lane]) - oz) * inv_dz,
             (np.float64(box[w, 5 * LANES + lane]) - oz) * inv_dz)
+
 
 @njit(cache=True, nogil=True, inline="always")
 def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
@@ -44,6 +47,7 @@ def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     # The slack is that of hsr.algorithms.simd (see SLACK there).
     return t_in if t_in <= t_out * SLACK + SLACK_ABS and t_in <= bound else np.inf
 
+
 @njit(cache=True, nogil=True, inline="always")
 def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
     """:func:`hsr.algorithms.simd.box_keys8` lane by lane with the NaN care of
@@ -54,6 +58,7 @@ def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
         keys[lane] = float_bits(e) & ~7 | lane
         mask |= (e < np.inf) << lane
     return mask
+
 
 @njit(cache=True, nogil=True, inline="always")
 def careful_packet_keys8(box, w, rays, bound, active, out, keys):
@@ -72,6 +77,7 @@ def careful_packet_keys8(box, w, rays, bound, active, out, keys):
                 nearest = min(nearest, e)
         keys[k] = float_bits(nearest) & ~7 | k
     return mask
+
 
 @njit(cache=True, nogil=True, inline="always")
 def open_slabs(t0x, t1x, t0y, t1y, t0z, t1z):

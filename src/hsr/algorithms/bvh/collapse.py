@@ -19,6 +19,7 @@ C_NODE, C_LEAF_TRIANGLE = 1.0, 0.08
 
 LEAF_MAX = 8
 
+
 @njit(cache=True, nogil=True)
 def _collapse_plan(node_min, node_max, node_left, node_count):
     """The 8-wide collapse of the binary tree of least cost (Ylitie, Karras and Laine
@@ -102,6 +103,7 @@ def _collapse_plan(node_min, node_max, node_left, node_count):
             if cost[p, 0] <= cost[p, j - 1]:
                 cost[p, j - 1], choice[p, j - 1] = cost[p, 0], choice[p, 0]
     return order[:tail], second[:tail], choice, split
+
 
 @njit(cache=True, nogil=True)
 def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_link):

@@ -20,6 +20,7 @@ NEAREST, ANY, COUNT = 0, 1, 2
 # always fails the test against it.
 LARGEST = 1.7976931348623157e308
 
+
 @njit(cache=True, nogil=True, inline="always")
 def hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
     """The object and the unit normal (as wound) of the hit in slot ``k`` (face ``f``),
@@ -40,6 +41,7 @@ def hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
     nx, ny, nz = face_normal(tris, k)
     norm = np.sqrt(nx * nx + ny * ny + nz * nz)
     out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm
+
 
 @njit(cache=True, nogil=True)
 def check_rays(lo, hi, origins, directions, t_min, t_max):
@@ -69,6 +71,7 @@ def check_rays(lo, hi, origins, directions, t_min, t_max):
             return 7, i
     return 0, -1
 
+
 @njit(cache=True, nogil=True, inline="always")
 def plausible_ray(origins, directions, t_min, t_max, i, per_ray):
     """Whether ray ``i`` cannot be bad, without branches: a sum of the six coordinates
@@ -81,6 +84,7 @@ def plausible_ray(origins, directions, t_min, t_max, i, per_ray):
     t1 = t_max[i if per_ray[1] else 0]
     return not (((s - s) != 0.0) | zero | ((t0 - t0) != 0.0) | (t0 < 0.0) | (t1 != t1)
                 | (t0 > t1))
+
 
 @njit(cache=True, nogil=True, inline="always")
 def fetch_box(node_box, tris, leaf_face, ref, n, faces):
@@ -97,6 +101,7 @@ def fetch_box(node_box, tris, leaf_face, ref, n, faces):
             # Fetched with the corners: read after them it missed on its own.
             # (Measurements: docs/history.md, "Ray core".)
             prefetch(leaf_face, ref, 0)
+
 
 @njit(cache=True, nogil=True)
 def surface_area(tris, samples) -> float:

@@ -29,6 +29,7 @@ REF, COUNT_AT = 6 * LANES, 7 * LANES
 # (Measurements: docs/history.md, "Ray core".)
 HOT_NODES = 512
 
+
 def node_records(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Room for ``n`` wide nodes in the walked layout, uninitialised: ``(node_box,
     node_link)``, two views of one buffer aligned to 64 bytes, each node a 256-byte
@@ -44,6 +45,7 @@ def node_records(n: int) -> tuple[np.ndarray, np.ndarray]:
     return (record.view(np.float32).reshape(n, NODE_WORDS),
             record.view(np.int32).reshape(n, NODE_WORDS))
 
+
 @njit(cache=True, nogil=True, inline="always")
 def down32(x):
     """The largest float32 <= x."""
@@ -51,6 +53,7 @@ def down32(x):
     if np.float64(f) > x:
         f = next_float32(f, False)
     return f
+
 
 @njit(cache=True, nogil=True, inline="always")
 def up32(x):

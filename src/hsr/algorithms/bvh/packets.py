@@ -43,6 +43,7 @@ __all__ = ["PACKET_FETCH_AROUND", "trace_packets"]
 # (Measurements: docs/history.md, "Ray core".)
 PACKET_FETCH_AROUND = 16
 
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                   node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,

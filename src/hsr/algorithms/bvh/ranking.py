@@ -14,6 +14,7 @@ from ..simd import next_float32
 __all__ = ["window_ranking", "DEPTH_TIE", "REACH_MAX", "tie_reach", "clip_zw", "depth32",
            "t_bound", "ranks_before"]
 
+
 def window_ranking(view_proj, depth_range) -> tuple:
     """The ray caster's ranking (``raster[3]`` of :func:`trace_range`) for the rays of
     pixels (NDC x, y in [-1, 1]) to the far plane (t = 1), from the near plane (t = 0)
@@ -40,6 +41,7 @@ DEPTH_TIE = 2.0 ** -21
 # The largest tie reach used (far / near beyond about 100): past it, solving for the
 # next float32 depth at each hit prunes boxes better.
 REACH_MAX = 1e-4
+
 
 def tie_reach(view_proj, depth_scale) -> float:
     """How far past a hit (in t, on [0, 1]) another hit of the same pixel ray can still
@@ -78,6 +80,7 @@ def tie_reach(view_proj, depth_scale) -> float:
     reach = DEPTH_TIE / depth_scale * ratio * (1.0 + 1e-6) + 1e-12
     return reach if reach <= REACH_MAX else np.nan
 
+
 @njit(cache=True, nogil=True, inline="always")
 def clip_zw(rank, ox, oy, oz, dx, dy, dz):
     """(zc0, zc1, wc0, wc1): clip z and w along the ray are zc0 + t zc1 and wc0 + t wc1
@@ -88,10 +91,12 @@ def clip_zw(rank, ox, oy, oz, dx, dy, dz):
     wc1 = rank[4] * dx + rank[5] * dy + rank[6] * dz
     return zc0, zc1, wc0, wc1
 
+
 @njit(cache=True, nogil=True, inline="always")
 def depth32(t, zc0, zc1, wc0, wc1, depth_scale, depth_offset):
     """float32 window depth of the point at parameter t of the ray."""
     return np.float32((zc0 + t * zc1) / (wc0 + t * wc1) * depth_scale + depth_offset)
+
 
 @njit(cache=True, nogil=True, inline="always")
 def t_bound(t, z, zc0, zc1, wc0, wc1, rank):
@@ -121,6 +126,7 @@ def t_bound(t, z, zc0, zc1, wc0, wc1, rank):
     # large) the solution can cross the pole of the depth map and come out before the
     # hit; NaN for a degenerate ray: no pruning then.
     return min(1.0, solved * (1.0 + 1e-9) + 1e-12) if solved >= t else 1.0
+
 
 @njit(cache=True, nogil=True, inline="always")
 def ranks_before(z, f, best_z, best_f, lequal):

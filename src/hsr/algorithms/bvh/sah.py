@@ -24,9 +24,11 @@ LEAF_SIZE = 4
 
 N_BINS = 16
 
+
 def world_triangles(scene: Scene) -> np.ndarray:
     """(F, 3, 3) float64 world-space corners in submission order."""
     return as_scene(scene).world_triangles()
+
 
 @dataclass
 class BVH:
@@ -87,6 +89,7 @@ class BVH:
         wide_depth)``."""
         return (self.corners, self.leaf_face, self.node_box, self.node_link, self.root_ref,
                 self.root_count, self.wide_depth)
+
 
 def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) -> BVH:
     """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``
@@ -156,6 +159,7 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
                leaf_face=tri_index, bounds=bounds,
                build_ms=1e3 * (time.perf_counter() - t0))
 
+
 def _outwards32(values: np.ndarray, towards: float) -> np.ndarray:
     """``values`` in float32, each rounded towards ``towards`` (-inf: down, +inf: up)
     where float32 cannot hold it exactly (beyond float32's range: to +-inf, or the
@@ -165,6 +169,7 @@ def _outwards32(values: np.ndarray, towards: float) -> np.ndarray:
     moved = rounded < values if towards > 0 else rounded > values
     rounded[moved] = np.nextafter(rounded[moved], np.float32(towards))
     return rounded
+
 
 def _world_mesh(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`Scene.world_mesh` as the build's passes read it: contiguous, float64, and
@@ -180,6 +185,7 @@ def _world_mesh(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(positions, dtype=np.float64),
             np.ascontiguousarray(faces))
 
+
 @njit(cache=True, nogil=True)
 def _flag_area(lo, hi, positions, faces, with_area):
     """Whether faces ``lo .. hi - 1`` span a non-zero area (the cross product of two
@@ -187,6 +193,7 @@ def _flag_area(lo, hi, positions, faces, with_area):
     for f in range(lo, hi):
         nx, ny, nz = corner_cross(positions, faces[f, 0], faces[f, 1], faces[f, 2])
         with_area[f] = nx * nx + ny * ny + nz * nz > 0.0
+
 
 @njit(cache=True, nogil=True)
 def _fill_prims(lo, hi, positions, faces, slots, prim):
@@ -201,6 +208,7 @@ def _fill_prims(lo, hi, positions, faces, slots, prim):
             low, high = min(x, y, z), max(x, y, z)
             prim[k, a], prim[k, 3 + a], prim[k, 6 + a] = low, high, 0.5 * (low + high)
 
+
 @njit(cache=True, nogil=True)
 def _float32_exact(positions):
     """Whether every coordinate is a float32 value (NaN never is)."""
@@ -209,6 +217,7 @@ def _float32_exact(positions):
     for k in range(flat.shape[0]):
         exact &= np.float64(np.float32(flat[k])) == flat[k]
     return exact
+
 
 @njit(cache=True, nogil=True)
 def _gather_corners(lo, hi, positions, faces, order, corners):
@@ -220,6 +229,7 @@ def _gather_corners(lo, hi, positions, faces, order, corners):
             corners[k, j, 0] = positions[v, 0]
             corners[k, j, 1] = positions[v, 1]
             corners[k, j, 2] = positions[v, 2]
+
 
 def _build(prim, slots, workers, keep_tree=True):
     """The binary SAH tree over the records ``prim`` of faces ``slots``
@@ -260,6 +270,7 @@ def _build(prim, slots, workers, keep_tree=True):
     keep = np.concatenate([np.arange(n_top)] + [np.arange(s, e) for s, e in zip(base, ends)])
     return (*(a[keep] for a in nodes), order, n_nodes)
 
+
 @njit(cache=True, nogil=True)
 def _node_arrays(n):
     """Room for ``n`` nodes of the binary tree as built: (node_min, node_max, node_left,
@@ -272,6 +283,7 @@ def _node_arrays(n):
     return (np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=np.int64),
             np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64))
 
+
 @njit(cache=True, nogil=True)
 def _grow_subtree(k, k_end, prim, order, node_min, node_max, node_left, node_start,
                   node_count, each):
@@ -281,6 +293,7 @@ def _grow_subtree(k, k_end, prim, order, node_min, node_max, node_left, node_sta
     end, _ = _grow(prim, order, node_min, node_max, node_left, node_start, node_count,
                    root, base, 0, np.empty(0, dtype=np.int64))
     return end
+
 
 @njit(cache=True, nogil=True)
 def _bounds(prim, s, c):
@@ -301,6 +314,7 @@ def _bounds(prim, s, c):
 # 32 ahead, as fast as from cache).
 AHEAD = 32
 
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _bin_faces(prim, s, c, c_lo, scale, nb, bins, bin_n):
     """Slots ``s .. s + c - 1`` counted into ``bin_n`` and their boxes into ``bins``
@@ -316,6 +330,7 @@ def _bin_faces(prim, s, c, c_lo, scale, nb, bins, bin_n):
                                                           nb))
             bin_n[b] += 1
             grow_box(bins, b * np.uint64(8), prim, k)
+
 
 @njit(cache=True, nogil=True)
 def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, root,
@@ -426,6 +441,7 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
         stack_centroids.append(l_centroids)
     return next_node, n_pending
 
+
 @njit(cache=True, nogil=True)
 def _close_up(node_left, n_top, pending, base, ends):
     """Renumber child references for the node arrays with the gaps between subtrees
@@ -440,6 +456,7 @@ def _close_up(node_left, n_top, pending, base, ends):
                 node_left[node] -= shift
         start += ends[k] - base[k]
 
+
 @njit(cache=True, nogil=True, inline="always")
 def _bin_of(centroid, c_lo, scale, nb):
     """The SAH bin of a centroid among ``nb``, ``scale`` being nb / the centroids' extent
@@ -448,11 +465,13 @@ def _bin_of(centroid, c_lo, scale, nb):
     loop is most of a build."""
     return min(int((centroid - c_lo) * scale), nb - 1)
 
+
 @njit(cache=True, nogil=True, inline="always")
 def _area_times(lx, ly, lz, hx, hy, hz, count):
     """Surface area (half of it) of a box times a face count; 0 for no faces."""
     dx, dy, dz = hx - lx, hy - ly, hz - lz
     return (dx * dy + dy * dz + dz * dx) * count if count > 0 else 0.0
+
 
 @njit(cache=True, nogil=True)
 def _best_split(bins, bin_n, nb, scale, right_cost):

@@ -12,12 +12,14 @@ from .layout import LANES
 
 __all__ = ["stack_size", "walk_stack", "next_box"]
 
+
 @njit(cache=True, nogil=True, inline="always")
 def stack_size(wide_depth):
     """Slots of one walk's stack: each of the ``wide_depth + 1`` wide levels a walk
     passes through leaves at most LANES - 1 siblings behind, which
     ``(LANES - 1) * wide_depth + 2 * LANES`` covers with room to spare."""
     return (LANES - 1) * wide_depth + 2 * LANES
+
 
 @njit(cache=True, nogil=True)
 def walk_stack(wide_depth, walks):
@@ -28,6 +30,7 @@ def walk_stack(wide_depth, walks):
     size = walks * stack_size(wide_depth)
     return (np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64),
             np.empty(size, dtype=np.int64))
+
 
 @njit(cache=True, nogil=True, inline="always")
 def next_box(stack_ref, stack_count, stack_t, top, bound, bottom):

@@ -44,6 +44,7 @@ def ray_frame(ox, oy, oz, dx, dy, dz):
     ok = (ox, oy, oz)
     return kx, ky, kz, sx, sy, sz, ok[kx], ok[ky], ok[kz]
 
+
 @njit(cache=True, nogil=True, inline="always")
 def face_normal(tris, f):
     """Slot ``f``'s normal as wound, (B - A) x (C - A), not normalised; in float64
@@ -53,6 +54,7 @@ def face_normal(tris, f):
     e1x, e1y, e1z = tris[f, 1, 0] - p0x, tris[f, 1, 1] - p0y, tris[f, 1, 2] - p0z
     e2x, e2y, e2z = tris[f, 2, 0] - p0x, tris[f, 2, 1] - p0y, tris[f, 2, 2] - p0z
     return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+
 
 @njit(cache=True, nogil=True, inline="always")
 def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
@@ -70,6 +72,7 @@ def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
     cx = tris[f, 2, kx] - okx - sx * cz
     cy = tris[f, 2, ky] - oky - sy * cz
     return ax, ay, az, bx, by, bz, cx, cy, cz
+
 
 @njit(cache=True, nogil=True, inline="always")
 def intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
@@ -101,6 +104,7 @@ def intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_c
     t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det
     return t, u / det, v / det, w / det
 
+
 @njit(cache=True, nogil=True, inline="always")
 def _edge_owned(px, py, qx, qy, flip):
     """Whether the triangle owns the points on its edge P -> Q: walked counter-clockwise
@@ -109,6 +113,7 @@ def _edge_owned(px, py, qx, qy, flip):
     if flip:
         px, py, qx, qy = qx, qy, px, py
     return qy > py or (qy == py and qx > px)
+
 
 @njit(cache=True, nogil=True)
 def owns(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):

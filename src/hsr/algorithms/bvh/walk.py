@@ -51,6 +51,7 @@ RECORD_AHEAD = 64
 (_I_RAY, _I_REF, _I_N, _I_TOP, _I_FACE, _I_SLOT, _I_COUNT, _I_FRAMED, _I_CAREFUL, _I_KX,
  _I_KY, _I_KZ, _I_COLUMNS) = range(13)
 
+
 # error_model "numpy": IEEE division, without the zero test Numba adds to each division
 # under Python's rules (every divisor in the walks is non-zero or checked first).
 @njit(cache=True, nogil=True, error_model="numpy")
