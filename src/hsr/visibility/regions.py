@@ -298,25 +298,29 @@ def _grid(tris: CutTriangles, zmin: np.ndarray, width: int, height: int,
 def _fill_grid(box, members, cell, ncx, ncy, width, height):
     """(start (C + 1,), tri (E,)): the ``members`` whose box meets each cell, in their
     order (a counting sort; boxes wholly outside the view in no cell)."""
+    n = len(members)
+    ranges = np.empty((n, 4), np.int64)  # each member's cells: columns, then rows
     start = np.zeros(ncx * ncy + 1, np.int64)
-    for i in members:
+    for k in range(n):
+        i = members[k]
         if box[i, 2] >= 0 and box[i, 0] <= width and box[i, 3] >= 0 and box[i, 1] <= height:
-            for gy in range(_cell_of(box[i, 1], cell, ncy), _cell_of(box[i, 3], cell, ncy) + 1):
-                for gx in range(_cell_of(box[i, 0], cell, ncx),
-                                _cell_of(box[i, 2], cell, ncx) + 1):
-                    start[gy * ncx + gx + 1] += 1
+            ranges[k, 0], ranges[k, 1], ranges[k, 2], ranges[k, 3] = _cell_range(
+                box[i, 0], box[i, 1], box[i, 2], box[i, 3], cell, ncx, ncy)
+        else:
+            ranges[k, 0], ranges[k, 1], ranges[k, 2], ranges[k, 3] = 0, -1, 0, -1
+        for gy in range(ranges[k, 2], ranges[k, 3] + 1):
+            for gx in range(ranges[k, 0], ranges[k, 1] + 1):
+                start[gy * ncx + gx + 1] += 1
     for g in range(ncx * ncy):
         start[g + 1] += start[g]
     fill = start[:-1].copy()
     tri = np.empty(start[-1], np.int64)
-    for i in members:
-        if box[i, 2] >= 0 and box[i, 0] <= width and box[i, 3] >= 0 and box[i, 1] <= height:
-            for gy in range(_cell_of(box[i, 1], cell, ncy), _cell_of(box[i, 3], cell, ncy) + 1):
-                for gx in range(_cell_of(box[i, 0], cell, ncx),
-                                _cell_of(box[i, 2], cell, ncx) + 1):
-                    g = gy * ncx + gx
-                    tri[fill[g]] = i
-                    fill[g] += 1
+    for k in range(n):
+        for gy in range(ranges[k, 2], ranges[k, 3] + 1):
+            for gx in range(ranges[k, 0], ranges[k, 1] + 1):
+                g = gy * ncx + gx
+                tri[fill[g]] = members[k]
+                fill[g] += 1
     return start, tri
 
 
@@ -324,6 +328,14 @@ def _fill_grid(box, members, cell, ncx, ncy, width, height):
 def _cell_of(v, cell, count):
     """The grid column (or row) of coordinate ``v``, clamped as :func:`_grid` clamps."""
     return min(max(int(math.floor(v / cell)), 0), count - 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell_range(x0, y0, x1, y1, cell, ncx, ncy):
+    """(first column, last column, first row, last row) of the cells box (x0, y0, x1, y1)
+    meets, clamped to the grid."""
+    return (_cell_of(x0, cell, ncx), _cell_of(x1, cell, ncx), _cell_of(y0, cell, ncy),
+            _cell_of(y1, cell, ncy))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -374,8 +386,7 @@ def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, line
         ai, bi, ci = planes[i, 0], planes[i, 1], planes[i, 2]
         x0, y0, x1, y1 = box[i, 0], box[i, 1], box[i, 2], box[i, 3]
         z1, face = zmax[i], tri_face[i]
-        gx0, gx1 = _cell_of(x0, cell, ncx), _cell_of(x1, cell, ncx)
-        gy0, gy1 = _cell_of(y0, cell, ncy), _cell_of(y1, cell, ncy)
+        gx0, gx1, gy0, gy1 = _cell_range(x0, y0, x1, y1, cell, ncx, ncy)
         for gy in range(gy0, gy1 + 1):
             if count == 0:
                 break
