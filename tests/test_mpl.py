@@ -9,7 +9,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import hsr
@@ -323,6 +323,10 @@ def test_colours_widths_styles_and_sizes_are_mplot3ds():
 @given(elev=st.floats(-89, 89), azim=st.floats(-180, 180), roll=st.floats(-30, 30),
        ortho=st.booleans(), focal=st.floats(0.4, 2.0),
        aspect=st.tuples(st.floats(0.5, 2), st.floats(0.5, 2), st.floats(0.5, 2)))
+# Found by this test: a surface seen exactly edge-on left a colour with no ring to draw,
+# and the paths no longer matched their colours (IndexError).
+@example(elev=0.0, azim=1.2122474864321432e-11, roll=0.0, ortho=False, focal=1.0,
+         aspect=(1.0, 1.0, 1.0))
 def test_any_view_shows_what_the_z_buffer_shows(elev, azim, roll, ortho, focal, aspect):
     """Random views, projections (perspective with a focal length, orthographic) and box
     aspects of crossing surfaces with a thick line and markers through them."""

@@ -374,7 +374,11 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
     ids = path_id[by_path]
     cuts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1], True])
     path_ring = np.r_[0, np.cumsum(n_rings)][cuts]
-    return ids[cuts[:-1]], _compound_paths(ring_xy, ring_start, path_ring)
+    # A path whose pieces merged into no ring (slivers of a face seen edge-on, which
+    # cancel on the snap grid) covers nothing: it is left out with its key.
+    drawn = np.diff(path_ring) > 0
+    path_ring = np.r_[path_ring[:-1][drawn], path_ring[-1]]
+    return ids[cuts[:-1]][drawn], _compound_paths(ring_xy, ring_start, path_ring)
 
 
 @functools.cache
