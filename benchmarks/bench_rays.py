@@ -53,15 +53,20 @@ def ray_sets(mesh, n, rng, chosen=RAY_SETS):
     origins = rng.uniform(lo - pad, hi + pad, (n, 3))
     directions = rng.normal(size=(n, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    own = np.random.default_rng(1)  # the other sets' rays as before this set was added
-    inside = own.uniform(lo, hi, (n, 3))
-    inside_directions = own.normal(size=(n, 3))
-    inside_directions /= np.linalg.norm(inside_directions, axis=1, keepdims=True)
     sets = {"random": lambda: (origins, directions),
-            "inside": lambda: (inside, inside_directions),
+            "inside": lambda: inside_rays(lo, hi, n),
             "primary": lambda: camera_rays(hsr.Camera.frame(mesh.bounds()), n),
             "filling": lambda: camera_rays(view_camera(mesh, "fill"), n)}
     return {name: sets[name]() for name in chosen}
+
+
+def inside_rays(lo, hi, n):
+    """Origins uniform inside the box, directions uniform; from a generator of their own,
+    so the other sets' rays are those they were before this set was added."""
+    own = np.random.default_rng(1)
+    origins = own.uniform(lo, hi, (n, 3))
+    directions = own.normal(size=(n, 3))
+    return origins, directions / np.linalg.norm(directions, axis=1, keepdims=True)
 
 
 def camera_rays(cam, n):
