@@ -138,6 +138,21 @@ def test_unused_nan_vertex_is_allowed_used_one_is_not():
         hsr.Mesh(v, np.array([[0, 1, 3]]))
 
 
+def test_a_used_huge_vertex_is_refused_by_name_and_unused_ones_do_not_count(tmp_path):
+    """The validation's one flat pass (all used vertices within bounds) and its search for
+    the culprit (one is not) give the same answers as a vertex-by-vertex check."""
+    v = np.array([[0, 0, 0], [2, 0, 0], [0, -3, 0], [1e101, 0, 0], [np.inf, 0, 0]], float)
+    assert hsr.Mesh(v, np.array([[0, 1, 2]])).extent() == 3.0  # the unused ones ignored
+    with pytest.raises(MeshError, match=r"vertex 3 has a coordinate beyond \+-1e\+100"):
+        hsr.Mesh(v, np.array([[0, 1, 3]]))
+    with pytest.raises(MeshError, match="vertex 4 has a NaN or infinite coordinate"):
+        hsr.Mesh(v, np.array([[0, 4, 3]]))  # the non-finite one named first
+    obj = tmp_path / "huge.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1e101 0\nf 1 2 3\n")
+    with pytest.raises(MeshError, match="vertex 2 has a coordinate beyond"):
+        hsr.load(str(obj))
+
+
 def test_unused_nan_and_huge_vertices_render_like_the_reference():
     # Unused vertices may hold anything (Mesh accepts them); placing the mesh in a scene
     # once measured its reach over every vertex, NaN included, and refused to render.
