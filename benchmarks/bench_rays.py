@@ -13,8 +13,9 @@ directions to the far plane; the terrain is seen edge-on, a strip across the vie
 ``filling``, the same for a view along the box's shortest axis that the box fills
 (``bench_raycast.py``'s ``fill`` view: the terrain from above, about a triangle a
 pixel). Timed: the plain public calls with their defaults, the inputs prepared outside
-the timer: hsr ``RayScene.cast`` / ``occluded`` / ``count`` (float64 in, every output),
-Open3D ``cast_rays`` / ``test_occlusions`` / ``count_intersections`` and Embree ``run``
+the timer: hsr ``RayScene.cast`` / ``occluded`` / ``count`` / ``all_hits`` (float64 in,
+every output), Open3D ``cast_rays`` / ``test_occlusions`` / ``count_intersections`` /
+``list_intersections`` and Embree ``run``
 (INTERSECT with output, OCCLUDED) on float32. Builds: hsr's ``RayScene(mesh)`` (after a
 first one that compiles), Open3D's ``add_triangles`` plus the first query (it commits
 its scene lazily), Embree's likewise, alternating, ``--rounds`` x ``--repeat`` each (min
@@ -99,7 +100,8 @@ def open3d_peer(mesh):
         rays = o3d.core.Tensor(np.concatenate([o, d], 1).astype(np.float32))
         return {"cast": lambda: scene.cast_rays(rays),
                 "occluded": lambda: scene.test_occlusions(rays),
-                "count": lambda: scene.count_intersections(rays)}
+                "count": lambda: scene.count_intersections(rays),
+                "all_hits": lambda: scene.list_intersections(rays)}
     return build, queries
 
 
@@ -317,7 +319,8 @@ def main(argv=None):
         builds.append((label, mesh.n_faces, *cells))
         for kind, (o, d) in ray_sets(mesh, args.rays, rng, chosen).items():
             mine = {"cast": lambda: rays.cast(o, d), "occluded": lambda: rays.occluded(o, d),
-                    "count": lambda: rays.count(o, d)}
+                    "count": lambda: rays.count(o, d),
+                    "all_hits": lambda: rays.all_hits(o, d)}
             theirs = {name: p[1](o, d) if p else {} for name, p in peers.items()}
             for query, fn in mine.items():
                 fns = [fn] + [q[query] for q in theirs.values() if query in q]

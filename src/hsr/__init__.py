@@ -54,6 +54,7 @@ _LAZY = {
     "PartitionedScene": (".scene.partitioned", "PartitionedScene"),
     "write_mesh": (".scene.write", "write_mesh"),
     "RayHits": (".visibility", "RayHits"), "RayScene": (".visibility", "RayScene"),
+    "RayHitLists": (".visibility", "RayHitLists"),
     "prune": (".visibility", "prune"), "visibility_matrix": (".visibility", "visibility_matrix"),
     "visible_faces": (".visibility", "visible_faces"),
     "visible_points": (".visibility", "visible_points"),
@@ -122,6 +123,7 @@ if TYPE_CHECKING:  # the names as type checkers and IDEs see them
     from .scene.partitioned import PartitionedScene
     from .scene.write import write_mesh
     from .visibility import (
+        RayHitLists,
         RayHits,
         RayScene,
         prune,
@@ -140,7 +142,8 @@ __all__ = [
     "OutputError", "HsrWarning", "PolygonMode", "RenderError", "RenderState", "Scene",
     "batch", "bsp", "hidden_lines", "load", "load_scene", "prune", "raycast", "read_colmap",
     "read_transforms", "render", "scenes", "views", "visibility", "write_lines_svg",
-    "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "visible_faces",
+    "Workspace", "write_mesh", "write_transforms", "RayScene", "RayHits", "RayHitLists",
+    "visible_faces",
     "visible_vertices", "visible_points", "visibility_matrix", "first_look", "best_view",
     "partition", "PartitionedScene", "visible_regions", "Regions",
 ]

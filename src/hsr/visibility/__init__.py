@@ -26,12 +26,12 @@ from .queries import (
     visible_points,
     visible_vertices,
 )
-from .rays import RayError, RayHits, RayScene
+from .rays import RayError, RayHitLists, RayHits, RayScene
 from .regions import Regions, RegionsError, visible_regions
 
 __all__ = ["VisibilityError", "VisibilityWarning", "Decision", "cameras_for", "Regions",
            "RegionsError", "visible_regions",
            "face_visibility", "object_visibility", "decide", "auto_size", "grow_rings",
            "keep_faces", "prune", "subset_scene", "verify", "RayScene", "RayHits",
-           "RayError", "visible_faces", "visible_vertices", "visible_points",
+           "RayHitLists", "RayError", "visible_faces", "visible_vertices", "visible_points",
            "visibility_matrix", "VisibilityMatrix", "project_points", "scene_vertices"]

@@ -20,11 +20,12 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from ..algorithms.bvh.hits import ALL, ANY, COUNT, FIRST, NEAREST
 from ..errors import HsrError
 from ..parallel import OutputPool, check_threads, default_workspace, progress_bar, split_range
 from ..scene.mesh import SceneLike, as_scene
 
-__all__ = ["RayScene", "RayHits", "RayError"]
+__all__ = ["RayScene", "RayHits", "RayHitLists", "RayError"]
 
 # Rays per chunk handed to a thread: large enough that a chunk costs far more than its
 # hand-off, small enough that uneven rays (misses cost little) balance between threads.
@@ -45,6 +46,11 @@ PROGRESS_RAYS = 4_000_000
 # Most rays one query takes: its outputs (t, ids, uv, normals: 56 bytes a ray) and its
 # inputs as float64 must fit in memory, checked before anything is allocated.
 MAX_RAYS = 1 << 30
+# Most memory one all_hits query's lists may take (56 bytes a hit: t, ids, uv, normal),
+# checked after the hits are counted and before anything is allocated; past it, the
+# query asks for max_hits.
+MAX_LIST_BYTES = 2 << 30
+HIT_BYTES = 8 + 4 + 4 + 16 + 24
 
 
 class RayError(HsrError):
@@ -83,6 +89,51 @@ class RayHits:
 
     def __len__(self):
         return len(self.t)
+
+
+@dataclass
+class RayHitLists:
+    """Every hit of each of N rays, nearest first, as ragged arrays: ray i's hits are rows
+    ``offsets[i] .. offsets[i + 1] - 1`` of the per-hit arrays (H hits in all):
+
+    - ``offsets`` (N + 1,) int64, from 0 up to H;
+    - ``t`` (H,) float64: the ray parameter of each hit, ascending along each ray (equal
+      distances by face id);
+    - ``face_id``, ``object_id`` (H,) int32, ``barycentric`` (H, 2) and ``normal`` (H, 3)
+      float64: as in :class:`RayHits`.
+
+    A crossing of the surface is listed once (a hit through a shared edge or vertex goes to
+    one of the faces there, as :meth:`RayScene.count` counts it), so without ``max_hits``
+    each ray's list is as long as its count.
+    """
+
+    offsets: np.ndarray
+    t: np.ndarray
+    face_id: np.ndarray
+    object_id: np.ndarray
+    barycentric: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def counts(self) -> np.ndarray:
+        """(N,) int64: the hits listed for each ray."""
+        return np.diff(self.offsets)
+
+    @property
+    def ray_id(self) -> np.ndarray:
+        """(H,) int64: the ray of each hit."""
+        return np.repeat(np.arange(len(self), dtype=np.int64), self.counts)
+
+    def points(self, origins: ArrayLike, directions: ArrayLike) -> np.ndarray:
+        """(H, 3) float64 hit points ``origin + t * direction``."""
+        origin, direction = _broadcast(origins, directions)
+        if len(origin) != len(self):
+            raise RayError(f"{len(self)} rays were cast; got {len(origin)}")
+        ray = self.ray_id
+        return origin[ray] + self.t[:, None] * direction[ray]
+
+    def __len__(self):
+        return len(self.offsets) - 1
 
 
 class RayScene:
@@ -141,7 +192,7 @@ class RayScene:
         empty = self._outputs.empty
         hits = RayHits(empty(n), empty(n, np.int32), empty(n, np.int32), empty((n, 2)),
                        empty((n, 3)))
-        self._run(0, origin, direction, t0, t1, (hits.t, hits.face_id, hits.object_id,
+        self._run(NEAREST, origin, direction, t0, t1, (hits.t, hits.face_id, hits.object_id,
                                                     hits.barycentric, hits.normal,
                                                     np.empty(0, np.int32)), progress)
         return hits
@@ -151,18 +202,58 @@ class RayScene:
         """(N,) bool: whether each ray meets any surface with ``t`` in
         ``[t_min, t_max]`` (its walk stops at the first one). Arguments as
         :meth:`cast`."""
-        return self._counted(1, origins, directions, t_min, t_max, progress).astype(bool)
+        rays = self._rays(origins, directions, t_min, t_max)
+        return self._counted(ANY, rays, progress).astype(bool)
 
     def count(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
               t_max: float = np.inf, progress: bool | None = None) -> np.ndarray:
         """(N,) int32: how many times each ray crosses the surface with ``t`` in
         ``[t_min, t_max]``. Watertight: a ray through a shared edge or vertex of a
         closed mesh counts it once, so an odd count with ``t_max = inf`` means the
-        origin is inside (see :mod:`hsr.algorithms.bvh.walk`). Arguments as :meth:`cast`."""
-        return self._counted(2, origins, directions, t_min, t_max, progress)
+        origin is inside (see :mod:`hsr.algorithms.bvh.triangle`). Arguments as
+        :meth:`cast`."""
+        return self._counted(COUNT, self._rays(origins, directions, t_min, t_max), progress)
 
-    def _counted(self, mode, origins, directions, t_min, t_max, progress):
-        origins, directions, t0, t1 = self._rays(origins, directions, t_min, t_max)
+    def all_hits(self, origins: ArrayLike, directions: ArrayLike, t_min: float = 0.0,
+                 t_max: float = np.inf, max_hits: int | None = None,
+                 progress: bool | None = None) -> RayHitLists:
+        """Every hit along each ray with ``t`` in ``[t_min, t_max]``, nearest first (see
+        :class:`RayHitLists`): for LiDAR's multiple returns, thickness, layers. Each ray
+        lists exactly the crossings :meth:`count` counts, so its first hit is the one
+        :meth:`cast` finds (but at a shared edge or vertex, where either face may be
+        named). ``max_hits``: keep only each ray's nearest ``max_hits`` (a positive
+        integer). Other arguments as :meth:`cast`.
+
+        The hits are counted first (:meth:`count`'s walk), then listed by a second walk
+        into arrays of exactly that size. Raises :class:`RayError` for bad input or a bad
+        ``max_hits``, and when the lists would take more than :data:`MAX_LIST_BYTES`
+        (ask for fewer rays or a ``max_hits``) before allocating them."""
+        cap = _max_hits(max_hits)
+        rays = self._rays(origins, directions, t_min, t_max)
+        n = len(rays[0])
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        counts = self._counted(COUNT, rays, progress)
+        np.cumsum(counts if cap is None else np.minimum(counts, cap), out=offsets[1:])
+        total = int(offsets[-1])
+        if total * HIT_BYTES > MAX_LIST_BYTES:
+            raise RayError(
+                f"all_hits would list {total:,} hits ({total * HIT_BYTES / 2**30:.1f} GiB), "
+                f"more than {MAX_LIST_BYTES / 2**30:g} GiB: ask for fewer rays or pass a "
+                f"smaller max_hits" + ("" if cap is None else f" than {cap}"))
+        empty = self._outputs.empty
+        lists = RayHitLists(offsets, empty(total), empty(total, np.int32),
+                            empty(total, np.int32), empty((total, 2)), empty((total, 3)))
+        # With max_hits, rays with more hits keep their nearest (FIRST walks each ray's
+        # every box); without, each list is as long as the count (ALL stops when full).
+        outputs = (lists.t, lists.face_id, lists.object_id, lists.barycentric, lists.normal,
+                   offsets)
+        origins, directions, t0, t1 = rays
+        self._run(ALL if cap is None else FIRST, origins, directions, t0, t1, outputs, progress)
+        return lists
+
+    def _counted(self, mode, rays, progress):
+        """(N,) int32 answers of query ``mode`` (ANY or COUNT) for ``rays`` (:meth:`_rays`)."""
+        origins, directions, t0, t1 = rays
         out = self._outputs.empty(len(origins), np.int32)
         self._run(mode, origins, directions, t0, t1,
                   (np.empty(0), np.empty(0, np.int32), np.empty(0, np.int32), np.empty((0, 2)),
@@ -241,7 +332,6 @@ class RayScene:
         per unit of the scene's surface area (sampled, :data:`AREA_SAMPLES`); the
         median of the runs. 0 when no run lands whole (rays that miss are cheap on
         either walk)."""
-        from ..algorithms.bvh.hits import NEAREST
         from ..algorithms.bvh.walk import trace_range
 
         if self._surface_area <= 0.0:
@@ -346,6 +436,17 @@ def _problem(problem: int, k: int, t0: np.ndarray, t1: np.ndarray) -> str:
             6: f"t_min must be >= 0; ray {k} has {t_min!r}",
             7: f"t_min must not exceed t_max; ray {k} has t_min {t_min!r} > "
                f"t_max {t_max!r}"}[problem]
+
+
+def _max_hits(value) -> int | None:
+    """all_hits' ``max_hits``: None (no cap) or a positive integer."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise RayError(f"max_hits must be a positive integer or None, got {value!r}")
+    if value <= 0:
+        raise RayError(f"max_hits must be a positive integer, got {int(value)}")
+    return int(value)
 
 
 def _real(values, what: str) -> np.ndarray:

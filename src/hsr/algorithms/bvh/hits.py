@@ -1,6 +1,14 @@
 """What both walks share about rays and hits: the queries (:data:`NEAREST`, :data:`ANY`,
-:data:`COUNT`), the checks of a ray (:func:`check_rays`, :func:`plausible_ray`), the
-record of a hit (:func:`hit_record`) and the prefetch of a leaf (:func:`fetch_box`)."""
+:data:`COUNT`, :data:`ALL`, :data:`FIRST`) and their hit rules, written once here for both walks
+(:func:`in_interval`, :func:`nearer`, :func:`counted`, :func:`listed`), the checks of a
+ray (:func:`check_rays`, :func:`plausible_ray`), the record of a hit (:func:`hit_record`,
+:func:`list_records`) and the prefetch of a leaf (:func:`fetch_box`).
+
+A query's walk is the same for all of them; what a hit does is the rule's. NEAREST keeps
+the hit :func:`nearer` than the best so far, ANY stops at the first hit in the interval,
+COUNT adds the hits :func:`counted` (each crossing of the surface once), ALL lists those
+same hits (:func:`listed`) into a list as long as the ray's count (so its walk ends when
+the list is full), FIRST the nearest of them into a shorter list."""
 
 from __future__ import annotations
 
@@ -9,16 +17,136 @@ from numba import njit
 
 from ..simd import prefetch
 from .layout import NODE_WORDS
-from .triangle import face_normal
+from .triangle import face_normal, owns
 
-__all__ = ["NEAREST", "ANY", "COUNT", "LARGEST", "hit_record", "check_rays", "plausible_ray",
-           "fetch_box", "surface_area"]
+__all__ = ["NEAREST", "ANY", "COUNT", "ALL", "FIRST", "LARGEST", "RECORD_AHEAD",
+           "in_interval", "nearer", "counted", "listed", "sort_listed", "hit_record",
+           "list_records", "check_rays", "plausible_ray", "fetch_box", "surface_area"]
 
-NEAREST, ANY, COUNT = 0, 1, 2
+# The queries. ALL's and FIRST's walk is COUNT's (every box within the interval, in any
+# order); ALL's stops when its list is full, FIRST's keeps the nearest that fit.
+NEAREST, ANY, COUNT, ALL, FIRST = 0, 1, 2, 3, 4
+
+# How many hits ahead a pass over hits fetches a hit's corners: far enough for a
+# miss to memory to be over when the pass gets there.
+# (Measurements: docs/history.md, "Ray core".)
+RECORD_AHEAD = 64
+
+# A list this short is sorted in place by insertion; a longer one by np.argsort.
+SHORT_LIST = 16
 
 # A walk's bound starts at t_max made finite, so that a missed box (entered at +inf)
 # always fails the test against it.
 LARGEST = 1.7976931348623157e308
+
+
+@njit(cache=True, nogil=True, inline="always")
+def in_interval(t, t0, t1):
+    """Every query's first rule: a hit counts only with ``t`` in ``[t0, t1]`` (a miss,
+    t = -1, never does). Bitwise, one branch fewer."""
+    return (t0 <= t) & (t <= t1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def nearer(t, f, best_t, best_f):
+    """NEAREST's rule: hit (t, face f) goes before (best_t, best_f); equal distances to
+    the lower face id, so the answer does not depend on the walk's order."""
+    return t < best_t or (t == best_t and f < best_f)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
+    """COUNT's and ALL's rule: a hit inside triangle slot ``k`` (barycentrics u, v, w all
+    non-zero) counts; one on an edge or a vertex counts for the one triangle there that
+    :func:`hsr.algorithms.bvh.triangle.owns` it, so a crossing is counted once."""
+    return (u != 0.0 and v != 0.0 and w != 0.0) or owns(tris, k, okx, oky, okz, kx, ky,
+                                                        kz, sx, sy)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _move(hit_t, hit_face, hit_uv, hit_slot, to, frm):
+    hit_t[to], hit_face[to], hit_slot[to] = hit_t[frm], hit_face[frm], hit_slot[frm]
+    hit_uv[to, 0], hit_uv[to, 1] = hit_uv[frm, 0], hit_uv[frm, 1]
+
+
+@njit(cache=True, nogil=True)
+def sort_listed(start, n, hit_t, hit_face, hit_uv, hit_slot):
+    """Sort a ray's list ``start .. start + n - 1`` nearest first, equal distances by face
+    id (:func:`nearer`): by insertion up to :data:`SHORT_LIST` hits, else by a stable
+    argsort of the distances whose runs of equal ones are then put in face order."""
+    if n <= SHORT_LIST:
+        for a in range(start + 1, start + n):
+            t, f, k = hit_t[a], hit_face[a], hit_slot[a]
+            u, v = hit_uv[a, 0], hit_uv[a, 1]
+            b = a
+            while b > start and nearer(t, f, hit_t[b - 1], hit_face[b - 1]):
+                _move(hit_t, hit_face, hit_uv, hit_slot, b, b - 1)
+                b -= 1
+            hit_t[b], hit_face[b], hit_slot[b] = t, f, k
+            hit_uv[b, 0], hit_uv[b, 1] = u, v
+        return
+    order = start + np.argsort(hit_t[start:start + n], kind="mergesort")
+    # Runs of equal distances (stable: in list order) by face id, by insertion.
+    a = 0
+    while a < n:
+        b = a + 1
+        while b < n and hit_t[order[b]] == hit_t[order[a]]:
+            b += 1
+        for c in range(a + 1, b):
+            o = order[c]
+            d = c
+            while d > a and hit_face[o] < hit_face[order[d - 1]]:
+                order[d] = order[d - 1]
+                d -= 1
+            order[d] = o
+        a = b
+    t, f = hit_t[order].copy(), hit_face[order].copy()
+    uv, k = hit_uv[order].copy(), hit_slot[order].copy()
+    hit_t[start:start + n], hit_face[start:start + n] = t, f
+    hit_uv[start:start + n], hit_slot[start:start + n] = uv, k
+
+
+@njit(cache=True, nogil=True)
+def listed(t, f, u, v, k, start, cap, filled, hit_t, hit_face, hit_uv, hit_slot):
+    """ALL's rule, for a hit that :func:`counted` (t, face f, weights u and v of corners 1
+    and 2, slot k) on a ray whose list is ``start .. start + cap - 1`` with ``filled``
+    hits so far; returns the new ``filled``. Until the list is full a hit goes at its end
+    (sorted once the walk ends, :func:`sort_listed`). A ray with more hits than its list
+    holds (``max_hits``) keeps the nearest: when the list first overflows it is sorted
+    and ``filled`` becomes ``cap + 1`` (full and sorted), and from then on a hit nearer
+    than the last takes its place in order. The walk's bound may then shrink to the last
+    hit's distance (no farther hit can be kept)."""
+    if filled < cap:
+        j = start + filled
+        hit_t[j], hit_face[j], hit_slot[j] = t, f, k
+        hit_uv[j, 0], hit_uv[j, 1] = u, v
+        return filled + 1
+    if cap == 0:
+        return filled
+    if filled == cap:
+        sort_listed(start, cap, hit_t, hit_face, hit_uv, hit_slot)
+        filled = cap + 1
+    last = start + cap - 1
+    if not nearer(t, f, hit_t[last], hit_face[last]):
+        return filled
+    j = last
+    while j > start and nearer(t, f, hit_t[j - 1], hit_face[j - 1]):
+        _move(hit_t, hit_face, hit_uv, hit_slot, j, j - 1)
+        j -= 1
+    hit_t[j], hit_face[j], hit_slot[j] = t, f, k
+    hit_uv[j, 0], hit_uv[j, 1] = u, v
+    return filled
+
+
+@njit(cache=True, nogil=True)
+def list_records(first, last, tris, face_offsets, hit_face, hit_object, hit_normal):
+    """The objects and normals of listed hits ``first .. last - 1`` (their slots in
+    ``hit_object`` until now), as the nearest hits get theirs (:func:`hit_record`), the
+    corners of the hit :data:`RECORD_AHEAD` on fetched meanwhile."""
+    for j in range(first, last):
+        if j + RECORD_AHEAD < last:
+            prefetch(tris, hit_object[j + RECORD_AHEAD], 0)
+        hit_record(tris, hit_object[j], hit_face[j], face_offsets, hit_object, hit_normal, j)
 
 
 @njit(cache=True, nogil=True, inline="always")

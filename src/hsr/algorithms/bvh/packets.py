@@ -22,19 +22,26 @@ from ..simd import (
 )
 from .boxes import careful_packet_keys8, inverse_direction
 from .hits import (
+    ALL,
     ANY,
     COUNT,
     LARGEST,
     NEAREST,
     check_rays,
+    counted,
     fetch_box,
     hit_record,
+    in_interval,
+    list_records,
+    listed,
+    nearer,
     plausible_ray,
+    sort_listed,
 )
 from .layout import COUNT_AT, HOT_NODES, LANES, REF
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import walk_stack
-from .triangle import intersect, owns, ray_frame
+from .triangle import intersect, ray_frame
 
 __all__ = ["PACKET_FETCH_AROUND", "trace_packets"]
 
@@ -109,8 +116,11 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             rays[0, r], rays[1, r], rays[2, r] = ox, oy, oz
             rays[3, r], rays[4, r], rays[5, r], parallel = inverse_direction(dx, dy, dz)
             careful |= parallel
-            # A ray past the end enters nothing (every entry is >= 0).
+            # A ray past the end enters nothing (every entry is >= 0), nor one with
+            # nothing to list (the count found no hit).
             bound[r] = min(frame[10, r], LARGEST) if first + r < hi else -1.0
+            if mode >= ALL and out_count[i + 1] == out_count[i]:
+                bound[r] = -1.0
             best_t[r], best_z[r], best_f[r], best_k[r] = np.inf, np.inf, -1, -1
             best_uv[r, 0] = best_uv[r, 1] = 0.0
             count[r] = 0
@@ -164,7 +174,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             # (Measurements: docs/history.md, "Ray core".)
                             if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
                                 fetch_box(node_box, tris, leaf_face, stack_ref[top],
-                                           stack_count[top], mode == NEAREST)
+                                           stack_count[top], mode == NEAREST or mode >= ALL)
                             stack_rays[top] = (mask >> (4 * pushed)) & 15
                             stack_t[top, 0] = entries[0, pushed]
                             stack_t[top, 1] = entries[1, pushed]
@@ -201,7 +211,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     if one_frame:
                         lefts = leaf_filter4_rays(tris, quad, m, frame, axes)
                     for r in range(4):
-                        if not (active >> r) & 1 or (mode == ANY and count[r] != 0):
+                        if not (active >> r) & 1 or (mode == ANY and count[r] != 0) or (
+                                mode == ALL and bound[r] < 0.0):
                             continue
                         kx, ky, kz = axes[0, r], axes[1, r], axes[2, r]
                         sx, sy, sz = frame[0, r], frame[1, r], frame[2, r]
@@ -219,17 +230,29 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
                                                     sz, cull_code, front_ccw, frame[6, r],
                                                     frame[7, r], frame[8, r])
-                            if not ((t0 <= t) & (t <= t1)):
+                            if not in_interval(t, t0, t1):
                                 continue
                             if mode == ANY:  # done: this ray enters no box any more
                                 count[r] = 1
                                 bound[r] = -1.0
                                 best_k[r] = k  # (where the next packet's rays land)
                                 break
-                            if mode == COUNT:
-                                if (u != 0.0 and v != 0.0 and w != 0.0) or owns(
-                                        tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-                                    count[r] += 1
+                            if mode >= COUNT:  # COUNT, ALL, FIRST: each crossing once
+                                if counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx,
+                                           sy):
+                                    if mode == COUNT:
+                                        count[r] += 1
+                                        continue
+                                    i = first + r
+                                    start, end = out_count[i], out_count[i + 1]
+                                    count[r] = listed(t, leaf_face[k], v, w, k, start,
+                                                      end - start, count[r], out_t, out_face,
+                                                      out_uv, out_object)
+                                    if mode == ALL and count[r] == end - start:
+                                        bound[r] = -1.0  # every hit: done, as ANY
+                                        break
+                                    if count[r] > end - start:  # FIRST's list full: the
+                                        bound[r] = out_t[end - 1]  # last bounds the rest
                                 continue
                             f = leaf_face[k]
                             if raster is not None:
@@ -243,7 +266,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                                     best_uv[r, 0], best_uv[r, 1] = v, w
                                     bound[r] = t_bound(t, z, zc0, zc1, wc0, wc1, rank)
                                 continue
-                            if t < best_t[r] or (t == best_t[r] and f < best_f[r]):
+                            if nearer(t, f, best_t[r], best_f[r]):
                                 best_t[r], best_f[r], best_k[r] = t, f, k
                                 best_uv[r, 0], best_uv[r, 1] = v, w
                                 bound[r] = t
@@ -260,12 +283,16 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     ref, n, active = stack_ref[top], stack_count[top], np.int64(keep)
                     walking = True
                     break
-        if mode != COUNT and best_k[3] >= 0:  # see PACKET_FETCH_AROUND
+        if mode <= ANY and best_k[3] >= 0:  # see PACKET_FETCH_AROUND
             around = max(best_k[3] - PACKET_FETCH_AROUND, 0)
             for offset in range(0, 2 * PACKET_FETCH_AROUND * 9 * tris.itemsize, 64):
                 prefetch(tris, around, offset)
         for r in range(min(4, hi - first)):
             i = first + r
+            if mode >= ALL:  # the list nearest first, unless FIRST kept it so
+                if 1 < count[r] <= out_count[i + 1] - out_count[i]:
+                    sort_listed(out_count[i], count[r], out_t, out_face, out_uv, out_object)
+                continue
             if mode != NEAREST:
                 out_count[i] = count[r]
                 continue
@@ -275,4 +302,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             if raster is None:
                 hit_record(tris, best_k[r], best_f[r], face_offsets, out_object, out_normal,
                             i)
+    if mode >= ALL:
+        list_records(out_count[lo], out_count[hi], tris, face_offsets, out_face, out_object,
+                     out_normal)
     return tests, 0, -1

@@ -20,13 +20,30 @@ from ..simd import (
     sort_keys8,
 )
 from .boxes import careful_keys8, inverse_direction
-from .hits import ANY, COUNT, LARGEST, NEAREST, check_rays, fetch_box, hit_record, plausible_ray
+from .hits import (
+    ALL,
+    ANY,
+    COUNT,
+    LARGEST,
+    NEAREST,
+    RECORD_AHEAD,
+    check_rays,
+    counted,
+    fetch_box,
+    hit_record,
+    in_interval,
+    list_records,
+    listed,
+    nearer,
+    plausible_ray,
+    sort_listed,
+)
 from .layout import COUNT_AT, HOT_NODES, LANES, REF
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import next_box, stack_size, walk_stack
-from .triangle import intersect, owns, ray_frame
+from .triangle import intersect, ray_frame
 
-__all__ = ["SLOTS", "INTERLEAVE_BYTES", "RECORD_AHEAD", "trace_range"]
+__all__ = ["SLOTS", "INTERLEAVE_BYTES", "trace_range"]
 
 # Rays one thread walks at once (trace_range): a walk is a chain of memory reads, each
 # waiting on the one before, and past the cache each costs a trip to the last-level
@@ -37,11 +54,6 @@ SLOTS = 8
 # their reads come from the cache, and switching rays costs more than it hides.
 # (Measurements: docs/history.md, "Ray core".)
 INTERLEAVE_BYTES = 8 << 20
-
-# How many rays ahead the pass over the hits fetches a hit's corners: far enough for a
-# miss to memory to be over when the pass gets there.
-# (Measurements: docs/history.md, "Ray core".)
-RECORD_AHEAD = 64
 
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
@@ -66,7 +78,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and ``out_normal``
     (the unit geometric normal as wound; 0); :data:`~hsr.algorithms.bvh.hits.ANY` writes
     ``out_count`` 1 or 0, stopping at the first hit; :data:`~hsr.algorithms.bvh.hits.COUNT`
-    writes the number of hits in ``out_count``. ``t_min`` / ``t_max``: one value per ray, or
+    writes the number of hits in ``out_count``; :data:`~hsr.algorithms.bvh.hits.ALL` lists
+    the hits that COUNT counts, nearest first: ``out_count`` is then the lists' offsets
+    ((N + 1,), ray i's list ``out_count[i] .. out_count[i + 1] - 1``, as long as its count),
+    and ``out_t``, ``out_face``, ``out_object``, ``out_uv`` and ``out_normal`` hold one row
+    per listed hit; :data:`~hsr.algorithms.bvh.hits.FIRST` the same into shorter lists,
+    each ray's nearest hits. ``t_min`` / ``t_max``: one value per ray, or
     one for all (length 1). Equal nearest distances go to the lower face id, so the answer
     does not depend on the walk (nor on how rays are split between threads). ``raster`` is
     None for these queries. The ray caster's walks pass ``(cull_code, front_ccw, lequal,
@@ -129,7 +146,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
                 if records:
                     out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
-            else:
+            elif mode < ALL:  # (a list is empty already)
                 out_count[i] = 0
         next_ray = hi
     while True:
@@ -149,6 +166,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         if problem:
                             return 0, problem, bad
                     next_ray += 1
+                    if mode >= ALL and out_count[i + 1] == out_count[i]:
+                        i = -1  # nothing to list: the count found no hit
+                        continue
                     ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
                     # A ray parallel to an axis needs the slab test's NaN care (see
                     # open_slabs).
@@ -175,7 +195,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
                         if records:
                             out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
-                    else:
+                    elif mode < ALL:
                         out_count[i] = 0
                     i = -1
                 if i < 0:
@@ -284,16 +304,28 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             left &= left - 1
                             t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
                                                     sz, cull_code, front_ccw, dx, dy, dz)
-                            if not ((t0 <= t) & (t <= t1)):
+                            if not in_interval(t, t0, t1):
                                 continue
                             if mode == ANY:
                                 slot_i[s, _I_COUNT] = 1
                                 done = True
                                 break
-                            if mode == COUNT:
-                                if (u != 0.0 and v != 0.0 and w != 0.0) or owns(
-                                        tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-                                    slot_i[s, _I_COUNT] += 1
+                            if mode >= COUNT:  # COUNT, ALL, FIRST: each crossing once
+                                if counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx,
+                                           sy):
+                                    if mode == COUNT:
+                                        slot_i[s, _I_COUNT] += 1
+                                        continue
+                                    start, end = out_count[i], out_count[i + 1]
+                                    filled = listed(t, leaf_face[k], v, w, k, start,
+                                                    end - start, slot_i[s, _I_COUNT], out_t,
+                                                    out_face, out_uv, out_object)
+                                    slot_i[s, _I_COUNT] = filled
+                                    if mode == ALL and filled == end - start:
+                                        done = True  # every hit the count found
+                                        break
+                                    if filled > end - start:  # FIRST's list full: the
+                                        b = out_t[end - 1]  # last bounds the rest
                                 continue
                             f = leaf_face[k]
                             if raster is not None:
@@ -307,8 +339,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                     slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
                                     b = t_bound(t, z, zc0, zc1, wc0, wc1, rank)
                                 continue
-                            if t < slot_f[s, _F_T] or (t == slot_f[s, _F_T]
-                                                       and f < slot_i[s, _I_FACE]):
+                            if nearer(t, f, slot_f[s, _F_T], slot_i[s, _I_FACE]):
                                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = t, v, w
                                 slot_i[s, _I_FACE], slot_i[s, _I_SLOT] = f, k
                                 b = t
@@ -332,7 +363,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
-                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST)
+                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST or mode >= ALL)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
@@ -348,6 +379,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         n_hits += 1
                     else:
                         out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+            elif mode >= ALL:  # the list nearest first, unless FIRST kept it so
+                start, filled = out_count[i], slot_i[s, _I_COUNT]
+                if 1 < filled <= out_count[i + 1] - start:
+                    sort_listed(start, filled, out_t, out_face, out_uv, out_object)
             else:
                 out_count[i] = slot_i[s, _I_COUNT]
             slot_i[s, _I_RAY] = -1
@@ -368,4 +403,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             i = hit_rays[j]
             hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
                         i)
+    if mode >= ALL:
+        list_records(out_count[lo], out_count[hi], tris, face_offsets, out_face, out_object,
+                     out_normal)
     return tests, 0, -1
