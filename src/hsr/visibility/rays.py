@@ -246,7 +246,7 @@ class RayScene:
         # With max_hits, rays with more hits keep their nearest (FIRST walks each ray's
         # every box); without, each list is as long as the count (ALL stops when full).
         outputs = (lists.t, lists.face_id, lists.object_id, lists.barycentric, lists.normal,
-                   offsets)
+                   np.empty(0, np.int32), offsets)
         origins, directions, t0, t1 = rays
         self._run(ALL if cap is None else FIRST, origins, directions, t0, t1, outputs, progress)
         return lists

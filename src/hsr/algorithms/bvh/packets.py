@@ -25,6 +25,7 @@ from .hits import (
     ALL,
     ANY,
     COUNT,
+    FIRST,
     LARGEST,
     NEAREST,
     check_rays,
@@ -54,7 +55,7 @@ PACKET_FETCH_AROUND = 16
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                   node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
-                  out_face, out_object, out_uv, out_normal, out_count):
+                  out_face, out_object, out_uv, out_normal, out_count, lists=None):
     """:func:`hsr.algorithms.bvh.walk.trace_range` four rays at a time: a packet (Wald,
     Slusallek, Benthin and Wagner 2001) walks the boxes that any of its rays enters, each
     box tested for the four rays at once (:func:`hsr.algorithms.simd.packet_keys8`) and each
@@ -119,8 +120,9 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             # A ray past the end enters nothing (every entry is >= 0), nor one with
             # nothing to list (the count found no hit).
             bound[r] = min(frame[10, r], LARGEST) if first + r < hi else -1.0
-            if mode >= ALL and out_count[i + 1] == out_count[i]:
-                bound[r] = -1.0
+            if lists is not None:
+                if lists[i + 1] == lists[i]:
+                    bound[r] = -1.0
             best_t[r], best_z[r], best_f[r], best_k[r] = np.inf, np.inf, -1, -1
             best_uv[r, 0] = best_uv[r, 1] = 0.0
             count[r] = 0
@@ -174,7 +176,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             # (Measurements: docs/history.md, "Ray core".)
                             if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
                                 fetch_box(node_box, tris, leaf_face, stack_ref[top],
-                                           stack_count[top], mode == NEAREST or mode >= ALL)
+                                           stack_count[top],
+                                           mode == NEAREST or mode == ALL or mode == FIRST)
                             stack_rays[top] = (mask >> (4 * pushed)) & 15
                             stack_t[top, 0] = entries[0, pushed]
                             stack_t[top, 1] = entries[1, pushed]
@@ -211,9 +214,11 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     if one_frame:
                         lefts = leaf_filter4_rays(tris, quad, m, frame, axes)
                     for r in range(4):
-                        if not (active >> r) & 1 or (mode == ANY and count[r] != 0) or (
-                                mode == ALL and bound[r] < 0.0):
+                        if not (active >> r) & 1 or (mode == ANY and count[r] != 0):
                             continue
+                        if lists is not None:
+                            if bound[r] < 0.0:  # its list is full
+                                continue
                         kx, ky, kz = axes[0, r], axes[1, r], axes[2, r]
                         sx, sy, sz = frame[0, r], frame[1, r], frame[2, r]
                         okx, oky, okz = frame[3, r], frame[4, r], frame[5, r]
@@ -240,11 +245,11 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             if mode >= COUNT:  # COUNT, ALL, FIRST: each crossing once
                                 if counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx,
                                            sy):
-                                    if mode == COUNT:
+                                    if lists is None:
                                         count[r] += 1
                                         continue
                                     i = first + r
-                                    start, end = out_count[i], out_count[i + 1]
+                                    start, end = lists[i], lists[i + 1]
                                     count[r] = listed(t, leaf_face[k], v, w, k, start,
                                                       end - start, count[r], out_t, out_face,
                                                       out_uv, out_object)
@@ -283,15 +288,15 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     ref, n, active = stack_ref[top], stack_count[top], np.int64(keep)
                     walking = True
                     break
-        if mode <= ANY and best_k[3] >= 0:  # see PACKET_FETCH_AROUND
+        if mode != COUNT and best_k[3] >= 0:  # see PACKET_FETCH_AROUND
             around = max(best_k[3] - PACKET_FETCH_AROUND, 0)
             for offset in range(0, 2 * PACKET_FETCH_AROUND * 9 * tris.itemsize, 64):
                 prefetch(tris, around, offset)
         for r in range(min(4, hi - first)):
             i = first + r
-            if mode >= ALL:  # the list nearest first, unless FIRST kept it so
-                if 1 < count[r] <= out_count[i + 1] - out_count[i]:
-                    sort_listed(out_count[i], count[r], out_t, out_face, out_uv, out_object)
+            if lists is not None:  # the list nearest first, unless FIRST kept it so
+                if 1 < count[r] <= lists[i + 1] - lists[i]:
+                    sort_listed(lists[i], count[r], out_t, out_face, out_uv, out_object)
                 continue
             if mode != NEAREST:
                 out_count[i] = count[r]
@@ -302,7 +307,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             if raster is None:
                 hit_record(tris, best_k[r], best_f[r], face_offsets, out_object, out_normal,
                             i)
-    if mode >= ALL:
-        list_records(out_count[lo], out_count[hi], tris, face_offsets, out_face, out_object,
+    if lists is not None:
+        list_records(lists[lo], lists[hi], tris, face_offsets, out_face, out_object,
                      out_normal)
     return tests, 0, -1

@@ -24,6 +24,7 @@ from .hits import (
     ALL,
     ANY,
     COUNT,
+    FIRST,
     LARGEST,
     NEAREST,
     RECORD_AHEAD,
@@ -69,7 +70,7 @@ INTERLEAVE_BYTES = 8 << 20
 @njit(cache=True, nogil=True, error_model="numpy")
 def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, leaf_face,
                 node_box, node_link, root_ref, root_count, wide_depth, face_offsets, out_t,
-                out_face, out_object, out_uv, out_normal, out_count):
+                out_face, out_object, out_uv, out_normal, out_count, lists=None):
     """Rays ``lo .. hi - 1`` through the 8-wide BVH of :func:`hsr.algorithms.bvh.collapse.widen`
     in the layout of :func:`hsr.algorithms.bvh.layout.node_records` (the root a wide node
     when ``root_count`` is 0, else a leaf of ``root_count`` slots from ``root_ref``).
@@ -78,12 +79,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     in ``face_offsets``; -1), ``out_uv`` (the weights of corners 1 and 2) and ``out_normal``
     (the unit geometric normal as wound; 0); :data:`~hsr.algorithms.bvh.hits.ANY` writes
     ``out_count`` 1 or 0, stopping at the first hit; :data:`~hsr.algorithms.bvh.hits.COUNT`
-    writes the number of hits in ``out_count``; :data:`~hsr.algorithms.bvh.hits.ALL` lists
-    the hits that COUNT counts, nearest first: ``out_count`` is then the lists' offsets
-    ((N + 1,), ray i's list ``out_count[i] .. out_count[i + 1] - 1``, as long as its count),
-    and ``out_t``, ``out_face``, ``out_object``, ``out_uv`` and ``out_normal`` hold one row
-    per listed hit; :data:`~hsr.algorithms.bvh.hits.FIRST` the same into shorter lists,
-    each ray's nearest hits. ``t_min`` / ``t_max``: one value per ray, or
+    writes the number of hits in ``out_count``. :data:`~hsr.algorithms.bvh.hits.ALL` lists
+    the hits that COUNT counts, nearest first, given ``lists``, the lists' offsets ((N + 1,)
+    int64, ray i's list ``lists[i] .. lists[i + 1] - 1``, as long as its count): ``out_t``,
+    ``out_face``, ``out_object``, ``out_uv`` and ``out_normal`` then hold one row per
+    listed hit; :data:`~hsr.algorithms.bvh.hits.FIRST` the same into shorter lists, each
+    ray's nearest hits. (``lists`` is None for the other queries: Numba compiles the two
+    kinds apart, as it does ``raster``, and the other queries carry none of the lists'
+    code.) ``t_min`` / ``t_max``: one value per ray, or
     one for all (length 1). Equal nearest distances go to the lower face id, so the answer
     does not depend on the walk (nor on how rays are split between threads). ``raster`` is
     None for these queries. The ray caster's walks pass ``(cull_code, front_ccw, lequal,
@@ -146,7 +149,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
                 if records:
                     out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
-            elif mode < ALL:  # (a list is empty already)
+            elif lists is None:  # (a list is empty already)
                 out_count[i] = 0
         next_ray = hi
     while True:
@@ -166,9 +169,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         if problem:
                             return 0, problem, bad
                     next_ray += 1
-                    if mode >= ALL and out_count[i + 1] == out_count[i]:
-                        i = -1  # nothing to list: the count found no hit
-                        continue
+                    if lists is not None:
+                        if lists[i + 1] == lists[i]:
+                            i = -1  # nothing to list: the count found no hit
+                            continue
                     ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
                     # A ray parallel to an axis needs the slab test's NaN care (see
                     # open_slabs).
@@ -195,7 +199,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
                         if records:
                             out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
-                    elif mode < ALL:
+                    elif lists is None:
                         out_count[i] = 0
                     i = -1
                 if i < 0:
@@ -313,10 +317,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             if mode >= COUNT:  # COUNT, ALL, FIRST: each crossing once
                                 if counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx,
                                            sy):
-                                    if mode == COUNT:
+                                    if lists is None:
                                         slot_i[s, _I_COUNT] += 1
                                         continue
-                                    start, end = out_count[i], out_count[i + 1]
+                                    start, end = lists[i], lists[i + 1]
                                     filled = listed(t, leaf_face[k], v, w, k, start,
                                                     end - start, slot_i[s, _I_COUNT], out_t,
                                                     out_face, out_uv, out_object)
@@ -363,7 +367,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
-                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST or mode >= ALL)
+                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST or mode == ALL
+                          or mode == FIRST)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
@@ -379,12 +384,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         n_hits += 1
                     else:
                         out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
-            elif mode >= ALL:  # the list nearest first, unless FIRST kept it so
-                start, filled = out_count[i], slot_i[s, _I_COUNT]
-                if 1 < filled <= out_count[i + 1] - start:
-                    sort_listed(start, filled, out_t, out_face, out_uv, out_object)
-            else:
+            elif lists is None:
                 out_count[i] = slot_i[s, _I_COUNT]
+            else:  # the list nearest first, unless FIRST kept it so
+                start, filled = lists[i], slot_i[s, _I_COUNT]
+                if 1 < filled <= lists[i + 1] - start:
+                    sort_listed(start, filled, out_t, out_face, out_uv, out_object)
             slot_i[s, _I_RAY] = -1
             busy -= 1
         if busy == 0 and next_ray == hi:
@@ -403,7 +408,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             i = hit_rays[j]
             hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
                         i)
-    if mode >= ALL:
-        list_records(out_count[lo], out_count[hi], tris, face_offsets, out_face, out_object,
+    if lists is not None:
+        list_records(lists[lo], lists[hi], tris, face_offsets, out_face, out_object,
                      out_normal)
     return tests, 0, -1
