@@ -7,6 +7,7 @@ import platform
 
 import numpy as np
 import pytest
+from bvh_tree import build_keeping_tree, outwards32
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numba import njit
@@ -201,7 +202,7 @@ def test_bvh_ray_caster_ranks_hits_as_the_naive_loop_in_every_state(models_dir, 
     scene = hsr.Mesh(mesh.positions, faces)
     cam = hsr.Camera.frame(mesh.bounds(), direction=(0.3, 0.2, 1))
     width, height = size
-    from hsr.algorithms.raycast import PACKET_FACES_PER_PIXEL
+    from hsr.algorithms.bvh.choice import PACKET_FACES_PER_PIXEL
 
     assert (len(faces) <= PACKET_FACES_PER_PIXEL * width * height) == (walk == "packets")
     z = hsr.render(scene, cam, width, height).depth
@@ -481,8 +482,8 @@ def test_bvh_invariants(models_dir, threads):
     """cow: 5,804 faces, so with 2 or 3 threads the subtrees below the top are built in
     parallel and their nodes renumbered; the tree must be the one thread's."""
     mesh = hsr.load(os.path.join(models_dir, "cow.obj"))
-    bvh = sah.build(mesh, threads=threads)
-    assert _tree_shape(bvh) == _tree_shape(sah.build(mesh, threads=1))
+    bvh = build_keeping_tree(mesh, threads=threads)
+    assert _tree_shape(bvh) == _tree_shape(build_keeping_tree(mesh, threads=1))
     leaves = bvh.node_left < 0
     assert leaves.sum() * 2 - 1 == bvh.n_nodes
     # Every non-degenerate triangle in exactly one leaf.
@@ -502,18 +503,18 @@ def test_bvh_invariants(models_dir, threads):
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
         # Tight: the float32 box of the triangles, rounded outwards (the build's boxes
         # come from its bins, not from a pass over the triangles).
-        assert np.array_equal(bvh.node_min[node], sah._outwards32(tris.reshape(-1, 3).min(0),
-                                                                 -np.inf))
-        assert np.array_equal(bvh.node_max[node], sah._outwards32(tris.reshape(-1, 3).max(0),
-                                                                 np.inf))
+        assert np.array_equal(bvh.node_min[node], outwards32(tris.reshape(-1, 3).min(0),
+                                                             -np.inf))
+        assert np.array_equal(bvh.node_max[node], outwards32(tris.reshape(-1, 3).max(0),
+                                                             np.inf))
     for node in np.flatnonzero(~leaves):
         kids = [bvh.node_left[node], bvh.node_left[node] + 1]
         assert np.array_equal(bvh.node_min[node], bvh.node_min[kids].min(0))
         assert np.array_equal(bvh.node_max[node], bvh.node_max[kids].max(0))
-    # Built without the binary tree (RayScene), whose node numbers are then not closed
-    # up, the walked tree is the same.
-    walked = sah.build(mesh, threads=threads, keep_tree=False)
-    assert walked.n_nodes == 0 and walked.root_ref == bvh.root_ref
+    # Built on several threads (whose subtrees leave node numbers unused between them),
+    # the walked tree is the one thread's.
+    walked = sah.build(mesh, threads=1)
+    assert walked.root_ref == bvh.root_ref
     assert np.array_equal(walked.node_box[:, :layout.REF], bvh.node_box[:, :layout.REF])
     assert np.array_equal(walked.node_link, bvh.node_link)
     assert np.array_equal(walked.corners, bvh.corners)
@@ -582,14 +583,14 @@ def test_deep_unbalanced_bvh_built_in_parallel_is_the_same_tree():
     corners = np.stack([np.stack([x, -one, z], 1), np.stack([1.5 * x, -one, z], 1),
                         np.stack([x, one, z], 1)], 1)
     mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    one_thread = _tree_shape(sah.build(mesh, threads=1))
+    one_thread = _tree_shape(build_keeping_tree(mesh, threads=1))
     for threads in (2, 3):
-        bvh = sah.build(mesh, threads=threads)
+        bvh = build_keeping_tree(mesh, threads=threads)
         assert _tree_shape(bvh) == one_thread
     assert bvh.wide_depth > 2 * np.log(n) / np.log(4)
     cam = hsr.Camera(eye=(1e-3, 0, 2), target=(1e-3, 0, -1), up=(0, 1, 0), fov_y=60,
                      near=0.1, far=100)
-    a = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"bvh": bvh})
+    a = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"bvh": bvh.bvh})
     b = hsr.render(mesh, cam, 48, 32, algorithm="raycast", options={"accel": "none"})
     assert np.array_equal(a.face_id, b.face_id) and np.array_equal(a.depth, b.depth)
     assert (a.face_id >= 0).mean() > 0.2
@@ -650,7 +651,7 @@ def test_wide_tree_is_the_least_cost_collapse_of_the_binary_tree(seed):
         size=n) * 0.3], 1)
     corners = base[:, None, :] + rng.normal(size=(n, 3, 3)) * 0.2
     mesh = hsr.Mesh(corners.reshape(-1, 3), np.arange(3 * n).reshape(-1, 3))
-    bvh = sah.build(mesh, threads=1)
+    bvh = build_keeping_tree(mesh, threads=1)
     if int((bvh.node_left >= 0).sum()) > 11:
         pytest.skip("tree too large to try every collapse")
     boxes = {tuple(np.r_[bvh.node_min[b], bvh.node_max[b]]): b for b in range(bvh.n_nodes)}
@@ -688,7 +689,7 @@ def test_few_overlapping_faces_make_a_wide_root_of_their_leaves(copies):
     last column). Every slot in one leaf, and the walks answer as the naive loop."""
     tri = np.array([[0.0, 0.0, -5.0], [1.0, 0.0, -5.0], [0.0, 1.0, -5.0]])
     mesh = hsr.Mesh(np.concatenate([tri] * copies), np.arange(3 * copies).reshape(-1, 3))
-    bvh = sah.build(mesh, threads=1)
+    bvh = build_keeping_tree(mesh, threads=1)
     assert bvh.node_left[0] >= 0 and bvh.root_count == 0
     _, _, choice, split = collapse._collapse_plan(
         bvh.node_min.astype(np.float64), bvh.node_max.astype(np.float64),
@@ -702,7 +703,7 @@ def test_few_overlapping_faces_make_a_wide_root_of_their_leaves(copies):
     cam = hsr.Camera(eye=(0.25, 0.25, -4.0), target=(0.25, 0.25, -5.0), up=(0, 1, 0),
                      fov_y=60, near=0.1, far=100)
     for depth_func in ("less", "lequal"):  # ties: the first face, or the last
-        a = hsr.render(mesh, cam, 32, 24, algorithm="raycast", options={"bvh": bvh},
+        a = hsr.render(mesh, cam, 32, 24, algorithm="raycast", options={"bvh": bvh.bvh},
                        depth_func=depth_func)
         b = hsr.render(mesh, cam, 32, 24, algorithm="raycast", options={"accel": "none"},
                        depth_func=depth_func)
@@ -730,7 +731,7 @@ def test_wide_boxes_round_outwards_as_numpy_does():
     """The wide tree's float32 bounds step to the next float32 by the bits
     (hsr.algorithms.simd.next_float32, not libm's nextafter): the same steps as NumPy's
     nextafter from zero, subnormals, the largest float32 and the infinities, both ways;
-    and the rounding of float64 bounds it serves is _outwards32's."""
+    and the rounding of float64 bounds it serves is outwards32's (tests/bvh_tree.py)."""
     from numba import njit
 
     from hsr.algorithms.bvh.layout import down32 as _down32
@@ -761,18 +762,19 @@ def test_wide_boxes_round_outwards_as_numpy_does():
     values = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-50, 50, 5000),
                              [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
     down, up = rounded(values)
-    assert np.array_equal(down, sah._outwards32(values, -np.inf))
-    assert np.array_equal(up, sah._outwards32(values, np.inf))
+    assert np.array_equal(down, outwards32(values, -np.inf))
+    assert np.array_equal(up, outwards32(values, np.inf))
 
 
 def test_binary_boxes_kept_in_float32_hold_what_they_bound():
-    """The BVH keeps its binary boxes in float32 rounded outwards: every value, from
-    tiny to beyond float32's range, lies inside its rounding, which is the nearest
-    float32 on that side (NumPy's float32 neighbours as the reference)."""
+    """The tests keep the binary boxes in float32 rounded outwards (bvh_tree.outwards32,
+    the reference of the wide boxes' rounding): every value, from tiny to beyond
+    float32's range, lies inside its rounding, which is the nearest float32 on that
+    side (NumPy's float32 neighbours as the reference)."""
     rng = np.random.default_rng(8)
     values = np.concatenate([rng.normal(size=2000) * 10.0 ** rng.integers(-50, 50, 2000),
                              [0.0, -0.0, 1e300, -1e300, 1e-300, -1e-300, 0.1, 2.0 ** 127]])
-    down, up = sah._outwards32(values, -np.inf), sah._outwards32(values, np.inf)
+    down, up = outwards32(values, -np.inf), outwards32(values, np.inf)
     assert down.dtype == up.dtype == np.float32
     assert (down.astype(np.float64) <= values).all() and (up.astype(np.float64) >= values).all()
     exact = down.astype(np.float64) == values

@@ -11,6 +11,7 @@ from ..errors import RenderError
 from ..geometry.stage import ScreenTriangles
 from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
+from .bvh.choice import choose_walk
 from .bvh.hits import NEAREST
 from .bvh.layout import COUNT_AT, LANES, NODE_WORDS, REF
 from .bvh.packets import trace_packets
@@ -58,9 +59,7 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
         used = None
     else:
         if bvh is None:
-            # The walked tree only: closing up and keeping the binary one costs time no walk uses.
-            # (Measurements: docs/history.md, "Ray core".)
-            bvh = build(view.scene, workers.threads, keep_tree=False)
+            bvh = build(view.scene, workers.threads)
         elif not isinstance(bvh, BVH):
             raise RenderError(f"raycast option bvh must be an hsr.raycast.BVH (from "
                               f"hsr.raycast.build), got {type(bvh).__name__}")
@@ -81,11 +80,6 @@ def resolve(screen: ScreenTriangles, state: RenderState, workers: Workers | None
 # The walks of the pixels' rays (stats["ray_walk"] names them).
 NAIVE, PACKETS, INTERLEAVED = 0, 1, 2
 WALKS = ("naive", "packets", "interleaved")
-# Packets unless the faces are more than this many a pixel: neighbouring pixels meet
-# neighbouring triangles until they get much smaller than a pixel, when each ray meets
-# triangles of its own and the interleaved walk, which overlaps their misses, wins.
-# (Measurements: docs/history.md, "Ray core".)
-PACKET_FACES_PER_PIXEL = 5
 # Pixels whose rays one call of the walk takes (a few rows): their rays and answers,
 # ~100 bytes a pixel, stay in a core's cache between being made, walked and written out.
 BLOCK_PIXELS = 4096
@@ -108,8 +102,9 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     coplanar faces resolve alike. With a ``bvh`` the rays go through the walks of
     :mod:`hsr.algorithms.bvh.walk` with the render state as their ``raster``: in packets
     of four neighbouring pixels (:func:`hsr.algorithms.bvh.packets.trace_packets`), whose rays
-    meet the same boxes, unless there are more than :data:`PACKET_FACES_PER_PIXEL`
-    faces a pixel; then interleaved one by one
+    meet the same boxes, unless there are more than
+    :data:`hsr.algorithms.bvh.choice.PACKET_FACES_PER_PIXEL` faces a pixel
+    (:func:`hsr.algorithms.bvh.choice.choose_walk`); then interleaved one by one
     (:func:`hsr.algorithms.bvh.walk.trace_range`), which overlaps the cache misses of rays
     that each meet triangles of their own."""
     view_proj = camera.projection_matrix(width / height) @ camera.view_matrix
@@ -133,7 +128,7 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
         nodes = (triangles, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
                  np.zeros((1, NODE_WORDS), np.int32), 0, 0, 0)
     else:
-        walk = (PACKETS if bvh.n_faces <= PACKET_FACES_PER_PIXEL * width * height
+        walk = (PACKETS if choose_walk(width * height, bvh.n_faces) is trace_packets
                 else INTERLEAVED)
         nodes = bvh.walked
     spans = np.empty((height, 2), dtype=np.int64)

@@ -30,11 +30,6 @@ __all__ = ["RayScene", "RayHits", "RayHitLists", "RayError"]
 # Rays per chunk handed to a thread: large enough that a chunk costs far more than its
 # hand-off, small enough that uneven rays (misses cost little) balance between threads.
 CHUNK = 4096
-# Coherent rays walk in packets while the triangles where they land are no more than
-# this many a ray's footprint, as RayScene._faces_per_ray estimates it (measured, a 1M-face
-# terrain filling square views, packets against interleaved: estimates 1.4, 13-16% faster;
-# 2.7, 1% slower to 6% faster; 3.5, 2-8% slower; 4.9, 6-16% slower).
-PACKET_FACES_PER_RAY = 3.0
 # Faces whose mean area, times the faces, stands for the scene's surface area there (the
 # leaf order spreads them over the whole scene; all of them took 6 ms at 1M faces).
 AREA_SAMPLES = 4096
@@ -163,8 +158,7 @@ class RayScene:
             scene = load_scene(scene)
         self.scene = as_scene(scene)
         self.threads = threads
-        # Only the walked tree: the binary one the build goes through is dropped.
-        self.bvh = build(self.scene, threads, keep_tree=False)
+        self.bvh = build(self.scene, threads)
         self.face_offsets = self.scene.face_offsets()
         lo, hi = self.bvh.bounds
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
@@ -291,38 +285,16 @@ class RayScene:
             raise RayError(_problem(problem, ray, t0, t1))
 
     def _walk(self, origins, directions, t0, t1):
-        """The walk these rays go through: :func:`hsr.algorithms.bvh.packets.trace_packets`
-        or :func:`~hsr.algorithms.bvh.walk.trace_range` (the answers are the same on both).
+        """The walk these rays go through
+        (:func:`hsr.algorithms.bvh.choice.choose_walk`): whether they come in coherent
+        runs (:func:`_coherent`), and if so, when they are fewer than four a face, the
+        faces in a ray's footprint where a sample of them lands (:meth:`_faces_per_ray`)."""
+        from ..algorithms.bvh.choice import choose_walk
 
-        Coherent rays (a camera's, a scanner's: one origin, neighbours' directions
-        close; :func:`_coherent`) find in cache what the ray before read, and walk in
-        packets of four whose node reads serve four rays, as long as neighbouring rays
-        meet the same triangles: until the triangles where the rays land are about
-        :data:`PACKET_FACES_PER_RAY` ray footprints a triangle or smaller, when each ray
-        meets triangles of its own and the interleaved walk, which overlaps their cache
-        misses, wins. With four rays a triangle or more that holds wherever they land;
-        else it is judged on a sample of the rays (:meth:`_faces_per_ray`). Other rays
-        go through trace_range, eight at a time per thread (interleaved), which hides
-        cache misses. Measured, two threads, 1M rays (min ms of six alternating runs,
-        packets / interleaved, cast, occluded, count): the bunny's camera rays 32 / 39,
-        30 / 31, 42 / 54 (14 rays a face); a 1M-face terrain filling a 1024 x 1024
-        view from above (estimated 1.4 faces a ray) 104 / 122, 96 / 113, 109 / 130;
-        the same at 724 x 724 (2.7) 74 / 77, 58 / 58, 58 / 62, at 600 x 600 (3.5)
-        56 / 52, 50 / 46, 54 / 53, at 512 x 512 (4.9) 40 / 38, 36 / 31, 41 / 37; a
-        250k-face one at 1024 x 1024 (0.35) 80 / 110, 75 / 101, 84 / 117; the 1M-face
-        one framed edge-on (4.2: a strip of the view, many faces a ray where it lands)
-        33 / 29, 30 / 26, 61 / 53. (Until this was judged, coherent rays fewer than
-        four a face all went through trace_range: the filling 1M-face terrain at 1.85x
-        Open3D's cast instead of 1.29x.)"""
-        from ..algorithms.bvh.packets import trace_packets
-        from ..algorithms.bvh.walk import trace_range
-
-        if not _coherent(origins, directions, self.scene_size):
-            return trace_range
-        if 4 * self.n_faces <= len(origins):
-            return trace_packets
-        faces = self._faces_per_ray(origins, directions, t0, t1, _sample_runs(len(origins)))
-        return trace_packets if faces <= PACKET_FACES_PER_RAY else trace_range
+        return choose_walk(
+            len(origins), self.n_faces, _coherent(origins, directions, self.scene_size),
+            lambda: self._faces_per_ray(origins, directions, t0, t1,
+                                        _sample_runs(len(origins))))
 
     def _faces_per_ray(self, origins, directions, t0, t1, runs) -> float:
         """About how many triangles lie in one ray's footprint where the rays land:

@@ -8,9 +8,10 @@ per noun, each importing only those above it in this list:
 - :mod:`.collapse`: the binary tree collapsed into the 8-wide one;
 - :mod:`.sah`: the binned SAH build (:func:`build`, :class:`BVH`);
 - :mod:`.ranking`: the ray caster's depth ranking, applied by the walks at each hit;
-- :mod:`.hits`: the queries, the checks of a ray and the record of a hit;
+- :mod:`.hits`: the queries and their hit rules, the checks of a ray, the record of a hit;
 - :mod:`.walk`: the interleaved walk, a few rays per thread in turn;
-- :mod:`.packets`: the packet walk, four coherent rays as one.
+- :mod:`.packets`: the packet walk, four coherent rays as one;
+- :mod:`.choice`: which of the two walks rays go through, its thresholds named.
 
 The ray caster (:mod:`hsr.algorithms.raycast`) and the ray queries
 (:class:`hsr.visibility.RayScene`) are built on these.

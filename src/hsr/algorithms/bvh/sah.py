@@ -18,7 +18,7 @@ from ..simd import grow_box, prefetch
 from .collapse import widen
 from .layout import COUNT_AT, REF, node_records
 
-__all__ = ["LEAF_SIZE", "N_BINS", "world_triangles", "BVH", "build", "AHEAD"]
+__all__ = ["LEAF_SIZE", "N_BINS", "world_triangles", "BVH", "build", "binary_tree", "AHEAD"]
 
 LEAF_SIZE = 4
 
@@ -32,34 +32,24 @@ def world_triangles(scene: Scene) -> np.ndarray:
 
 @dataclass
 class BVH:
-    """A bounding volume hierarchy over a scene's world-space triangles.
+    """A bounding volume hierarchy over a scene's world-space triangles, as the walks
+    read it (the binary tree the build goes through is not kept: no walk reads it).
 
-    As built (binary, binned SAH): node_min, node_max : (N, 3) float32 boxes (rounded
-    outwards from the float64 ones the build used); node_left : (N,) int32 first child
-    (the second is ``node_left + 1``) or -1 for a leaf; node_start, node_count : (N,)
-    int32 a leaf's range of slots; tri_index : (T,) int32 the face id in each slot
-    (degenerate faces are left out); corners : (T, 3, 3) world-space corners of each
-    slot's face (stored in leaf order, so a leaf's triangles are read in one run of
-    memory), float32 when every vertex is exactly a float32 value, else float64 (the
-    tests compute in float64 either way); n_faces : the scene's face count.
-
-    As walked: node_box (W, 64) float32 and node_link (W, 64) int32, the 8-wide tree of
-    :func:`hsr.algorithms.bvh.collapse.widen` in the records of
-    :func:`hsr.algorithms.bvh.layout.node_records`; the root a wide node when
-    root_count is 0, else a leaf of root_count slots from root_ref; wide_depth the
-    deepest wide level (it sizes the walk's stack); leaf_face, the walk's name for
-    tri_index (the same array); bounds (2, 3) float64, the scene's box (lower, upper
-    corner; +inf / -inf for no faces).
-
-    Built with ``keep_tree=False`` (as :class:`hsr.RayScene` builds it), the binary
-    arrays node_min .. node_count are empty: the walks read only the wide tree.
+    - tri_index : (T,) int32 the face id in each slot (degenerate faces are left out),
+      in leaf order; leaf_face is the walks' name for it (the same array);
+    - corners : (T, 3, 3) world-space corners of each slot's face (stored in leaf order,
+      so a leaf's triangles are read in one run of memory), float32 when every vertex is
+      exactly a float32 value, else float64 (the tests compute in float64 either way);
+    - n_faces : the scene's face count;
+    - node_box (W, 64) float32 and node_link (W, 64) int32: the 8-wide tree of
+      :func:`hsr.algorithms.bvh.collapse.widen` in the records of
+      :func:`hsr.algorithms.bvh.layout.node_records`; the root a wide node when
+      root_count is 0, else a leaf of root_count slots from root_ref; wide_depth the
+      deepest wide level (it sizes the walk's stack);
+    - bounds (2, 3) float64: the scene's box (lower, upper corner; +inf / -inf for no
+      faces).
     """
 
-    node_min: np.ndarray
-    node_max: np.ndarray
-    node_left: np.ndarray
-    node_start: np.ndarray
-    node_count: np.ndarray
     tri_index: np.ndarray
     corners: np.ndarray
     n_faces: int
@@ -71,11 +61,6 @@ class BVH:
     leaf_face: np.ndarray
     bounds: np.ndarray
     build_ms: float = 0.0
-
-    @property
-    def n_nodes(self) -> int:
-        """Nodes of the binary tree (0 when it was not kept)."""
-        return len(self.node_left)
 
     @property
     def n_wide_nodes(self) -> int:
@@ -91,11 +76,9 @@ class BVH:
                 self.root_count, self.wide_depth)
 
 
-def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) -> BVH:
+def build(scene: SceneLike, threads: int | None = None) -> BVH:
     """Build the BVH of ``scene`` (a Scene, Mesh, ...) in world space, on ``threads``
     threads (default: numba's thread count; the tree does not depend on it).
-    ``keep_tree=False`` drops the binary tree once the walked 8-wide one is made (21
-    bytes a face that no walk reads).
 
     Raises :class:`~hsr.errors.MeshError` for something that is not a scene or mesh,
     or one of 2**31 faces or more.
@@ -112,15 +95,7 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
     # Each array is let go once the build is past it: the peak is the largest phase's.
     # (Measurements: docs/history.md, "Ray core".)
     with Workers(threads) as workers:
-        # The passes over every face on all threads; each writes its own rows.
-        with_area = np.empty(n_faces, dtype=np.bool_)
-        workers.run_range(_flag_area, n_faces, positions, faces, with_area)
-        slots = np.flatnonzero(with_area).astype(np.int32)  # fewer than 2**31 faces
-        del with_area
-        prim = np.empty((len(slots), 9))
-        workers.run_range(_fill_prims, len(slots), positions, faces, slots, prim)
-        arrays = _build(prim, slots, workers, keep_tree)
-        del prim, slots  # (tri_index is slots, partitioned into leaf order)
+        arrays = binary_tree(positions, faces, workers)
         node_min, node_max, node_left, node_start, node_count, tri_index, n_nodes = arrays
         del arrays
         bounds = np.array([node_min[0], node_max[0]])
@@ -140,12 +115,6 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
             node_link[:, REF:COUNT_AT], node_link[:, COUNT_AT:] = 0, -1
             depth = 0
             root = (int(node_start[0]), int(node_count[0]))
-        # The binary tree is kept for reading, in half the bytes: its boxes in float32
-        # rounded outwards (still holding what they bound), its indices in int32.
-        kept = slice(None) if keep_tree else slice(0, 0)
-        tree = (_outwards32(node_min[kept], -np.inf), _outwards32(node_max[kept], np.inf),
-                node_left[kept].astype(np.int32), node_start[kept].astype(np.int32),
-                node_count[kept].astype(np.int32))
         del node_min, node_max, node_left, node_start, node_count
         # A scene whose vertices are all float32 values (as binary PLY, STL and glTF
         # files give them) keeps its corners in float32: half the bytes, and every
@@ -154,21 +123,26 @@ def build(scene: SceneLike, threads: int | None = None, keep_tree: bool = True) 
                            dtype=np.float32 if _float32_exact(positions) else np.float64)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
-    return BVH(*tree, tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
+    return BVH(tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
                node_link=node_link, root_ref=root[0], root_count=root[1], wide_depth=depth,
                leaf_face=tri_index, bounds=bounds,
                build_ms=1e3 * (time.perf_counter() - t0))
 
 
-def _outwards32(values: np.ndarray, towards: float) -> np.ndarray:
-    """``values`` in float32, each rounded towards ``towards`` (-inf: down, +inf: up)
-    where float32 cannot hold it exactly (beyond float32's range: to +-inf, or the
-    largest float32 on the inner side)."""
-    with np.errstate(over="ignore"):
-        rounded = values.astype(np.float32)
-    moved = rounded < values if towards > 0 else rounded > values
-    rounded[moved] = np.nextafter(rounded[moved], np.float32(towards))
-    return rounded
+def binary_tree(positions, faces, workers):
+    """The binary SAH tree of the faces with an area (:func:`_flag_area`) of the mesh
+    ``positions``, ``faces`` (as :func:`_world_mesh` gives them), on ``workers``: (node_min,
+    node_max, node_left, node_start, node_count, leaf order of the faces, number of
+    nodes), as :func:`_build` makes it."""
+    n_faces = len(faces)
+    # The passes over every face on all threads; each writes its own rows.
+    with_area = np.empty(n_faces, dtype=np.bool_)
+    workers.run_range(_flag_area, n_faces, positions, faces, with_area)
+    slots = np.flatnonzero(with_area).astype(np.int32)  # fewer than 2**31 faces
+    del with_area
+    prim = np.empty((len(slots), 9))
+    workers.run_range(_fill_prims, len(slots), positions, faces, slots, prim)
+    return _build(prim, slots, workers)  # (slots becomes the leaf order)
 
 
 def _world_mesh(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -231,7 +205,7 @@ def _gather_corners(lo, hi, positions, faces, order, corners):
             corners[k, j, 2] = positions[v, 2]
 
 
-def _build(prim, slots, workers, keep_tree=True):
+def _build(prim, slots, workers):
     """The binary SAH tree over the records ``prim`` of faces ``slots``
     (:func:`_fill_prims`): (node_min, node_max, node_left, node_start, node_count, leaf
     order of the faces, number of nodes). ``prim`` and ``slots`` are partitioned in
@@ -240,10 +214,10 @@ def _build(prim, slots, workers, keep_tree=True):
     In parallel (``workers``, :class:`hsr.parallel.Workers`): the top of the tree is split
     on one thread until every open node holds at most 1 / (4 threads) of the faces; those
     subtrees are then built on all threads at once (each in its own range of faces and of
-    node numbers, so no two threads write the same place), and, with ``keep_tree``, the node
-    numbers closed up (without, the arrays keep the unused numbers between subtrees, which
-    no link reaches, for :func:`hsr.algorithms.bvh.collapse.widen` to walk). The tree is the
-    same as on one thread, node numbering aside.
+    node numbers, so no two threads write the same place); the arrays keep the unused
+    numbers between subtrees, which no link reaches, for
+    :func:`hsr.algorithms.bvh.collapse.widen` to walk from the root. The tree is the same
+    as on one thread, node numbering aside.
     """
     n = len(slots)
     order = slots
@@ -264,11 +238,7 @@ def _build(prim, slots, workers, keep_tree=True):
     ends = np.asarray(workers.run(_grow_subtree, np.arange(n_pending + 1), prim, order,
                                   *nodes, each), dtype=np.int64)
     n_nodes = n_top + int((ends - base).sum())
-    if not keep_tree:
-        return (*(a[:ends[-1]] for a in nodes), order, n_nodes)
-    _close_up(nodes[2], n_top, pending, base, ends)
-    keep = np.concatenate([np.arange(n_top)] + [np.arange(s, e) for s, e in zip(base, ends)])
-    return (*(a[keep] for a in nodes), order, n_nodes)
+    return (*(a[:ends[-1]] for a in nodes), order, n_nodes)
 
 
 @njit(cache=True, nogil=True)
@@ -440,21 +410,6 @@ def _grow(prim, order, node_min, node_max, node_left, node_start, node_count, ro
         stack.append(left)
         stack_centroids.append(l_centroids)
     return next_node, n_pending
-
-
-@njit(cache=True, nogil=True)
-def _close_up(node_left, n_top, pending, base, ends):
-    """Renumber child references for the node arrays with the gaps between subtrees
-    closed (subtree k's nodes base[k] .. ends[k] - 1 move to just after subtree
-    k - 1's): those inside subtree k and its root's, ``pending[k]``."""
-    start = n_top
-    for k in range(base.shape[0]):
-        shift = base[k] - start
-        node_left[pending[k]] -= shift
-        for node in range(base[k], ends[k]):
-            if node_left[node] >= 0:
-                node_left[node] -= shift
-        start += ends[k] - base[k]
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -116,8 +116,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     ray's steps are those of its walk alone (a range of one ray), so are its answers. A ray
     that enters none of the root's boxes is answered as it is read, without taking a slot.
     (Coherent rays that are many for the triangles, a camera's pixels, go through
-    :func:`trace_packets` instead: RayScene sends them there from four rays a face, the ray
-    caster up to :data:`hsr.algorithms.raycast.PACKET_FACES_PER_PIXEL` faces a pixel.)"""
+    :func:`trace_packets` instead, as :func:`hsr.algorithms.bvh.choice.choose_walk`
+    decides.)"""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     # Views without reference counts, as in trace_packets (none were left in this walk's
     # loop for the queries, in a profile; the ray caster's ranking had them).
