@@ -13,7 +13,7 @@ from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
 from .bvh.choice import choose_walk
 from .bvh.hits import NEAREST
-from .bvh.layout import COUNT_AT, LANES, NODE_WORDS, REF
+from .bvh.layout import LANES, NODE_WORDS, child
 from .bvh.packets import trace_packets
 from .bvh.ranking import clip_zw, depth32, ranks_before, window_ranking
 from .bvh.sah import BVH, build
@@ -193,11 +193,11 @@ def _pixel_spans(node_box, node_link, root_ref, root_count, n_slots, bounds, vie
         for j in range(n_level):
             w = level[j]
             for lane in range(LANES):
-                count = node_link[w, COUNT_AT + lane]
+                ref, count = child(node_link, w, lane)
                 if count < 0:  # an empty lane
                     continue
                 if count == 0 and depth + 1 < levels:  # a wide node: its boxes, lower
-                    below[n_below] = node_link[w, REF + lane]
+                    below[n_below] = ref
                     n_below += 1
                     continue
                 _cover_box(node_box[w, lane], node_box[w, LANES + lane],

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .layout import COUNT_AT, LANES, REF, down32, up32
+from .layout import LANES, down32, set_child, up32
 
 __all__ = ["C_NODE", "C_LEAF_TRIANGLE", "LEAF_MAX", "widen"]
 
@@ -156,7 +156,7 @@ def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_
             if lane >= m:
                 for a in range(6):
                     node_box[w, LANES * a + lane] = np.inf
-                node_link[w, REF + lane], node_link[w, COUNT_AT + lane] = 0, -1
+                set_child(node_link, w, lane, 0, -1)
                 continue
             q = kids[lane]
             c = order[q]
@@ -164,10 +164,9 @@ def widen(node_min, node_max, node_left, node_start, node_count, node_box, node_
                 node_box[w, LANES * a + lane] = down32(node_min[c, a])
                 node_box[w, LANES * (3 + a) + lane] = up32(node_max[c, a])
             if node_left[c] < 0 or choice[q, 0] < 0:  # a leaf (of the subtree's slots)
-                node_link[w, REF + lane] = node_start[c]
-                node_link[w, COUNT_AT + lane] = node_count[c]
+                set_child(node_link, w, lane, node_start[c], node_count[c])
             else:
-                node_link[w, REF + lane], node_link[w, COUNT_AT + lane] = n_wide, 0
+                set_child(node_link, w, lane, n_wide, 0)
                 todo_pos[top], todo_wide[top], todo_level[top] = q, n_wide, level + 1
                 top += 1
                 n_wide += 1

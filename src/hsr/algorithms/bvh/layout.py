@@ -10,11 +10,10 @@ from numba import njit
 
 from ..simd import next_float32
 
-__all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "node_records", "down32",
-           "up32"]
+__all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "node_records", "child",
+           "set_child", "down32", "up32"]
 
 # Children per node: the eight-box test is one AVX-512 vector, and fewer nodes are walked.
-
 # (Measurements: docs/history.md, "Ray core".)
 LANES = 8
 
@@ -44,6 +43,19 @@ def node_records(n: int) -> tuple[np.ndarray, np.ndarray]:
     record = raw[start:start + n * 4 * NODE_WORDS]
     return (record.view(np.float32).reshape(n, NODE_WORDS),
             record.view(np.int32).reshape(n, NODE_WORDS))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def child(node_link, w, lane):
+    """What lane ``lane`` of wide node ``w`` holds, ``(ref, count)``: a wide node's number
+    and 0, a leaf's first slot and its triangle count (> 0), or an empty lane (count -1)."""
+    return np.int64(node_link[w, REF + lane]), np.int64(node_link[w, COUNT_AT + lane])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def set_child(node_link, w, lane, ref, count):
+    """Make lane ``lane`` of wide node ``w`` hold ``(ref, count)`` (see :func:`child`)."""
+    node_link[w, REF + lane], node_link[w, COUNT_AT + lane] = ref, count
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -39,7 +39,7 @@ from .hits import (
     plausible_ray,
     sort_listed,
 )
-from .layout import COUNT_AT, HOT_NODES, LANES, REF
+from .layout import HOT_NODES, LANES, child
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import walk_stack
 from .triangle import intersect, ray_frame
@@ -169,8 +169,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             sort_keys8(keys)
                         for j in range(m, 0, -1):
                             pushed = keys[j] & 7
-                            stack_ref[top] = node_link[ref, REF + pushed]
-                            stack_count[top] = node_link[ref, COUNT_AT + pushed]
+                            stack_ref[top], stack_count[top] = child(node_link, ref, pushed)
                             # A box pushed is often walked next by another of the packet's
                             # rays: fetch it now.
                             # (Measurements: docs/history.md, "Ray core".)
@@ -185,8 +184,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             stack_t[top, 3] = entries[3, pushed]
                             top += 1
                     active = (mask >> (4 * lane)) & 15
-                    ref, n = (np.int64(node_link[ref, REF + lane]),
-                              np.int64(node_link[ref, COUNT_AT + lane]))
+                    ref, n = child(node_link, ref, lane)
                     continue
             else:  # a leaf: each walking ray tests its triangles
                 if not framed:

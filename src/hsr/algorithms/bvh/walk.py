@@ -39,7 +39,7 @@ from .hits import (
     plausible_ray,
     sort_listed,
 )
-from .layout import COUNT_AT, HOT_NODES, LANES, REF
+from .layout import HOT_NODES, LANES, child
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import next_box, stack_size, walk_stack
 from .triangle import intersect, ray_frame
@@ -254,8 +254,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             while rest != 0:
                                 other = lowest_bit(rest)
                                 rest &= rest - 1
-                                stack_ref[top] = node_link[ref, REF + other]
-                                stack_count[top] = node_link[ref, COUNT_AT + other]
+                                stack_ref[top], stack_count[top] = child(node_link, ref,
+                                                                         other)
                                 top += 1
                         else:
                             # The walk goes on into the nearest entered lane as soon
@@ -273,12 +273,11 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                 # entered lanes lead (a missed lane sorts last, at +inf).
                                 sort_keys8(keys)
                             for j in range(m, 0, -1):
-                                stack_ref[top] = node_link[ref, REF + (keys[j] & 7)]
-                                stack_count[top] = node_link[ref, COUNT_AT + (keys[j] & 7)]
+                                stack_ref[top], stack_count[top] = child(node_link, ref,
+                                                                         keys[j] & 7)
                                 stack_t[top] = keys[j]
                                 top += 1
-                        ref, n = (np.int64(node_link[ref, REF + lane]),
-                                  np.int64(node_link[ref, COUNT_AT + lane]))
+                        ref, n = child(node_link, ref, lane)
                         if interleave and (n != 0 or ref >= HOT_NODES):
                             break
                         continue
