@@ -69,6 +69,17 @@ def _move(hit_t, hit_face, hit_uv, hit_slot, to, frm):
     hit_uv[to, 0], hit_uv[to, 1] = hit_uv[frm, 0], hit_uv[frm, 1]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _insert(t, f, u, v, k, start, j, hit_t, hit_face, hit_uv, hit_slot):
+    """Put hit (t, f, u, v, k) into the sorted run ``start .. j - 1`` in its place, the
+    hits after it moved one up (into ``j`` at the end, whatever was there)."""
+    while j > start and nearer(t, f, hit_t[j - 1], hit_face[j - 1]):
+        _move(hit_t, hit_face, hit_uv, hit_slot, j, j - 1)
+        j -= 1
+    hit_t[j], hit_face[j], hit_slot[j] = t, f, k
+    hit_uv[j, 0], hit_uv[j, 1] = u, v
+
+
 @njit(cache=True, nogil=True)
 def sort_listed(start, n, hit_t, hit_face, hit_uv, hit_slot):
     """Sort a ray's list ``start .. start + n - 1`` nearest first, equal distances by face
@@ -76,14 +87,8 @@ def sort_listed(start, n, hit_t, hit_face, hit_uv, hit_slot):
     argsort of the distances whose runs of equal ones are then put in face order."""
     if n <= SHORT_LIST:
         for a in range(start + 1, start + n):
-            t, f, k = hit_t[a], hit_face[a], hit_slot[a]
-            u, v = hit_uv[a, 0], hit_uv[a, 1]
-            b = a
-            while b > start and nearer(t, f, hit_t[b - 1], hit_face[b - 1]):
-                _move(hit_t, hit_face, hit_uv, hit_slot, b, b - 1)
-                b -= 1
-            hit_t[b], hit_face[b], hit_slot[b] = t, f, k
-            hit_uv[b, 0], hit_uv[b, 1] = u, v
+            _insert(hit_t[a], hit_face[a], hit_uv[a, 0], hit_uv[a, 1], hit_slot[a], start, a,
+                    hit_t, hit_face, hit_uv, hit_slot)
         return
     order = start + np.argsort(hit_t[start:start + n], kind="mergesort")
     # Runs of equal distances (stable: in list order) by face id, by insertion.
@@ -127,14 +132,8 @@ def listed(t, f, u, v, k, start, cap, filled, hit_t, hit_face, hit_uv, hit_slot)
         sort_listed(start, cap, hit_t, hit_face, hit_uv, hit_slot)
         filled = cap + 1
     last = start + cap - 1
-    if not nearer(t, f, hit_t[last], hit_face[last]):
-        return filled
-    j = last
-    while j > start and nearer(t, f, hit_t[j - 1], hit_face[j - 1]):
-        _move(hit_t, hit_face, hit_uv, hit_slot, j, j - 1)
-        j -= 1
-    hit_t[j], hit_face[j], hit_slot[j] = t, f, k
-    hit_uv[j, 0], hit_uv[j, 1] = u, v
+    if nearer(t, f, hit_t[last], hit_face[last]):  # the last is dropped
+        _insert(t, f, u, v, k, start, last, hit_t, hit_face, hit_uv, hit_slot)
     return filled
 
 
