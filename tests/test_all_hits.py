@@ -283,3 +283,20 @@ def test_lists_past_the_memory_cap_are_refused_before_they_are_allocated():
     lists = rays.all_hits(origins, directions, max_hits=3)
     np.testing.assert_array_equal(lists.counts, 3)
     np.testing.assert_allclose(lists.t, np.tile([1.0, 2.0, 3.0], n))
+
+
+def test_empty_queries_and_scenes_list_nothing():
+    """No rays: one offset, no hits; a scene whose faces are all degenerate (no tree to
+    walk): every list empty; points() of other rays than the query's is refused."""
+    rays = hsr.RayScene(hsr.scenes.cube())
+    none = rays.all_hits(np.zeros((0, 3)), np.zeros((0, 3)))
+    assert len(none) == 0 and none.offsets.tolist() == [0] and none.t.shape == (0,)
+    assert none.barycentric.shape == (0, 2) and none.normal.shape == (0, 3)
+    flat = hsr.Mesh([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]])
+    lists = hsr.RayScene(flat).all_hits([[0.5, 1.0, 0.0], [1.0, -1.0, 0.0]],
+                                        [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    assert lists.offsets.tolist() == [0, 0, 0] and len(lists.t) == 0
+    hits = rays.all_hits([[0, 0, 5]], [[0, 0, -1]])
+    assert hits.counts.tolist() == [2]
+    with pytest.raises(RayError, match="1 rays were cast; got 2"):
+        hits.points([[0, 0, 5], [0, 0, 6]], [[0, 0, -1], [0, 0, -1]])
