@@ -25,7 +25,6 @@ from .hits import (
     ALL,
     ANY,
     COUNT,
-    FIRST,
     LARGEST,
     NEAREST,
     check_rays,
@@ -175,8 +174,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             # (Measurements: docs/history.md, "Ray core".)
                             if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
                                 fetch_box(node_box, tris, leaf_face, stack_ref[top],
-                                           stack_count[top],
-                                           mode == NEAREST or mode == ALL or mode == FIRST)
+                                           stack_count[top], mode == NEAREST or lists is not None)
                             stack_rays[top] = (mask >> (4 * pushed)) & 15
                             stack_t[top, 0] = entries[0, pushed]
                             stack_t[top, 1] = entries[1, pushed]

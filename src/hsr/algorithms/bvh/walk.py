@@ -24,7 +24,6 @@ from .hits import (
     ALL,
     ANY,
     COUNT,
-    FIRST,
     LARGEST,
     NEAREST,
     RECORD_AHEAD,
@@ -366,8 +365,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
-                fetch_box(node_box, tris, leaf_face, ref, n, mode == NEAREST or mode == ALL
-                          or mode == FIRST)
+                fetch_box(node_box, tris, leaf_face, ref, n,
+                          mode == NEAREST or lists is not None)
                 continue
             # The ray's answer; out_object holds the hit's slot until the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
