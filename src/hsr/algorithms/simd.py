@@ -11,6 +11,19 @@ without fused multiply-adds, so every lane's result is bit for bit the scalar on
 register; on a CPU with narrower vectors LLVM splits the operations, and the results do
 not change. :func:`sort_keys8` orders a node's entered lanes without branches (the
 ordered step of :func:`hsr.algorithms.bvh.walk.trace_range`).
+
+What it exports, by use:
+
+- a node's boxes: :func:`box_keys8` (one ray, entries as sortable keys),
+  :func:`box_mask8` (one ray, the mask alone), :func:`packet_keys8` and
+  :func:`packet_keys8_shared` (four rays; four from one origin);
+- a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once) and
+  :func:`leaf_filter4_rays` (four rays from one origin);
+- ordering and bits: :func:`min_key8`, :func:`sort_keys8`, :func:`lowest_bit`,
+  :func:`bit_count`, :func:`float_bits`, :func:`next_float32`;
+- the build: :func:`grow_box` (a bin's box grown by a face's);
+- memory: :func:`prefetch` (a hint, never a change of result) and :func:`borrowed` (a
+  view without reference counts, for the walks' loops).
 """
 
 from __future__ import annotations
