@@ -300,3 +300,22 @@ def test_empty_queries_and_scenes_list_nothing():
     assert hits.counts.tolist() == [2]
     with pytest.raises(RayError, match="1 rays were cast; got 2"):
         hits.points([[0, 0, 5], [0, 0, 6]], [[0, 0, -1], [0, 0, -1]])
+
+
+def test_per_ray_intervals_cut_each_list():
+    """t_min and t_max given per ray (as arrays): each ray's list is the brute-force
+    list within its own interval."""
+    rng = np.random.default_rng(17)
+    tris = _soup(rng, 80)
+    mesh = hsr.Mesh(tris.reshape(-1, 3), np.arange(240).reshape(-1, 3))
+    origins, directions = random_rays(
+        (tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)), 400, rng)
+    t_min = np.where(rng.random(400) < 0.5, 0.0, rng.uniform(0.0, 0.5, 400))
+    t_max = np.where(rng.random(400) < 0.3, np.inf, t_min + rng.uniform(0.0, 2.0, 400))
+    rays = hsr.RayScene(mesh)
+    lists = rays.all_hits(origins, directions, t_min, t_max)
+    brute = [brute_lists(tris, origins[i:i + 1], directions[i:i + 1], t_min[i], t_max[i])[0]
+             for i in range(400)]
+    _check_against_brute_force(lists, brute, tris)
+    uncut = rays.all_hits(origins, directions).counts
+    assert (lists.counts < uncut).sum() > 10 and (lists.counts > 1).sum() >= 5
