@@ -20,7 +20,7 @@ from .layout import NODE_WORDS
 from .triangle import face_normal, owns
 
 __all__ = ["NEAREST", "ANY", "COUNT", "ALL", "FIRST", "LARGEST", "RECORD_AHEAD",
-           "in_interval", "nearer", "counted", "listed", "sort_listed", "hit_record",
+           "in_interval", "nearer", "counted", "listed", "finish_list", "sort_listed", "hit_record",
            "list_records", "check_rays", "plausible_ray", "fetch_box", "surface_area"]
 
 # The queries. ALL's and FIRST's walk is COUNT's (every box within the interval, in any
@@ -56,7 +56,7 @@ def nearer(t, f, best_t, best_f):
 
 @njit(cache=True, nogil=True, inline="always")
 def counted(u, v, w, tris, k, okx, oky, okz, kx, ky, kz, sx, sy):
-    """COUNT's and ALL's rule: a hit inside triangle slot ``k`` (barycentrics u, v, w all
+    """COUNT's, ALL's and FIRST's rule: a hit inside triangle slot ``k`` (barycentrics u, v, w all
     non-zero) counts; one on an edge or a vertex counts for the one triangle there that
     :func:`hsr.algorithms.bvh.triangle.owns` it, so a crossing is counted once."""
     return (u != 0.0 and v != 0.0 and w != 0.0) or owns(tris, k, okx, oky, okz, kx, ky,
@@ -105,36 +105,52 @@ def sort_listed(start, n, hit_t, hit_face, hit_uv, hit_slot):
                 d -= 1
             order[d] = o
         a = b
-    t, f = hit_t[order].copy(), hit_face[order].copy()
-    uv, k = hit_uv[order].copy(), hit_slot[order].copy()
-    hit_t[start:start + n], hit_face[start:start + n] = t, f
-    hit_uv[start:start + n], hit_slot[start:start + n] = uv, k
+    # (Indexing by an array makes a new one: the run is read whole before it is written.)
+    hit_t[start:start + n], hit_face[start:start + n] = hit_t[order], hit_face[order]
+    hit_uv[start:start + n], hit_slot[start:start + n] = hit_uv[order], hit_slot[order]
 
 
 @njit(cache=True, nogil=True)
-def listed(t, f, u, v, k, start, cap, filled, hit_t, hit_face, hit_uv, hit_slot):
-    """ALL's rule, for a hit that :func:`counted` (t, face f, weights u and v of corners 1
-    and 2, slot k) on a ray whose list is ``start .. start + cap - 1`` with ``filled``
-    hits so far; returns the new ``filled``. Until the list is full a hit goes at its end
-    (sorted once the walk ends, :func:`sort_listed`). A ray with more hits than its list
-    holds (``max_hits``) keeps the nearest: when the list first overflows it is sorted
-    and ``filled`` becomes ``cap + 1`` (full and sorted), and from then on a hit nearer
-    than the last takes its place in order. The walk's bound may then shrink to the last
-    hit's distance (no farther hit can be kept)."""
+def listed(mode, t, f, u, v, k, i, lists, filled, bound, hit_t, hit_face, hit_uv, hit_slot):
+    """ALL's and FIRST's rule, for a hit that :func:`counted` (t, face f, weights u and v
+    of corners 1 and 2, slot k) on ray ``i``, whose list is ``lists[i] .. lists[i + 1] -
+    1`` with ``filled`` hits so far and whose walk is bounded by ``bound``. Returns the
+    new ``(filled, bound)``; a bound of -1 ends the ray's walk.
+
+    Until the list is full a hit goes at its end (sorted once the walk ends,
+    :func:`finish_list`). ALL's list is as long as the ray's count, so once it is full
+    every hit is in it and the walk ends. FIRST's ray may have more hits than its list
+    holds (``max_hits``) and keeps the nearest: when the list first overflows it is
+    sorted and ``filled`` becomes ``cap + 1`` (full and sorted); from then on a hit nearer
+    than the last takes its place in order, and the last kept distance bounds the walk
+    (no farther hit can be kept)."""
+    start = lists[i]
+    cap = lists[i + 1] - start
     if filled < cap:
         j = start + filled
         hit_t[j], hit_face[j], hit_slot[j] = t, f, k
         hit_uv[j, 0], hit_uv[j, 1] = u, v
-        return filled + 1
+        filled += 1
+        if mode == ALL and filled == cap:
+            return filled, -1.0
+        return filled, bound
     if cap == 0:
-        return filled
+        return filled, bound
     if filled == cap:
         sort_listed(start, cap, hit_t, hit_face, hit_uv, hit_slot)
         filled = cap + 1
     last = start + cap - 1
     if nearer(t, f, hit_t[last], hit_face[last]):  # the last is dropped
         _insert(t, f, u, v, k, start, last, hit_t, hit_face, hit_uv, hit_slot)
-    return filled
+    return filled, hit_t[last]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def finish_list(i, lists, filled, hit_t, hit_face, hit_uv, hit_slot):
+    """Ray ``i``'s list, its walk over, nearest first: sorted here unless FIRST already
+    keeps it so (``filled`` past its length) or it holds one hit or none."""
+    if 1 < filled <= lists[i + 1] - lists[i]:
+        sort_listed(lists[i], filled, hit_t, hit_face, hit_uv, hit_slot)
 
 
 @njit(cache=True, nogil=True)

@@ -22,7 +22,6 @@ from ..simd import (
 )
 from .boxes import careful_packet_keys8, inverse_direction
 from .hits import (
-    ALL,
     ANY,
     COUNT,
     LARGEST,
@@ -30,13 +29,13 @@ from .hits import (
     check_rays,
     counted,
     fetch_box,
+    finish_list,
     hit_record,
     in_interval,
     list_records,
     listed,
     nearer,
     plausible_ray,
-    sort_listed,
 )
 from .layout import HOT_NODES, LANES, child
 from .ranking import clip_zw, depth32, ranks_before, t_bound
@@ -244,16 +243,12 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                                     if lists is None:
                                         count[r] += 1
                                         continue
-                                    i = first + r
-                                    start, end = lists[i], lists[i + 1]
-                                    count[r] = listed(t, leaf_face[k], v, w, k, start,
-                                                      end - start, count[r], out_t, out_face,
-                                                      out_uv, out_object)
-                                    if mode == ALL and count[r] == end - start:
-                                        bound[r] = -1.0  # every hit: done, as ANY
+                                    count[r], bound[r] = listed(
+                                        mode, t, leaf_face[k], v, w, k, first + r, lists,
+                                        count[r], bound[r], out_t, out_face, out_uv,
+                                        out_object)
+                                    if bound[r] < 0.0:  # every hit: done, as ANY
                                         break
-                                    if count[r] > end - start:  # FIRST's list full: the
-                                        bound[r] = out_t[end - 1]  # last bounds the rest
                                 continue
                             f = leaf_face[k]
                             if raster is not None:
@@ -290,9 +285,8 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                 prefetch(tris, around, offset)
         for r in range(min(4, hi - first)):
             i = first + r
-            if lists is not None:  # the list nearest first, unless FIRST kept it so
-                if 1 < count[r] <= lists[i + 1] - lists[i]:
-                    sort_listed(lists[i], count[r], out_t, out_face, out_uv, out_object)
+            if lists is not None:
+                finish_list(i, lists, count[r], out_t, out_face, out_uv, out_object)
                 continue
             if mode != NEAREST:
                 out_count[i] = count[r]

@@ -21,7 +21,6 @@ from ..simd import (
 )
 from .boxes import careful_keys8, inverse_direction
 from .hits import (
-    ALL,
     ANY,
     COUNT,
     LARGEST,
@@ -30,13 +29,13 @@ from .hits import (
     check_rays,
     counted,
     fetch_box,
+    finish_list,
     hit_record,
     in_interval,
     list_records,
     listed,
     nearer,
     plausible_ray,
-    sort_listed,
 )
 from .layout import HOT_NODES, LANES, child
 from .ranking import clip_zw, depth32, ranks_before, t_bound
@@ -318,16 +317,13 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                     if lists is None:
                                         slot_i[s, _I_COUNT] += 1
                                         continue
-                                    start, end = lists[i], lists[i + 1]
-                                    filled = listed(t, leaf_face[k], v, w, k, start,
-                                                    end - start, slot_i[s, _I_COUNT], out_t,
-                                                    out_face, out_uv, out_object)
-                                    slot_i[s, _I_COUNT] = filled
-                                    if mode == ALL and filled == end - start:
-                                        done = True  # every hit the count found
+                                    slot_i[s, _I_COUNT], b = listed(
+                                        mode, t, leaf_face[k], v, w, k, i, lists,
+                                        slot_i[s, _I_COUNT], b, out_t, out_face, out_uv,
+                                        out_object)
+                                    if b < 0.0:  # every hit the count found
+                                        done = True
                                         break
-                                    if filled > end - start:  # FIRST's list full: the
-                                        b = out_t[end - 1]  # last bounds the rest
                                 continue
                             f = leaf_face[k]
                             if raster is not None:
@@ -384,10 +380,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
             elif lists is None:
                 out_count[i] = slot_i[s, _I_COUNT]
-            else:  # the list nearest first, unless FIRST kept it so
-                start, filled = lists[i], slot_i[s, _I_COUNT]
-                if 1 < filled <= lists[i + 1] - start:
-                    sort_listed(start, filled, out_t, out_face, out_uv, out_object)
+            else:
+                finish_list(i, lists, slot_i[s, _I_COUNT], out_t, out_face, out_uv,
+                            out_object)
             slot_i[s, _I_RAY] = -1
             busy -= 1
         if busy == 0 and next_ray == hi:
