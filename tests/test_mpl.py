@@ -207,6 +207,179 @@ def test_the_svg_holds_disjoint_visible_regions_only(tmp_path):
         1e-6 * ax.bbox.width * ax.bbox.height
 
 
+def _saved(fig, fmt: str) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt, metadata={"Date": None} if fmt == "svg" else
+                {"CreationDate": None})
+    return buf.getvalue()
+
+
+def test_vector_files_are_smaller_than_mplot3ds():
+    """Each issue's figure, SVG and PDF: hsr's file is smaller than mplot3d's. Where
+    nothing is hidden (#9499 at its own view) the patches are mplot3d's own paths and the
+    raster is mplot3d's pixel for pixel."""
+    for name in CASES:
+        sizes, images = {}, {}
+        for projection in ("3d", "hsr3d"):
+            fig, ax = CASES[name](plt, projection)
+            for fmt in ("svg", "pdf"):
+                sizes[projection, fmt] = len(_saved(fig, fmt))
+            fig.canvas.draw()
+            images[projection] = np.asarray(fig.canvas.buffer_rgba()).copy()
+            plt.close(fig)
+        for fmt in ("svg", "pdf"):
+            assert sizes["hsr3d", fmt] < sizes["3d", fmt], (name, fmt, sizes)
+        if name == "9499":
+            assert np.array_equal(images["hsr3d"], images["3d"])
+
+
+def _svg_paths(data: bytes) -> dict:
+    """{style: [(n, 2) vertices, ...]} of the paths drawn in an SVG's axes."""
+    text = data.decode()
+    text = text[text.index('<g id="axes_1">'):]
+    out: dict = {}
+    for d, style in re.findall(r'<path d="([^"]*)"[^>]*?style="([^"]*)"', text, flags=re.S):
+        nums = [float(v) for v in re.findall(r"-?\d+(?:\.\d+)?(?:e-?\d+)?", d)]
+        out.setdefault(style, []).append(np.array(nums).reshape(-1, 2))
+    return out
+
+
+def test_a_patch_nothing_hides_is_mplot3ds_path_filled_and_stroked_at_once():
+    """#9499's self-crossing curve and its rectangle, seen whole: each is one path that
+    fills and strokes, with mplot3d's vertices (hsr's projection within 1e-5 px), not
+    the curve's 34 lobes and a separate outline."""
+    paths = {}
+    for projection in ("3d", "hsr3d"):
+        fig, _ = CASES["9499"](plt, projection)
+        paths[projection] = _svg_paths(_saved(fig, "svg"))
+        plt.close(fig)
+    for style in ("fill: #1f77b4; stroke: #000000", "fill: #999999; stroke: #000000"):
+        [mine] = [v for k, v in paths["hsr3d"].items() if k.startswith(style)]
+        [theirs] = [v for k, v in paths["3d"].items() if k.startswith(style)]
+        assert len(mine) == len(theirs) == 1
+        assert mine[0].shape == theirs[0].shape and len(mine[0]) >= 4
+        assert np.abs(mine[0] - theirs[0]).max() <= 1e-5
+    # Seen where the rectangle covers part of the curve, the curve is no longer whole.
+    fig, ax = CASES["9499"](plt, "hsr3d")
+    ax.view_init(20, 30)
+    seen = _svg_paths(_saved(fig, "svg"))
+    assert not any(k.startswith("fill: #1f77b4; stroke") for k in seen)
+    assert any(k.startswith("fill: #999999; stroke: #000000") for k in seen)
+
+
+def _winding_by_angles(points, ring) -> np.ndarray:
+    """Winding numbers as the sum of the angles the ring's edges subtend (an independent
+    formula)."""
+    a = ring[None, :, :] - points[:, None, :]
+    b = np.roll(ring, -1, axis=0)[None, :, :] - points[:, None, :]
+    cross = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    dot = (a * b).sum(axis=2)
+    return np.round(np.arctan2(cross, dot).sum(axis=1) / (2 * np.pi)).astype(int)
+
+
+@settings(max_examples=60, deadline=None)
+@given(ring=st.lists(st.tuples(st.integers(0, 40), st.integers(0, 40)), min_size=3,
+                     max_size=12),
+       seed=st.integers(0, 2**16))
+def test_nonzero_fill_of_self_crossing_outlines(ring, seed):
+    """A patch drawn whole is filled by matplotlib's nonzero rule: the winding numbers and
+    the region hsr.mpl takes for it agree with the angle-sum winding number at random
+    points away from the outline (stars, bow ties, outlines wound twice)."""
+    from hsr.mpl.whole import nonzero_region, winding_numbers
+
+    ring = np.asarray(ring, float) / 4
+    points = np.random.default_rng(seed).uniform(-0.5, 10.5, (300, 2))
+    # Keep points at least 1e-3 from every edge (the angle sum is ill-posed on it).
+    a, b = ring, np.roll(ring, -1, axis=0)
+    ab = b - a
+    t = np.clip(((points[:, None, :] - a) * ab).sum(axis=2) /
+                np.maximum((ab * ab).sum(axis=1), 1e-300), 0, 1)
+    gap = np.linalg.norm(points[:, None, :] - (a + t[..., None] * ab), axis=2).min(axis=1)
+    points = points[gap > 1e-3]
+    expected = _winding_by_angles(points, ring)
+    assert np.array_equal(winding_numbers(points, ring), expected)
+    region = nonzero_region(ring)
+    inside = shapely.contains_xy(region, points[:, 0], points[:, 1])
+    assert np.array_equal(inside, expected != 0)
+
+
+def _patch_with_things_in_front(projection, glass: bool):
+    """A large square patch at z = 0, and in front of it (added first) a small one well
+    inside its outline: opaque, or half transparent."""
+    from matplotlib.patches import Rectangle
+
+    fig = plt.figure(figsize=(4, 3), dpi=100)
+    ax = fig.add_subplot(projection=projection)
+    front = Rectangle((-0.3, -0.3), 0.6, 0.6, facecolor="tab:red", edgecolor="none",
+                      alpha=0.5 if glass else None)
+    ax.add_patch(front)
+    art3d.pathpatch_2d_to_3d(front, z=0.5, zdir="z")
+    back = Rectangle((-1, -1), 2, 2, facecolor="tab:blue", edgecolor="black")
+    ax.add_patch(back)
+    art3d.pathpatch_2d_to_3d(back, z=0.0, zdir="z")
+    ax.set(xlim=(-1.2, 1.2), ylim=(-1.2, 1.2), zlim=(-1, 1))
+    ax.view_init(60, -60)
+    return fig, ax
+
+
+def test_a_patch_with_anything_in_front_inside_it_is_not_drawn_whole():
+    """Nothing in front of a patch may vanish under it: an opaque patch in front, well
+    inside the big one's outline (which stays wholly visible), shows where the z-buffer
+    shows it; a half-transparent one blends over it."""
+    fig, ax = _patch_with_things_in_front("hsr3d", glass=False)
+    arts = _flat_colours(ax)
+    agg, ref = _agg_ids(fig), _reference_ids(fig, ax, arts)
+    assert (ref == 0).sum() > 500 and (agg == 0).sum() > 500  # the small one is seen
+    assert _agreement(agg, ref) >= 0.995
+    fig, ax = _patch_with_things_in_front("hsr3d", glass=True)
+    fig.canvas.draw()
+    rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+    s = hsr.mpl.scene_and_camera(ax)
+    centre = np.array([[0.0, 0.0, 0.5]])
+    from hsr.mpl.view import to_box
+
+    x, y, _ = (v[0] for v in _window(s.camera, s.width, s.height, to_box(ax, centre)))
+    red, blue = np.array([214, 39, 40]), np.array([31, 119, 180])
+    blend = np.round(0.5 * red + 0.5 * blue)
+    assert np.abs(rgb[int(y), int(x)] - blend).max() <= 2, rgb[int(y), int(x)]
+
+
+def test_drawings_inside_the_axes_lose_their_clip_and_the_others_keep_it():
+    """A clip costs a clip path per artist in SVG and PDF: hsr drops the ones that change
+    nothing. Zoomed in, the surface reaches past the axes, and the figure outside them is
+    mplot3d's (clipped); at the default zoom no hsr artist is clipped."""
+    images = {}
+    for projection in ("3d", "hsr3d"):
+        fig = plt.figure(figsize=(4, 3), dpi=100)
+        ax = fig.add_subplot(projection=projection)
+        x, y = np.meshgrid(np.linspace(-1, 1, 20), np.linspace(-1, 1, 20))
+        ax.plot_surface(x, y, x * y, edgecolor="k", linewidth=0.5)
+        ax.plot([-1, 1], [-1, 1], [1, -1], color="r", linewidth=2)
+        ax.set_box_aspect(None, zoom=3)
+        fig.canvas.draw()
+        images[projection] = np.asarray(fig.canvas.buffer_rgba())[..., :3].astype(int)
+        box = ax.bbox
+        if projection == "hsr3d":
+            svg = _saved(fig, "svg").decode()
+            assert svg.count("clip-path=") > 0
+            ax.set_box_aspect(None, zoom=1)
+            svg = _saved(fig, "svg").decode()
+            axes = svg[svg.index('<g id="axes_1">'):]
+            assert "hsr3d-fill" in axes and "clip-path=" not in \
+                "".join(re.findall(r'<g id="hsr3d-[a-z]+">.*?</g>', axes, flags=re.S))
+        plt.close(fig)
+    # Pixels wholly outside the axes (rows count down from the top).
+    outside = np.ones(images["3d"].shape[:2], bool)
+    rows = images["3d"].shape[0]
+    outside[int(np.floor(rows - box.y1)):int(np.ceil(rows - box.y0)),
+            int(np.floor(box.x0)):int(np.ceil(box.x1))] = False
+    differs = np.abs(images["hsr3d"] - images["3d"]).max(axis=2) > 0
+    assert (images["3d"][outside] < 250).any()  # the axes' own ticks are out there
+    assert not differs[outside].any()
+
+
 def test_masked_surfaces_empty_artists_and_unsupported_ones():
     """NaN in Z leaves those faces out (as mplot3d does); empty artists draw; an artist hsr
     does not hide is drawn by mplot3d and named in a warning."""

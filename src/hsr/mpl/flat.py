@@ -20,6 +20,7 @@ from ..errors import HsrWarning
 from ..geometry.merge import merge_pieces
 from .gather import Gathered, gather
 from .view import camera_for
+from .whole import whole_polygons
 
 # Above mplot3d's axis zorder, in this order (fills under lines under markers).
 _FILL, _GLASS, _EDGE, _LINE, _MARK = 0.0, 0.05, 0.1, 0.2, 0.3
@@ -383,9 +384,10 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
 
 @functools.cache
 def _flat_classes():
-    """PathCollection / LineCollection that Axes3D.draw can ask for a 3D projection (made
-    once, when matplotlib is first needed)."""
+    """PathCollection / LineCollection / PathPatch that Axes3D.draw can ask for a 3D
+    projection (made once, when matplotlib is first needed)."""
     from matplotlib.collections import LineCollection, PathCollection
+    from matplotlib.patches import PathPatch
 
     class FlatPaths(PathCollection):
         def do_3d_projection(self):
@@ -395,7 +397,11 @@ def _flat_classes():
         def do_3d_projection(self):
             return 0.0
 
-    return FlatPaths, FlatLines
+    class FlatPatch(PathPatch):
+        def do_3d_projection(self):
+            return 0.0
+
+    return FlatPaths, FlatLines, FlatPatch
 
 
 def _like(new, old, figure, kind: str) -> None:
@@ -430,26 +436,59 @@ def flat_artists(ax) -> tuple:
         np.zeros(0, bool)
     seen = VisibleParts(flat, camera, width, height, edge_drawn,
                         face_rgba[:, 3] if len(face_rgba) else np.zeros(0))
-    added = (_fill_artists(got, flat, seen, face_rgba, figure)
-             + _line_artists(got, flat, seen, edge_rgba, edge_width, figure)
+    whole = whole_polygons(got, flat, seen, camera, face_rgba)
+    added = (_fill_artists(got, flat, seen, face_rgba, figure, whole)
+             + _whole_artists(got, flat, seen, whole, figure)
+             + _line_artists(got, flat, seen, edge_rgba, edge_width, figure, whole)
              + _marker_artists(got, flat, seen, figure))
+    for artist, _ in added:
+        _unclip_if_inside(artist, figure.dpi)
     return {id(x.artist) for x in got.fills + got.lines + got.markers}, added
 
 
-def _fill_artists(got, flat, seen, face_rgba, figure) -> list:
+def _unclip_if_inside(artist, dpi: float) -> None:
+    """Turn the clip off where the drawing lies inside its clip box anyway: SVG and PDF
+    write a clip path per clipped artist, and mplot3d clips each to the axes (markers keep
+    theirs: their extent is the marker's)."""
+    box = artist.get_clip_box()
+    if not artist.get_clip_on() or box is None or artist.get_clip_path() is not None:
+        return
+    if hasattr(artist, "get_segments"):
+        parts = [np.asarray(seg, float).reshape(-1, 2) for seg in artist.get_segments()]
+    elif hasattr(artist, "get_paths") and artist.get_gid() != "hsr3d-marker":
+        parts = [path.vertices for path in artist.get_paths()]
+    elif hasattr(artist, "get_path") and not hasattr(artist, "get_xdata"):
+        parts = [artist.get_path().vertices]
+    else:
+        return
+    points = np.concatenate(parts) if parts else np.zeros((0, 2))
+    if not len(points):
+        return
+    width = np.max(np.atleast_1d(artist.get_linewidth()), initial=0.0) * dpi / 72
+    # A miter join reaches out up to its limit (4, the SVG default) times half the
+    # width; antialiasing a pixel more.
+    margin = 2.0 * width + 1.0
+    x0, y0, x1, y1 = box.extents
+    x, y = points[:, 0], points[:, 1]  # a column's min is 30x faster than min(axis=0)
+    if x.min() - margin >= x0 and y.min() - margin >= y0 and x.max() + margin <= x1 and \
+            y.max() + margin <= y1:
+        artist.set_clip_on(False)
+
+
+def _fill_artists(got, flat, seen, face_rgba, figure, whole: dict) -> list:
     """[(2D artist, rank)] of the polygons' visible regions: opaque ones one path per fill
-    artist and colour, transparent pieces back to front."""
+    artist and colour, transparent pieces back to front (``whole`` polygons left out)."""
     from matplotlib.transforms import IdentityTransform
 
     if seen.regions is None or not len(seen.regions):
         return []
-    FlatPaths, _ = _flat_classes()
+    FlatPaths, _, _ = _flat_classes()
     added: list = []
     reg, height = seen.regions, seen.height
     piece_face = reg.face_id[reg.piece_row]
     glass = seen.face_glass[piece_face]
     # Opaque fills: each polygon's pieces merged into rings, one path per polygon.
-    opaque = np.flatnonzero(glass < 0)
+    opaque = np.flatnonzero((glass < 0) & ~np.isin(seen.face_poly[piece_face], list(whole)))
     # One path per fill artist and colour: a colormap's few hundred colours are a
     # few hundred paths, not one per polygon (and no seams inside a colour).
     # Grouped by 8-bit RGBA, what every backend writes (np.unique on float rows
@@ -461,7 +500,8 @@ def _fill_artists(got, flat, seen, face_rgba, figure) -> list:
     n_col = len(colours)
     ids, paths = _merged_paths(
         reg, opaque, seen.face_poly[piece_face[opaque]], height,
-        path_of=lambda poly: flat.poly_fill[poly] * n_col + colour_id.ravel()[poly])
+        path_of=lambda poly: flat.poly_fill[poly] * n_col + colour_id.ravel()[poly]) \
+        if len(opaque) else (np.zeros(0, np.int64), [])
     for f, fill in enumerate(got.fills):
         mine = np.flatnonzero(ids // n_col == f)
         if not len(mine):
@@ -492,15 +532,17 @@ def _fill_artists(got, flat, seen, face_rgba, figure) -> list:
     return added
 
 
-def _line_artists(got, flat, seen, edge_rgba, edge_width, figure) -> list:
-    """[(2D artist, rank)] of the visible pieces of polygon outlines and of lines, joined
-    where they continue each other."""
+def _line_artists(got, flat, seen, edge_rgba, edge_width, figure, whole: dict) -> list:
+    """[(2D artist, rank)] of the visible pieces of polygon outlines (but ``whole``
+    polygons') and of lines, joined where they continue each other."""
     from matplotlib.transforms import IdentityTransform
 
-    _, FlatLines = _flat_classes()
+    _, FlatLines, _ = _flat_classes()
     added: list = []
     item, t, pieces = seen.item, seen.t, seen.pieces
     is_edge = item < seen.n_edges
+    if whole and is_edge.any():
+        is_edge[is_edge] = ~np.isin(flat.edge_poly[seen.edge_ids[item[is_edge]]], list(whole))
     if is_edge.any():
         edge = seen.edge_ids[item[is_edge]]
         poly = flat.edge_poly[edge]
@@ -544,13 +586,34 @@ def _line_artists(got, flat, seen, edge_rgba, edge_width, figure) -> list:
     return added
 
 
+def _whole_artists(got, flat, seen, whole: dict, figure) -> list:
+    """[(2D artist, rank)] of the polygons nothing hides: mplot3d's own patch (its path,
+    fill, edge, style and hatch) at hsr's projection, above every fill as outlines are."""
+    from matplotlib.path import Path
+    from matplotlib.transforms import IdentityTransform
+
+    _, _, FlatPatch = _flat_classes()
+    added: list = []
+    for p, xy in whole.items():
+        artist = got.fills[int(flat.poly_fill[p])].artist
+        codes = getattr(artist, "_code3d", None)
+        display = np.column_stack([xy[:, 0], seen.height - xy[:, 1]])
+        patch = FlatPatch(Path(display, codes if codes is not None and
+                               len(codes) == len(display) else None))
+        patch.update_from(artist)
+        patch.set_transform(IdentityTransform())
+        _like(patch, artist, figure, "fill")
+        added.append((patch, _EDGE))
+    return added
+
+
 def _marker_artists(got, flat, seen, figure) -> list:
     """[(2D artist, rank)] of the markers whose centre is visible, in mplot3d's order (far
     to near), and of the visible vertices of lines drawn with markers."""
     from matplotlib.lines import Line2D
     from matplotlib.transforms import IdentityTransform
 
-    FlatPaths, _ = _flat_classes()
+    FlatPaths, _, _ = _flat_classes()
     added: list = []
     is_point = seen.item >= seen.n_edges + seen.n_segments
     q = seen.item[is_point] - seen.n_edges - seen.n_segments
