@@ -12,7 +12,7 @@ import pytest
 
 import hsr
 from hsr.errors import MeshError
-from hsr.scene.obj import _normalise, read_obj, scan_regex
+from hsr.scene.obj import normalise_obj, read_obj, scan_regex
 
 CASES = sorted(n for n in os.listdir(os.path.join(os.path.dirname(__file__), "..", "..",
                                                   "shared", "cases"))
@@ -62,7 +62,7 @@ def test_grammar_noise_reads_the_right_vertices(cases_dir, name):
     refused. The regular-expression reader must take them itself (not hand them over)."""
     path = os.path.join(cases_dir, name)
     raw = open(path, "rb").read()
-    assert scan_regex(_normalise(raw, name), name) is not None
+    assert scan_regex(normalise_obj(raw, name), name) is not None
     expected = independent_triangles(raw.decode("utf-8"))
     for method in ("regex", "careful"):
         mesh = read_obj(path, method)

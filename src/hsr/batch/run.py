@@ -293,7 +293,7 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
     the faces they loaded and their milliseconds."""
     from .sortlast import OUTPUTS as COMPOSITED
     from .sortlast import each_partitioned
-    from .tasks import _write_files, _write_zarr, buffers, place_cameras
+    from .tasks import buffers, place_cameras, write_files, write_zarr
 
     start = time.perf_counter()
     store = open_partitioned(store_path)
@@ -322,9 +322,9 @@ def _run_partitioned(client, store_path, stems, spec, size, outputs, out, option
             view = todo[k]
             arrays = buffers(frame, outputs)  # a CompositeFrame has hsr.Frame's names
             if fmt == "files":
-                _write_files(out, stem, view, arrays)
+                write_files(out, stem, view, arrays)
             else:
-                _write_zarr(zarr_store, view, arrays)
+                write_zarr(zarr_store, view, arrays)
             rows.append({"model": store_path, "view": view, "status": "ok", "error": None,
                          # the view's share of its group's part renders
                          "ms": round(sum(s["ms"] / s["views"] for s in frame.stats), 3),

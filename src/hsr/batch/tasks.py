@@ -150,7 +150,7 @@ def buffers(frame, outputs):
     return {name: source[name]() for name in outputs}
 
 
-def _write_files(out_dir, stem, view, arrays) -> None:
+def write_files(out_dir, stem, view, arrays) -> None:
     """Each output of one view as its own file (the folders exist: see render_group)."""
     from PIL import Image
 
@@ -162,7 +162,7 @@ def _write_files(out_dir, stem, view, arrays) -> None:
             write_atomic(path, lambda f, a=array: np.save(f, a))
 
 
-def _write_zarr(store, view, arrays) -> None:
+def write_zarr(store, view, arrays) -> None:
     """Each output's chunk of this view, then the view's ``done`` mark: a view without its
     mark is redone by ``resume`` (zarr writes a chunk as one file, but the mark makes the
     whole view one unit)."""
@@ -209,9 +209,9 @@ def _render_view(render, scene, path, stem, view, camera, width, height, outputs
                        **options)
         arrays = buffers(frame, outputs)
         if store is None:
-            _write_files(out_dir, stem, view, arrays)
+            write_files(out_dir, stem, view, arrays)
         else:
-            _write_zarr(store, view, arrays)
+            write_zarr(store, view, arrays)
         return {"model": path, "view": view, "status": "ok", "error": None,
                 "ms": round((time.perf_counter() - start) * 1000.0, 3)}
     except Exception as exc:  # noqa: BLE001 - one view's failure is its manifest row

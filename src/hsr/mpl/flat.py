@@ -210,7 +210,7 @@ class VisibleParts:
         from ..lines.raster import clip_segments
         from ..lines.vector import visible_pieces
         from ..parallel import Workers
-        from ..visibility.regions import _regions
+        from ..visibility.regions import screen_regions
 
         self.width, self.height = width, height
         edges = np.flatnonzero(edge_drawn[flat.edge_poly]) if len(flat.edges) else \
@@ -249,9 +249,9 @@ class VisibleParts:
             screen = prepare(scene, view_proj, width, height, RenderState(cull=CullMode.NONE), {},
                              workers)
             if len(screen):
-                self.regions = _regions(scene, screen.xy_window, screen.depth_window,
-                                        screen.face_id, width, height, False, {}, workers,
-                                        hides=self.face_glass < 0)
+                self.regions = screen_regions(scene, screen.xy_window, screen.depth_window,
+                                              screen.face_id, width, height, False, {},
+                                              workers, hides=self.face_glass < 0)
             if len(opaque):
                 hiders = _Subset(screen, self.face_glass[screen.face_id] < 0)
                 self.item, self.t, self.pieces = visible_pieces(hiders, view_proj, ends, own,

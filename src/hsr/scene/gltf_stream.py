@@ -190,7 +190,7 @@ def _instances(path: str, header: dict) -> list:
     hsr.load_scene's reader run on the skeleton of the file (see the module)."""
     import trimesh
 
-    from .load import _file_scene
+    from .load import file_scene
 
     skeleton = {k: v for k, v in header.items()
                 if k in ("asset", "scene", "scenes", "nodes")}
@@ -228,7 +228,7 @@ def _instances(path: str, header: dict) -> list:
     except Exception as exc:  # noqa: BLE001 - trimesh's errors on a malformed tree vary
         raise MeshError(f"{path}: cannot read its node tree ({type(exc).__name__}: "
                         f"{exc})") from None
-    scene = _file_scene(loaded, skeleton, path)
+    scene = file_scene(loaded, skeleton, path)
     out = []
     for inst in scene.instances:
         m, p = (int(round(c)) for c in inst.mesh.positions[0, :2])

@@ -85,7 +85,7 @@ def _load(source, max_bytes: int) -> Mesh:
         return read_cad(path, max_bytes)
     loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _single(_file_scene(loaded, header, path, read), path)
+        return _single(file_scene(loaded, header, path, read), path)
     return _with_sources(from_trimesh(loaded, os.path.basename(path)), read)
 
 
@@ -155,7 +155,7 @@ def _load_scene(source, max_bytes: int) -> Scene | PartitionedScene:
     path = os.fspath(source)
     loaded, header, read = _read_with_trimesh(path, max_bytes)
     if is_trimesh_scene(loaded):
-        return _file_scene(loaded, header, path, read)
+        return file_scene(loaded, header, path, read)
     return Scene([_with_sources(from_trimesh(loaded, os.path.basename(path)), read)])
 
 
@@ -197,7 +197,7 @@ def _joined(sources, max_bytes: int, up: UpAxisChoice = "auto") -> Scene:
     return scene
 
 
-def _file_scene(loaded, header, path: str, read: tuple = ()) -> Scene:
+def file_scene(loaded, header, path: str, read: tuple = ()) -> Scene:
     """:func:`_scene_from_trimesh` of a file's trimesh scene, each mesh recording the
     files ``read`` for it; trimesh's scene graph fails in its own ways on files its
     loader let through, each a :class:`MeshError` here."""

@@ -131,8 +131,8 @@ class Mesh:
         may hold anything, NaN included). Kept from the validation while ``positions`` is
         the same array: every render places the mesh again, and a scan of a million
         vertices per view is not free."""
-        return _kept(self, "_extent", (self.positions,),
-                     lambda: float(np.abs(self.used_positions()).max()))
+        return cached_while_same(self, "_extent", (self.positions,),
+                                 lambda: float(np.abs(self.used_positions()).max()))
 
     def degenerate_mask(self) -> np.ndarray:
         """(F,) bool, read-only: faces with a repeated vertex index or zero area (collinear
@@ -145,7 +145,7 @@ class Mesh:
             mask.flags.writeable = False
             return mask
 
-        return _kept(self, "_degenerate", (self.positions, self.faces), judge)
+        return cached_while_same(self, "_degenerate", (self.positions, self.faces), judge)
 
     def used_positions(self) -> np.ndarray:
         """(N, 3) positions of the vertices that faces use, in vertex order."""
@@ -159,7 +159,7 @@ class Mesh:
         return np.stack([pos.min(axis=0), pos.max(axis=0)])
 
 
-def _kept(owner, name, key, compute):
+def cached_while_same(owner, name, key, compute):
     """``compute()``, kept on ``owner`` as attribute ``name`` while every array of ``key``
     (a tuple) is the same object as when it was computed: what is derived from a mesh's
     arrays once instead of every render (replacing an array recomputes it; changing one
@@ -415,7 +415,7 @@ class Scene:
                     np.repeat(np.arange(len(meshes), dtype=np.int64), sizes))
 
         key = tuple(array for m in meshes for array in (m.positions, m.faces))
-        return _kept(self, "_assembled", key, join)
+        return cached_while_same(self, "_assembled", key, join)
 
     def world_mesh(self) -> tuple[np.ndarray, np.ndarray]:
         """The vertices of every instance placed in world space, (V, 3) float64, and the

@@ -65,7 +65,7 @@ def read_obj(path, method: str = "auto", max_bytes: int = MAX_MESH_BYTES) -> Mes
         raise MeshError(f"OBJ read method must be auto, regex or careful, got {method!r}")
     path = os.fspath(path)
     name = os.path.basename(path)
-    text = _normalise(read_regular(path, "mesh file", max_bytes), name)
+    text = normalise_obj(read_regular(path, "mesh file", max_bytes), name)
     scanned = None if method == "careful" else scan_regex(text, name)
     if scanned is not None:
         try:
@@ -75,7 +75,7 @@ def read_obj(path, method: str = "auto", max_bytes: int = MAX_MESH_BYTES) -> Mes
     return _build(path, name, scan_careful(text, name))
 
 
-def _normalise(data: bytes, name: str, file_start: bool = True) -> str:
+def normalise_obj(data: bytes, name: str, file_start: bool = True) -> str:
     """OBJ text with the grammar's noise removed, identically for both readers: no
     byte-order mark at the start of the file (``file_start``: ``data`` begins the file;
     a mark anywhere else is text, for the streamed reader's chunks as for the whole
@@ -176,9 +176,9 @@ def scan_regex(text: str, name: str) -> _Scanned | None:
 def _build(path, name, s: _Scanned) -> Mesh:
     if not s.f:
         raise MeshError(f"{name}: mesh is empty (no faces)")
-    positions = _numbers(s.v, 3, 3, name, "vertex")
-    uvs = _numbers(s.vt, 1, 2, name, "texture coordinate")
-    normals = _numbers(s.vn, 3, 3, name, "normal")
+    positions = obj_numbers(s.v, 3, 3, name, "vertex")
+    uvs = obj_numbers(s.vt, 1, 2, name, "texture coordinate")
+    normals = obj_numbers(s.vn, 3, 3, name, "normal")
 
     # Normalised text: one space between tokens, none at the ends.
     counts = np.fromiter((row.count(" ") + 1 if row else 0 for row in s.f), dtype=np.int64,
@@ -187,7 +187,7 @@ def _build(path, name, s: _Scanned) -> Mesh:
         bad = int(np.argmax(counts < 3))
         raise MeshError(f"{name}:{s.f_lines[bad]}: a face needs at least 3 vertices")
     corner_face = np.repeat(np.arange(len(counts)), counts)
-    refs = _face_refs(" ".join(s.f), name, s.f_lines, corner_face)  # v, vt, vn; 0 = absent
+    refs = face_refs(" ".join(s.f), name, s.f_lines, corner_face)  # v, vt, vn; 0 = absent
     limits = (np.array(s.f_nv)[corner_face], np.array(s.f_nt)[corner_face],
               np.array(s.f_nn)[corner_face])
     totals = (len(positions), len(uvs), len(normals))
@@ -239,7 +239,7 @@ def fan_corners(counts: np.ndarray) -> tuple:
     return corner, tri_poly
 
 
-def _numbers(rows, min_count, keep, name, what) -> np.ndarray:
+def obj_numbers(rows, min_count, keep, name, what) -> np.ndarray:
     """(N, keep) float64 from OBJ rows ``a b c ...``; extra values (w, colours) are
     dropped, missing optional ones are zero."""
     if not rows:
@@ -274,7 +274,7 @@ def _numbers(rows, min_count, keep, name, what) -> np.ndarray:
         raise MeshError(f"{name}: bad {what} data") from None
 
 
-def _face_refs(joined, name, f_lines, corner_face) -> np.ndarray:
+def face_refs(joined, name, f_lines, corner_face) -> np.ndarray:
     """(corners, 3) int64 (v, vt, vn) from the face tokens joined by single spaces; absent
     fields are 0. Every token must be a corner of the grammar; a block of one form is
     converted in bulk."""

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import MeshError
 from .files import MAX_STREAM_BYTES, check_regular
-from .obj import MAX_LINE_BYTES, _face_refs, _normalise, _numbers, fan_corners, scan_careful
+from .obj import MAX_LINE_BYTES, face_refs, fan_corners, normalise_obj, obj_numbers, scan_careful
 
 __all__ = ["ObjStream", "CHUNK_BYTES"]
 
@@ -45,7 +45,7 @@ class ObjStream:
         self.n_faces = 0
         with open(self.faces_file, "wb") as out:
             for scanned in _scanned_chunks(self.path, chunk_bytes, self.name):
-                positions.append(_numbers(scanned.v, 3, 3, self.name, "vertex"))
+                positions.append(obj_numbers(scanned.v, 3, 3, self.name, "vertex"))
                 triangles = _triangles(scanned, seen, highest, self.name)
                 triangles.tofile(out)
                 self.n_faces += len(triangles)
@@ -103,7 +103,7 @@ def _scanned_chunks(path: str, chunk_bytes: int, name: str):
     numbers counted on)."""
     line = 1
     for k, data in enumerate(_line_chunks(path, chunk_bytes, name)):
-        text = _normalise(data, name, file_start=k == 0)
+        text = normalise_obj(data, name, file_start=k == 0)
         yield scan_careful(text, name, first_line=line)
         line += text.count("\n")
 
@@ -136,8 +136,8 @@ def _corner_refs(scanned, name: str) -> tuple:
         bad = int(np.argmax(counts < 3))
         raise MeshError(f"{name}:{scanned.f_lines[bad]}: a face needs at least 3 vertices")
     corner_face = np.repeat(np.arange(len(counts)), counts)
-    return counts, corner_face, _face_refs(" ".join(scanned.f), name, scanned.f_lines,
-                                           corner_face)
+    return counts, corner_face, face_refs(" ".join(scanned.f), name, scanned.f_lines,
+                                          corner_face)
 
 
 def _triangles(scanned, seen: np.ndarray, highest: np.ndarray, name: str) -> np.ndarray:

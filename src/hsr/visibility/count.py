@@ -133,7 +133,7 @@ def face_visibility(scene: SceneLike, views: Any, size: int | tuple = 512, *,
         return _partitioned_counts(scene, views, size, client, near, far,
                                    dict(render_options, algorithm=algorithm, threads=threads))
     scene = as_scene(scene)
-    _check_opaque(scene)
+    check_opaque(scene)
     width, height = check_size(size)
     cameras = cameras_for(scene, views, width / height, near, far)
     if exact:
@@ -583,7 +583,7 @@ def _partitioned_counts(store, views, size, client, near, far, options) -> np.nd
     return counts
 
 
-def _check_opaque(scene: Scene) -> None:
+def check_opaque(scene: Scene) -> None:
     for inst in scene.instances:
         if inst.opacity < 1.0:
             raise VisibilityError(

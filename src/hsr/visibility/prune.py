@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 
 from ..choices import Algorithm
 from ..geometry.weld import weld
-from ..scene.mesh import Mesh, Scene, SceneLike, _kept, as_scene
+from ..scene.mesh import Mesh, Scene, SceneLike, as_scene, cached_while_same
 from ..scene.partitioned import PartitionedScene
 from .count import VisibilityError, cameras_for, check_size, face_visibility, per_object
 
@@ -288,7 +288,7 @@ def _edge_groups(mesh: Mesh) -> tuple:
             np.zeros(0, dtype=np.int64)
         return order // 3, starts
 
-    return _kept(mesh, "_edge_groups", (mesh.positions, mesh.faces), compute)
+    return cached_while_same(mesh, "_edge_groups", (mesh.positions, mesh.faces), compute)
 
 
 def subset_scene(scene: Scene, keep: np.ndarray) -> Scene:

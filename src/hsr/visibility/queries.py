@@ -354,7 +354,7 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     from ..batch.sortlast import render_partitioned
     from ..render import render
     from ..scene.partitioned import PartitionedScene
-    from .count import _check_opaque
+    from .count import check_opaque
 
     scene = _scene(scene, partitioned=True)
     width, height = check_size(size)
@@ -369,7 +369,7 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
     if exact:
         if isinstance(scene, PartitionedScene):
             raise VisibilityError("exact=True does not take a partitioned scene (yet)")
-        _check_opaque(scene)
+        check_opaque(scene)
         columns = _exact_columns(scene, cameras, width, height, render_options, quality,
                                  client, progress)
     elif isinstance(scene, PartitionedScene):
@@ -379,7 +379,7 @@ def visibility_matrix(scene: SceneLike, views: Any, size: int | tuple = 512, *,
                                     client=client, **render_options)
         columns = [frame_columns(f, cam, quality) for f, cam in zip(frames, cameras)]
     else:
-        _check_opaque(scene)
+        check_opaque(scene)
         render(scene, cameras[0], 1, 1, threads=1, **render_options)  # bad options: now
         columns = _columns(scene, cameras, width, height, render_options, quality, client,
                            progress)

@@ -211,8 +211,8 @@ def visible_regions(scene: SceneLike, camera: Camera, width: int, height: int,
             screen = prepare(scene, view_proj, width, height, state, stats, workers)
         except RenderError as exc:
             raise RegionsError(str(exc)) from None
-        return _regions(scene, screen.xy_window, screen.depth_window, screen.face_id,
-                        width, height, func == "lequal", stats, workers)
+        return screen_regions(scene, screen.xy_window, screen.depth_window, screen.face_id,
+                              width, height, func == "lequal", stats, workers)
 
 
 class CutTriangles(NamedTuple):
@@ -510,8 +510,8 @@ def _cut_range(lo, hi, tris, grid, later_wins, width, height, work, counts, line
     return piece_tri[:n_p], piece_end[:n_p], verts[:n_v], overflow
 
 
-def _regions(scene, xy_window, depth_window, face_id, width, height, later_wins, stats,
-             workers, hides=None) -> Regions:
+def screen_regions(scene, xy_window, depth_window, face_id, width, height, later_wins,
+                   stats, workers, hides=None) -> Regions:
     """The regions of the screen triangles; ``hides`` (F,) bool, optional: the faces that
     may hide others (the rest are cut by them but cut nothing: transparent surfaces)."""
     tris, zmin = _screen_setup(np.asarray(xy_window, dtype=np.float64).reshape(-1, 3, 2),
