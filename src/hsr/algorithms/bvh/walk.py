@@ -135,9 +135,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
     tests = 0
     # The queries' nearest hits get an object and a normal (the pass after the walk):
-    # the rays that hit are listed for it.
+    # the rays that hit are listed for it, with the slot of each one's hit.
     records = mode == NEAREST and raster is None
     hit_rays = np.empty(hi - lo if records else 0, dtype=np.int64)
+    hit_slots = np.empty(hi - lo if records else 0, dtype=np.int64)
     n_hits = 0
     next_ray, busy = lo, 0
     if leaf_face.shape[0] == 0:  # no faces: every ray misses
@@ -153,9 +154,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     while True:
         for s in range(SLOTS):
             i = slot_i[s, _I_RAY]
-            # The root's mask when this slot's ray was just tested there and entered (a
-            # ray answered before it at the intake leaves 0 here, which starts no walk).
-            root_mask = -1
+            # The root's boxes the ray this slot just took enters, when the intake tested
+            # them (its keys then hold their entries); 0: none pending (a ray that
+            # enters none is answered at the intake and takes no slot).
+            root_mask = 0
             if i < 0:  # a free slot takes the next ray, if there is one
                 while next_ray < hi:
                     i = next_ray
@@ -222,9 +224,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             done = False
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
-                    if root_mask > 0:
+                    if root_mask != 0:
                         mask = root_mask  # (and keys hold its entries)
-                        root_mask = -1
+                        root_mask = 0
                     elif careful:
                         mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
                                              inv_dz, b, keys)
@@ -364,19 +366,20 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 fetch_box(node_box, tris, leaf_face, ref, n,
                           mode == NEAREST or lists is not None)
                 continue
-            # The ray's answer; out_object holds the hit's slot until the pass below.
+            # The ray's answer; a hit's object and normal come in the pass below.
             # (Written out here: as a function taking the arrays, even inlined, it took
             # 70 ns a ray.)
             if mode == NEAREST:
                 out_t[i] = slot_f[s, _F_T]
                 out_face[i] = slot_i[s, _I_FACE]
-                out_object[i] = slot_i[s, _I_SLOT]
                 out_uv[i, 0], out_uv[i, 1] = slot_f[s, _F_U], slot_f[s, _F_V]
                 if records:
                     if slot_i[s, _I_SLOT] >= 0:
                         hit_rays[n_hits] = i
+                        hit_slots[n_hits] = slot_i[s, _I_SLOT]
                         n_hits += 1
                     else:
+                        out_object[i] = -1
                         out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
             elif lists is None:
                 out_count[i] = slot_i[s, _I_COUNT]
@@ -395,12 +398,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             # The corners of the hit RECORD_AHEAD hits on are fetched meanwhile: rays
             # that each hit a triangle of their own find it out of cache by now.
             if j + RECORD_AHEAD < n_hits:
-                ahead = out_object[hit_rays[j + RECORD_AHEAD]]
+                ahead = hit_slots[j + RECORD_AHEAD]
                 prefetch(tris, ahead, 0)
                 prefetch(tris, ahead, 9 * tris.itemsize - 1)
             i = hit_rays[j]
-            hit_record(tris, out_object[i], out_face[i], face_offsets, out_object, out_normal,
-                        i)
+            hit_record(tris, hit_slots[j], out_face[i], face_offsets, out_object, out_normal,
+                       i)
     if lists is not None:
         list_records(lists[lo], lists[hi], tris, face_offsets, out_face, out_object,
                      out_normal)
