@@ -11,7 +11,7 @@ A polygon is drawn whole when all of these hold:
 - its path, filled by matplotlib's nonzero rule, holds no visible piece of any other
   polygon. This also settles the fill rule: where the path's fill and hsr's
   triangulation of it differ (a lobe wound twice), what lies behind shows in hsr's
-  regions there, and the patch goes the exact way.
+  regions there, and the patch is drawn as its visible region instead.
 
 Its own triangles are not asked to be uncut: where the outline crosses itself, the
 triangulation's corners snap to the nearest vertex and its triangles may overlap each
