@@ -27,6 +27,15 @@ def _next_in_piece(piece_start, p0, p1, e0, nxt):
 SNAP = 2.0 ** 20  # grid steps per pixel for matching vertices
 
 
+def pieces_in_order(vertices, piece_start, order) -> tuple:
+    """The pieces' (or rings') vertices reordered as ``order`` lists them (some or all of
+    them), and their starts."""
+    size = np.diff(piece_start)[order]
+    start = np.r_[0, np.cumsum(size)].astype(np.int64)
+    src = np.repeat(piece_start[:-1][order] - start[:-1], size) + np.arange(start[-1])
+    return np.ascontiguousarray(vertices[src]), start
+
+
 def merge_pieces(vertices, piece_start, group_start):
     """Rings of each group of pieces (group g: pieces group_start[g] .. group_start[g + 1]):
     ``(ring_vertices (V', 2), ring_start (R + 1,), group_ring_start (G + 1,))``."""

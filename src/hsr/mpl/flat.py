@@ -17,7 +17,7 @@ import warnings
 import numpy as np
 
 from ..errors import HsrWarning
-from ..geometry.merge import merge_pieces
+from ..geometry.merge import merge_pieces, pieces_in_order
 from .gather import Gathered, gather
 from .view import camera_for
 from .whole import whole_polygons
@@ -301,15 +301,6 @@ def _joined(seg_key: np.ndarray, seg_number: np.ndarray, t: np.ndarray,
     return lines, seg_key[first]
 
 
-def _pieces_in_order(vertices, piece_start, order) -> tuple:
-    """The pieces' (or rings') vertices reordered as ``order`` lists them, and their
-    starts."""
-    size = np.diff(piece_start)[order]
-    start = np.r_[0, np.cumsum(size)].astype(np.int64)
-    src = np.repeat(piece_start[:-1][order] - start[:-1], size) + np.arange(start[-1])
-    return np.ascontiguousarray(vertices[src]), start
-
-
 def _compound_paths(ring_xy, ring_start, group_ring) -> list:
     """One matplotlib Path per group of rings: MOVETO, LINETOs, CLOSEPOLY per ring."""
     from matplotlib.path import Path
@@ -360,7 +351,7 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
     colour need not be drawn apart: their regions are disjoint)."""
     order = np.argsort(key, kind="stable")
     chosen = pieces[order]
-    verts, start = _pieces_in_order(reg.vertices, reg.piece_start, chosen)
+    verts, start = pieces_in_order(reg.vertices, reg.piece_start, chosen)
     keys = key[order]
     groups = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1], True])
     ring_xy, ring_start, group_ring = merge_pieces(verts, start, groups)
@@ -371,7 +362,7 @@ def _merged_paths(reg, pieces: np.ndarray, key: np.ndarray, height: int,
     n_rings = np.diff(group_ring)[by_path]
     ring_order = np.repeat(group_ring[:-1][by_path] - (np.cumsum(n_rings) - n_rings),
                            n_rings) + np.arange(int(n_rings.sum()))
-    ring_xy, ring_start = _pieces_in_order(ring_xy, ring_start, ring_order)
+    ring_xy, ring_start = pieces_in_order(ring_xy, ring_start, ring_order)
     ids = path_id[by_path]
     cuts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1], True])
     path_ring = np.r_[0, np.cumsum(n_rings)][cuts]

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.merge import pieces_in_order
+
 # Overlap (px^2) still counted as none: pieces that share an edge, computed twice.
 _TOUCH_AREA = 1e-6
 # Winding numbers take a (points x vertices) table; this many cells a block.
@@ -80,10 +82,11 @@ def whole_polygons(got, flat, seen, camera, face_rgba: np.ndarray) -> dict:
     candidates = np.flatnonzero(np.isin(flat.poly_fill, patches) & (face_rgba[:, 3] >= 1.0))
     piece_poly = seen.face_poly[reg.face_id[reg.piece_row]]
     shown = set(piece_poly.tolist())
+    outline_whole = _outlines_whole(flat, seen)
     box = _piece_boxes(reg)
     out = {}
     for p in candidates.tolist():
-        if p not in shown or not _outline_whole(flat, seen, p):
+        if p not in shown or not outline_whole[p]:
             continue
         fill = got.fills[int(flat.poly_fill[p])]
         k = int(flat.poly_index[p])
@@ -103,21 +106,23 @@ def _piece_boxes(reg) -> np.ndarray:
     return np.concatenate([lo, hi], axis=1)
 
 
-def _outline_whole(flat, seen, p: int) -> bool:
-    """Every stroked edge of polygon ``p`` is seen from end to end, as one piece (a
-    zero-length edge, a repeated vertex, as none)."""
-    drawn = seen.edge_ids[flat.edge_poly[seen.edge_ids] == p] if len(seen.edge_ids) else []
+def _outlines_whole(flat, seen) -> np.ndarray:
+    """(P,) bool: every stroked edge of the polygon is seen from end to end, as one piece
+    (a zero-length edge, a repeated vertex, as none)."""
+    whole = np.ones(len(flat.poly_fill), bool)
+    drawn = seen.edge_ids
     if not len(drawn):
-        return True
+        return whole
     is_edge = seen.item < seen.n_edges
-    edge_of_piece = seen.edge_ids[seen.item[is_edge]]
-    mine = flat.edge_poly[edge_of_piece] == p
-    t = seen.t[is_edge][mine]
-    count = np.bincount(edge_of_piece[mine], minlength=len(flat.edges))[drawn]
+    edge_of_piece = drawn[seen.item[is_edge]]
+    t = seen.t[is_edge]
+    count = np.bincount(edge_of_piece, minlength=len(flat.edges))[drawn]
     full = np.zeros(len(flat.edges), bool)
-    full[edge_of_piece[mine][(t[:, 0] <= 1e-12) & (t[:, 1] >= 1 - 1e-12)]] = True
+    full[edge_of_piece[(t[:, 0] <= 1e-12) & (t[:, 1] >= 1 - 1e-12)]] = True
     point = np.all(flat.edges[drawn, 0] == flat.edges[drawn, 1], axis=1)
-    return bool(np.all(((count == 1) & full[drawn]) | ((count == 0) & point)))
+    seen_whole = ((count == 1) & full[drawn]) | ((count == 0) & point)
+    whole[flat.edge_poly[drawn[~seen_whole]]] = False
+    return whole
 
 
 def _others_inside(xy: np.ndarray, reg, box: np.ndarray, others: np.ndarray) -> bool:
@@ -130,9 +135,7 @@ def _others_inside(xy: np.ndarray, reg, box: np.ndarray, others: np.ndarray) -> 
     if not len(near):
         return False
     region = nonzero_region(xy)
-    size = np.diff(reg.piece_start)[near]
-    idx = np.repeat(reg.piece_start[near] - np.r_[0, np.cumsum(size)[:-1]], size) + \
-        np.arange(int(size.sum()))
-    owner = np.repeat(np.arange(len(near)), size)
-    pieces = shapely.polygons(shapely.linearrings(reg.vertices[idx], indices=owner))
+    vertices, start = pieces_in_order(reg.vertices, reg.piece_start, near)
+    owner = np.repeat(np.arange(len(near)), np.diff(start))
+    pieces = shapely.polygons(shapely.linearrings(vertices, indices=owner))
     return float(shapely.area(shapely.intersection(region, pieces)).sum()) > _TOUCH_AREA
