@@ -1,7 +1,7 @@
 """``RayScene.all_hits``: every hit along each ray, nearest first, against a brute-force
-list of Moller-Trumbore hits written here, Open3D's ``list_intersections``, and the
-scene's own ``count`` and ``cast`` (each crossing listed once, the first hit the
-nearest)."""
+list of Moller-Trumbore hits (test_rays' reference test), Open3D's
+``list_intersections``, and the scene's own ``count`` and ``cast`` (each crossing listed
+once, the first hit the nearest)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from test_rays import _closed_meshes, _soup, pixel_rays, random_rays
+from test_rays import _closed_meshes, _soup, moller_trumbore, pixel_rays, random_rays
 
 import hsr
 from conftest import require
@@ -27,15 +27,7 @@ def brute_lists(tris, origins, directions, t_min=0.0, t_max=np.inf, slack=0.0):
     e1, e2 = b - a, c - a
     lists = []
     for o, d in zip(origins, directions):
-        p = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", e1, p)
-        ok = det != 0
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        s = o - a
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, e1)
-        v = (q @ d) * inv
-        t = np.einsum("ij,ij->i", e2, q) * inv
+        ok, u, v, t = moller_trumbore(o, d, a, e1, e2)
         hit = np.flatnonzero(ok & (u >= -slack) & (v >= -slack) & (u + v <= 1 + slack)
                              & (t >= t_min) & (t <= t_max))
         order = np.lexsort((hit, t[hit]))

@@ -23,6 +23,22 @@ from hsr.visibility.rays import _coherent
 embreex = require("embreex")
 
 
+def moller_trumbore(o, d, a, e1, e2):
+    """One ray (origin ``o``, direction ``d``) against every triangle (corner ``a``, edges
+    ``e1``, ``e2``), Moller-Trumbore in float64: ``(ok, u, v, t)`` per triangle, ``ok``
+    false where the ray lies in the triangle's plane."""
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = det != 0
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - a
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ d) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    return ok, u, v, t
+
+
 def brute_force(tris, origins, directions, t_min=0.0, t_max=np.inf):
     """(nearest t, face, u, v, all hits count) per ray, Moller-Trumbore in float64 over
     every triangle (a hit at an edge counts for each triangle there)."""
@@ -34,15 +50,7 @@ def brute_force(tris, origins, directions, t_min=0.0, t_max=np.inf):
     best_uv = np.zeros((n, 2))
     count = np.zeros(n, dtype=np.int64)
     for i in range(n):
-        p = np.cross(directions[i], e2)
-        det = np.einsum("ij,ij->i", e1, p)
-        ok = det != 0
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        s = origins[i] - a
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, e1)
-        v = (q @ directions[i]) * inv
-        t = np.einsum("ij,ij->i", e2, q) * inv
+        ok, u, v, t = moller_trumbore(origins[i], directions[i], a, e1, e2)
         hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= t_min) & (t <= t_max)
         count[i] = hit.sum()
         if hit.any():
