@@ -40,26 +40,25 @@ def child(args) -> None:
     bytes (for the disassembly) to ``args.out``."""
     sys.path.insert(0, args.child)
     sys.path.insert(1, HERE)
-    from bench_rays import inside_rays
+    from bench_rays import ray_sets
 
     import hsr
     from hsr.algorithms.bvh.walk import trace_range
 
+    # An editable install of another checkout would otherwise be profiled in its place.
+    if not os.path.abspath(hsr.__file__).startswith(os.path.abspath(args.child) + os.sep):
+        raise SystemExit(f"hsr was imported from {hsr.__file__}, not from {args.child}")
     mesh = hsr.load(args.model)
-    lo, hi = mesh.bounds()
-    if args.set == "inside":
-        origins, directions = inside_rays(lo, hi, args.rays)
-    else:
-        rng = np.random.default_rng(0)
-        origins = rng.uniform(lo - (hi - lo) / 2, hi + (hi - lo) / 2, (args.rays, 3))
-        directions = rng.normal(size=(args.rays, 3))
+    origins, directions = ray_sets(mesh, args.rays, np.random.default_rng(0),
+                                   (args.set,))[args.set]
     scene = hsr.RayScene(mesh, threads=1)
     query = getattr(scene, args.query)
     query(origins[:10], directions[:10])  # compiles
     for _ in range(args.repeat):
         query(origins, directions)
     regions = []
-    maps = [line.split()[0].split("-") for line in open("/proc/self/maps")]
+    with open("/proc/self/maps") as f:
+        maps = [line.split()[0].split("-") for line in f]
     for result in trace_range.overloads.values():
         address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
         for start, end in ((int(a, 16), int(b, 16)) for a, b in maps):
@@ -137,14 +136,19 @@ def blocks(counts, rays):
 
 
 def profile(src, args):
+    """Run the query for checkout ``src`` under valgrind and print its counts; the
+    child's last line of error when it fails, else None."""
     with tempfile.TemporaryDirectory() as tmp:
         out, trace = os.path.join(tmp, "walk.json"), os.path.join(tmp, "callgrind.out")
         command = ["valgrind", "--tool=callgrind", "--branch-sim=yes", "--dump-instr=yes",
-                   f"--callgrind-out-file={trace}", sys.executable, __file__,
+                   f"--callgrind-out-file={trace}", f"--log-file={trace}.log",
+                   sys.executable, __file__,
                    "--child", src, "--out", out, "--model", args.model, "--set", args.set,
                    "--query", args.query, "--rays", str(args.rays), "--repeat",
                    str(args.repeat)]
-        subprocess.run(command, check=True, capture_output=True)
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            return f"{src}: {(done.stderr.strip().splitlines() or ['failed'])[-1]}"
         with open(out) as f:
             walked = json.load(f)
         rays = walked["rays"]
@@ -167,6 +171,7 @@ def profile(src, args):
                 head = "; ".join(code_at[a] for a in addresses[at:at + 3])
                 print(f"| {first - start:#x} | {rate:.2f} | {n} | {per_ray:.1f} | "
                       f"{missed:.2f} | {head} |")
+    return None
 
 
 def main(argv=None):
@@ -189,7 +194,10 @@ def main(argv=None):
         print("profile_walk.py needs valgrind (apt-get install valgrind)", file=sys.stderr)
         return 2
     for src in args.src or [os.path.join(HERE, "..", "src")]:
-        profile(os.path.abspath(src), args)
+        problem = profile(os.path.abspath(src), args)
+        if problem:
+            print(f"profile_walk.py: {problem}", file=sys.stderr)
+            return 2
     return 0
 
 
