@@ -137,6 +137,22 @@ def compare(frame_face, frame_depth, ref_face, ref_depth, ambiguous, depth_tol=2
     return int(face_bad.sum()), int(depth_bad.sum()), int(sure.sum())
 
 
+def moller_trumbore(o, d, a, e1, e2, min_det=0.0):
+    """One ray (origin ``o``, direction ``d``) against every triangle (corner ``a``, edges
+    ``e1``, ``e2``), Moller-Trumbore in float64: ``(ok, u, v, t)`` per triangle, ``ok``
+    false where ``|det|`` is not above ``min_det`` (0: the ray in the triangle's plane)."""
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > min_det
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - a
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ d) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    return ok, u, v, t
+
+
 def occluded(scene, camera, points, rel_eps=1e-7) -> np.ndarray:
     """(P,) bool: is anything strictly between the eye and each world-space point?
     Moller-Trumbore of the segment eye -> point against every triangle; hits within

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from test_rays import _closed_meshes, _soup, moller_trumbore, pixel_rays, random_rays
+from test_rays import _closed_meshes, _soup, pixel_rays, random_rays
 
 import hsr
 from conftest import require
 from hsr.visibility import RayError, RayHitLists
+from reference import moller_trumbore
 
 
 def brute_lists(tris, origins, directions, t_min=0.0, t_max=np.inf, slack=0.0):

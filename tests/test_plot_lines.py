@@ -247,7 +247,7 @@ def test_vpype_hsr_bad_input(tmp_path, models_dir, vpype_cli):
 def _first_instance(scene, camera, width, height, window_xy) -> np.ndarray:
     """Brute force: the instance the ray through each window point (x, y up) meets first
     (Moller-Trumbore against every triangle), -1 for none."""
-    from reference import unproject, world_triangles
+    from reference import moller_trumbore, unproject, world_triangles
 
     tris = world_triangles(scene)
     offsets = scene.face_offsets()
@@ -256,16 +256,7 @@ def _first_instance(scene, camera, width, height, window_xy) -> np.ndarray:
     v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
     out = np.full(len(near), -1)
     for k, (o, f) in enumerate(zip(near, far)):
-        d = f - o
-        p = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", p, e1)
-        ok = np.abs(det) > 1e-300
-        inv = np.where(ok, 1 / np.where(ok, det, 1), 0)
-        s = o - v0
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, e1)
-        v = (q @ d) * inv
-        t = np.einsum("ij,ij->i", q, e2) * inv
+        ok, u, v, t = moller_trumbore(o, f - o, v0, e1, e2, min_det=1e-300)
         hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
         if hit.any():
             face = int(np.flatnonzero(hit)[np.argmin(t[hit])])

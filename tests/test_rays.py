@@ -19,24 +19,9 @@ import hsr
 from conftest import require
 from hsr.visibility import RayError
 from hsr.visibility.rays import _coherent
+from reference import moller_trumbore
 
 embreex = require("embreex")
-
-
-def moller_trumbore(o, d, a, e1, e2):
-    """One ray (origin ``o``, direction ``d``) against every triangle (corner ``a``, edges
-    ``e1``, ``e2``), Moller-Trumbore in float64: ``(ok, u, v, t)`` per triangle, ``ok``
-    false where the ray lies in the triangle's plane."""
-    p = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    ok = det != 0
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = o - a
-    u = np.einsum("ij,ij->i", s, p) * inv
-    q = np.cross(s, e1)
-    v = (q @ d) * inv
-    t = np.einsum("ij,ij->i", e2, q) * inv
-    return ok, u, v, t
 
 
 def brute_force(tris, origins, directions, t_min=0.0, t_max=np.inf):
