@@ -571,22 +571,26 @@ def test_a_bad_ray_deep_in_a_large_query_is_the_one_named():
                   t_max=t_max[:150_000])
 
 
-def test_the_vector_box_test_equals_a_numpy_slab_test():
+def test_the_vector_box_test_equals_a_numpy_float32_slab_test():
     """hsr.algorithms.simd.box_keys8 (LLVM vector code; box_mask8, its mask alone)
-    against the slab test written here in NumPy on float64, lane by lane: boxes around,
-    beside and behind the origin, empty lanes (at +inf), thin boxes, and a bound cutting
-    some boxes off. Each key is the entry's bits with the lane in the lowest three."""
+    against the float32 slab test written here in NumPy lane by lane (NumPy's float32
+    operations round as IEEE says, so the bits must agree): boxes around, beside and
+    behind the origin, empty lanes (at +inf), thin boxes, a bound cutting some boxes
+    off, pads from none to large. A box is entered when t_in <= t_out + pad and t_in <=
+    bound; its key is the bits of max(t_in - pad, 0) as float64 with the lane in the
+    lowest three."""
     from numba import njit
 
     from hsr.algorithms.simd import box_keys8, box_mask8
 
     @njit
-    def entries(box, w, o, inv, bound):
+    def entries(box, w, o, inv, pad, bound):
         keys = np.empty(8, dtype=np.int64)
-        mask = box_keys8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
-        alone = box_mask8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound)
+        mask = box_keys8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], pad, bound, keys)
+        alone = box_mask8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], pad, bound)
         return keys, mask, alone
 
+    f32 = np.float32
     rng = np.random.default_rng(3)
     n_boxes = 400
     lo = rng.uniform(-2, 2, (n_boxes, 8, 3))
@@ -595,29 +599,32 @@ def test_the_vector_box_test_equals_a_numpy_slab_test():
     lo[::5, 7], hi[::5, 7] = np.inf, np.inf
     box = np.concatenate([lo.transpose(0, 2, 1).reshape(n_boxes, 24),
                           hi.transpose(0, 2, 1).reshape(n_boxes, 24),
-                          np.zeros((n_boxes, 16))], axis=1).astype(np.float32)
+                          np.zeros((n_boxes, 16))], axis=1).astype(f32)
     lo32, hi32 = box[:, :24].reshape(n_boxes, 3, 8), box[:, 24:48].reshape(n_boxes, 3, 8)
-    checked = entered = 0
-    for w in range(n_boxes):
-        o = rng.uniform(-3, 3, 3)
-        aim = (lo[w, w % 3] + hi[w, w % 3]) / 2  # at a box, give or take
-        d = aim - o + rng.normal(0, 0.3, 3)
-        inv = 1.0 / d
-        bound = [np.inf, 1.7976931348623157e308, rng.uniform(0, 3)][w % 3]
-        bound = min(bound, 1.7976931348623157e308)
-        t0 = (lo32[w].astype(np.float64) - o[:, None]) * inv[:, None]
-        t1 = (hi32[w].astype(np.float64) - o[:, None]) * inv[:, None]
-        t_in = np.maximum(np.minimum(t0, t1).max(axis=0), 0.0)
-        t_out = np.maximum(t0, t1).min(axis=0)
-        want = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= bound), t_in,
-                        np.inf)
-        keys, mask, alone = entries(box, w, o, inv, bound)
-        np.testing.assert_array_equal(keys & 7, np.arange(8))
-        np.testing.assert_array_equal(keys >> 3, want.view(np.int64) >> 3)
-        assert mask == alone == sum(1 << k for k in range(8) if want[k] < np.inf)
-        checked += 8
-        entered += np.isfinite(want).sum()
+    checked = entered = padded = 0
+    with np.errstate(invalid="ignore", over="ignore"):
+        for w in range(n_boxes):
+            o = rng.uniform(-3, 3, 3).astype(f32)
+            aim = (lo[w, w % 3] + hi[w, w % 3]) / 2  # at a box, give or take
+            inv = (1.0 / (aim - o + rng.normal(0, 0.3, 3))).astype(f32)
+            pad = f32([0.0, 1e-6, 0.05, 0.5][w % 4])
+            bound = f32([np.inf, 3.4028235e38, rng.uniform(0, 3)][w % 3])
+            t0 = (lo32[w] - o[:, None]) * inv[:, None]
+            t1 = (hi32[w] - o[:, None]) * inv[:, None]
+            near, far = np.minimum(t0, t1), np.maximum(t0, t1)
+            t_in = np.maximum(np.maximum(near[0], near[1]), np.maximum(near[2], f32(0)))
+            t_out = np.minimum(np.minimum(far[0], far[1]), far[2])
+            hit = (t_in <= t_out + pad) & (t_in <= bound)
+            want = np.where(hit, np.maximum(t_in - pad, f32(0)).astype(np.float64), np.inf)
+            keys, mask, alone = entries(box, w, o, inv, pad, bound)
+            np.testing.assert_array_equal(keys & 7, np.arange(8))
+            np.testing.assert_array_equal(keys >> 3, want.view(np.int64) >> 3)
+            assert mask == alone == sum(1 << k for k in range(8) if hit[k])
+            checked += 8
+            entered += hit.sum()
+            padded += (hit & (t_in > t_out)).sum()
     assert 50 < entered < checked - 50  # both outcomes were exercised
+    assert padded > 5  # and boxes entered by the pad alone
 
 
 def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
@@ -737,51 +744,138 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
     assert kept > 200 and cleared > 200
 
 
-def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
-    """Rays aimed at corners of boxes whose bounds are exact in float32 (so the boxes
-    are tight: no outward rounding to hide behind): whenever exact rational arithmetic
-    says the ray meets the box, box_keys8 and the careful scalar test enter it.
-    Without the slack on the exit distance about 3% of these rays miss their box."""
+def _exact_slabs(lo, hi, o, d):
+    """(t_in, t_out) of the ray o + t d against box [lo, hi], in exact rational
+    arithmetic, t_in at least 0."""
     from fractions import Fraction
 
-    from numba import njit
+    t_in, t_out = Fraction(0), None
+    for a in range(3):
+        t0 = (Fraction(float(lo[a])) - Fraction(float(o[a]))) / Fraction(float(d[a]))
+        t1 = (Fraction(float(hi[a])) - Fraction(float(o[a]))) / Fraction(float(d[a]))
+        t_in = max(t_in, min(t0, t1))
+        t_out = max(t0, t1) if t_out is None else min(t_out, max(t0, t1))
+    return t_in, t_out
 
-    from hsr.algorithms.bvh.boxes import careful_keys8
-    from hsr.algorithms.simd import box_keys8
 
-    @njit
-    def entered(box, o, inv):
-        keys = np.empty(8, dtype=np.int64)
-        fast = box_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], np.inf, keys)
-        careful = careful_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], np.inf,
-                                keys)
-        return fast & 1, careful & 1
-
-    def meets(lo, hi, o, d):
-        t_in, t_out = Fraction(0), None
-        for a in range(3):
-            t0 = (Fraction(lo[a]) - Fraction(o[a])) / Fraction(d[a])
-            t1 = (Fraction(hi[a]) - Fraction(o[a])) / Fraction(d[a])
-            t_in = max(t_in, min(t0, t1))
-            t_out = max(t0, t1) if t_out is None else min(t_out, max(t0, t1))
-        return t_in <= t_out
-
-    rng = np.random.default_rng(7)
-    met = 0
-    for _ in range(3000):
+def _tight_box_rays(rng, n, scale_exponents):
+    """Rays aimed at corners of boxes whose bounds are exact in float32 (tight: no outward
+    rounding to hide behind), from origins near and far, directions short and long."""
+    for _ in range(n):
         unit = np.float32(rng.choice([1.0, 0.1, 1 / 3]))
         lo = (rng.integers(-4, 4, 3) * unit).astype(np.float32)
         hi = (lo + rng.integers(1, 4, 3) * unit).astype(np.float32)
         corner = np.where(rng.random(3) < 0.5, lo, hi).astype(np.float64)
-        o = rng.uniform(-20, 20, 3) * 10.0 ** rng.integers(-1, 3)
-        d = (corner - o) * rng.uniform(0.1, 10)
-        if not meets(lo.astype(np.float64), hi.astype(np.float64), o, d):
+        o = rng.uniform(-20, 20, 3) * 10.0 ** rng.integers(*scale_exponents)
+        d = (corner - o) * 10.0 ** rng.uniform(-8, 8)
+        yield lo, hi, o, d
+
+
+def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
+    """Rays aimed at corners of tight boxes, origins from 0.1 to 1e6 away and directions
+    from 1e-8 to 1e8 long: whenever exact rational arithmetic says the ray meets the box,
+    the float32 box test (and the careful float64 one) enters it, and the float32 key is
+    at most the exact entry (the walk prunes boxes by their keys). Without the pad
+    about 3% of these rays miss their box. With the bound at the exact entry rounded up
+    to float64 the box is still entered."""
+    from fractions import Fraction
+
+    from numba import njit
+
+    from hsr.algorithms.bvh.boxes import box_bound, box_frame, careful_keys8
+    from hsr.algorithms.simd import box_keys8
+
+    @njit
+    def box_entered(box, o, inv, reach, bound):
+        """What the walk's float32 box test (its ray from box_frame, bound from box_bound)
+        and the careful float64 test say of lane 0 of ``box``: (entered, key entry,
+        careful entered, fits)."""
+        keys = np.empty(8, dtype=np.int64)
+        ox, oy, oz, ix, iy, iz, pad32, pad, fits = box_frame(o[0], o[1], o[2], inv[0], inv[1],
+                                                             inv[2], reach)
+        fast = box_keys8(box, 0, ox, oy, oz, ix, iy, iz, pad32, box_bound(bound, pad), keys)
+        key = keys[0]
+        careful = careful_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
+        return fast & 1, key, careful & 1, fits
+
+    rng = np.random.default_rng(7)
+    met = 0
+    for lo, hi, o, d in _tight_box_rays(rng, 3000, (-1, 6)):
+        t_in, t_out = _exact_slabs(lo, hi, o, d)
+        if t_in > t_out:
             continue
         met += 1
         box = np.full((1, 64), np.inf, dtype=np.float32)
         box[0, 0:24:8], box[0, 24:48:8] = lo, hi  # lane 0; lanes 1-7 empty
-        assert entered(box, o, 1.0 / d) == (1, 1), (lo, hi, o, d)
+        reach = float(np.abs(np.r_[lo, hi]).max())
+        bound = float(t_in)
+        if Fraction(bound) < t_in:
+            bound = float(np.nextafter(bound, np.inf))
+        for b in (np.inf, bound):
+            fast, key, careful, fits = box_entered(box, o, 1.0 / d, reach, b)
+            assert fits
+            assert fast == 1, (lo, hi, o, d, b)
+            assert careful == 1 or b < np.inf, (lo, hi, o, d)
+            assert Fraction(float(np.int64(key & ~7).view(np.float64))) <= t_in
     assert met > 1000
+
+
+def test_rays_float32_cannot_hold_take_the_careful_box_test():
+    """The float32 box test's bound is finite and padded. Rays whose box distances
+    would leave float32's range (an origin 1e35 away, a direction component of 1e-120
+    whose inverse is 1e120) are not fitted (box_frame) and take the careful float64
+    test; the walk answers them as the brute-force reference does, and so does a scene
+    whose coordinates are beyond float32's range."""
+    from hsr.algorithms.bvh.boxes import box_bound, box_frame
+
+    # The walk's largest bound stays a finite float32: a missed box (entered at +inf)
+    # must fail it.
+    assert box_bound(1.7976931348623157e308, 1.0) == np.finfo(np.float32).max
+    assert box_bound(2.0, 1e-3) >= 2.0 + 1e-3
+    assert not box_frame(1e35, 0.0, 0.0, -1e-35, 1.0, 1.0, 1.0)[-1]
+    assert not box_frame(0.0, 0.0, 5.0, 1e120, 1.0, -1.0, 1.0)[-1]
+    assert box_frame(0.0, 0.0, 5.0, 1.0, 1.0, -1.0, 1.0)[-1]
+    mesh = hsr.scenes.cube()
+    rays = hsr.RayScene(mesh)
+    origins = np.array([[1e35, 0.2, 0.1], [0.3, 0.2, 5.0], [0.3, 0.2, 5.0], [-4.0, 0.1, 0.2]])
+    directions = np.array([[-1.0, 0.0, 0.0], [1e-120, -1e-121, -1.0], [0.0, 1e-300, -1.0],
+                           [1.0, 1e-130, 1e-125]])
+    tris = mesh.positions[mesh.faces]
+    want_t = brute_force(tris, origins, directions)[0]
+    hits = rays.cast(origins, directions)
+    np.testing.assert_array_equal(hits.face_id >= 0, np.isfinite(want_t))
+    np.testing.assert_allclose(hits.t, want_t, rtol=1e-12)
+    far = hsr.Mesh(mesh.positions * 1e36, mesh.faces)
+    far_hits = hsr.RayScene(far).cast(origins[1:3] * [1e36, 1e36, 1e36], directions[1:3])
+    np.testing.assert_allclose(far_hits.t, want_t[1:3] * 1e36, rtol=1e-12)
+
+
+def test_node_records_are_read_where_they_are_written():
+    """The box tests and ``child`` find a record by a constant (simd.NODE_BYTES) instead
+    of the array's stride: it must be the records' size, and each lane's reference and
+    count read back as ``set_child`` wrote them, in every record."""
+    from numba import njit
+
+    from hsr.algorithms.bvh.layout import LANES, NODE_WORDS, child, node_records, set_child
+    from hsr.algorithms.simd import NODE_BYTES
+
+    @njit
+    def write_then_read(link):
+        for w in range(link.shape[0]):
+            for lane in range(LANES):
+                set_child(link, w, lane, 1000 * w + lane, lane - 1)
+        out = np.empty((link.shape[0], LANES, 2), dtype=np.int64)
+        for w in range(link.shape[0]):
+            for lane in range(LANES):
+                out[w, lane, 0], out[w, lane, 1] = child(link, w, lane)
+        return out
+
+    box, link = node_records(6)
+    assert NODE_BYTES == NODE_WORDS * 4 == box.strides[0] == link.strides[0]
+    got = write_then_read(link)
+    w, lane = np.meshgrid(np.arange(6), np.arange(LANES), indexing="ij")
+    np.testing.assert_array_equal(got[..., 0], 1000 * w + lane)
+    np.testing.assert_array_equal(got[..., 1], lane - 1)
 
 
 def test_the_lane_keys_sort_like_python_and_round_entries_down():

@@ -3,19 +3,22 @@
 Numba leaves the slab test of several boxes scalar however its loop is shaped (checked
 with ``inspect_asm``: ``vmulsd``/``vminsd`` on ``xmm``, no ``ymm``), so the walk of
 :func:`hsr.algorithms.bvh.walk.trace_range` spent most of a node on one lane at a time.
-:func:`box_keys8` writes the same arithmetic on ``<8 x double>`` values through a Numba
-intrinsic: each operation of the scalar test (float32 bound widened to float64,
-subtract, multiply, min, max, compare) once for eight lanes, in the same order and
-without fused multiply-adds, so every lane's result is bit for bit the scalar one
-(``_careful_entry`` without its NaN care). With AVX-512 the eight lanes are one
-register; on a CPU with narrower vectors LLVM splits the operations, and the results do
-not change. :func:`sort_keys8` orders a node's entered lanes without branches (the
-ordered step of :func:`hsr.algorithms.bvh.walk.trace_range`).
+:func:`box_keys8` writes the slab test on ``<8 x float>`` values through a Numba
+intrinsic: eight float32 lanes, one AVX2 register, the node's bounds used as stored; the
+ray comes rounded to float32 with a pad that keeps the test conservative
+(:func:`hsr.algorithms.bvh.boxes.box_frame`). The packets' test (:func:`packet_keys8`)
+keeps the float64 arithmetic of the scalar careful test, each operation once for eight
+lanes in the same order and without fused multiply-adds, so every lane's result is bit
+for bit the scalar one (``_careful_entry`` without its NaN care). On a CPU with narrower
+vectors LLVM splits the operations, and the results do not change. :func:`sort_keys8`
+orders a node's entered lanes without branches (the ordered step of
+:func:`hsr.algorithms.bvh.walk.trace_range`).
 
 What it exports, by use:
 
 - a node's boxes: :func:`box_keys8` (one ray, entries as sortable keys),
-  :func:`box_mask8` (one ray, the mask alone), :func:`packet_keys8` and
+  :func:`box_mask8` (one ray, the mask alone), :func:`record_words` (a node's
+  references), :func:`packet_keys8` and
   :func:`packet_keys8_shared` (four rays; four from one origin);
 - a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once) and
   :func:`leaf_filter4_rays` (four rays from one origin);
@@ -32,9 +35,10 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["box_keys8", "box_mask8", "packet_keys8", "packet_keys8_shared", "leaf_filter4",
-           "leaf_filter4_rays", "min_key8", "sort_keys8", "lowest_bit", "bit_count", "float_bits",
-           "next_float32", "grow_box", "prefetch", "borrowed"]
+__all__ = ["NODE_BYTES", "box_keys8", "box_mask8", "record_words", "packet_keys8",
+           "packet_keys8_shared", "leaf_filter4", "leaf_filter4_rays", "min_key8",
+           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "next_float32", "grow_box",
+           "prefetch", "borrowed"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -42,6 +46,10 @@ _D4 = ir.VectorType(ir.DoubleType(), 4)
 _F8 = ir.VectorType(ir.FloatType(), 8)
 _D8 = ir.VectorType(ir.DoubleType(), 8)
 _L8 = ir.VectorType(_I64, 8)
+
+# The bytes of a wide node record (hsr.algorithms.bvh.layout.NODE_WORDS 32-bit words;
+# tests/test_layout.py checks the two agree).
+NODE_BYTES = 256
 
 
 def _splat(builder, x, width=4):
@@ -129,42 +137,92 @@ def _keys(builder, entries, lanes):
                        ir.Constant(_L8, lanes))
 
 
+def _record_pointer(context, builder, array_type, array, record, element):
+    """A pointer to wide node ``record`` of a node array (records of
+    :data:`NODE_BYTES`, one after another), to ``element``: a shift, where the array's
+    row stride would be a multiplication on the walk's chain of dependent reads."""
+    ary = context.make_array(array_type)(context, builder, array)
+    raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
+    offset = builder.mul(record, _i64(NODE_BYTES))
+    return builder.bitcast(builder.gep(raw, [offset]), element.as_pointer())
+
+
+def _node_array(array):
+    """Whether ``array`` can be read as wide node records: 2-D, C-contiguous, 4-byte
+    words (:func:`hsr.algorithms.bvh.layout.node_records` makes them so)."""
+    return (isinstance(array, types.Array) and array.ndim == 2 and array.layout == "C"
+            and array.dtype in (types.float32, types.int32))
+
+
+def _splat32(builder, x):
+    """A float32 value in all eight lanes."""
+    v = builder.insert_element(ir.Constant(_F8, ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, ir.Constant(_F8, ir.Undefined),
+                                  ir.Constant(ir.VectorType(_I32, 8), [0] * 8))
+
+
 def _box_test8(context, builder, arg_types, args):
-    """(entry, entered) of the slab test of a ray against the eight boxes of row ``w``
-    (``args``: box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound; see
-    :func:`box_keys8`)."""
-    array, row, ox, oy, oz, ix, iy, iz, bound = args[:9]
+    """(key entry, entered) of the float32 slab test of a ray against the eight boxes
+    of wide node ``w`` (``args``: box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad,
+    bound; see :func:`box_keys8`): the key entry is ``max(t_in - pad, 0)`` widened to
+    float64, +inf where the box is not entered."""
+    array, row, ox, oy, oz, ix, iy, iz, pad, bound = args[:10]
     row = context.cast(builder, row, arg_types[1], types.intp)
-    base = _row_pointer(context, builder, arg_types[0], array, row)
+    base = _record_pointer(context, builder, arg_types[0], array, row, ir.FloatType())
 
     def lanes(q):
-        """Bound q (lo x, y, z, hi x, y, z) of the eight boxes, as float64."""
+        """Bound q (lo x, y, z, hi x, y, z) of the eight boxes."""
         p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
-        return builder.fpext(builder.load(p, align=4), _D8)
+        return builder.load(p, align=4)
 
-    return _slab_test(builder, _plane_offsets(builder, [lanes(q) for q in range(6)],
-                                              [_splat(builder, x, 8) for x in (ox, oy, oz)]),
-                      [_splat(builder, x, 8) for x in (ix, iy, iz)],
-                      _splat(builder, bound, 8))
+    origin = [_splat32(builder, x) for x in (ox, oy, oz)]
+    inv = [_splat32(builder, x) for x in (ix, iy, iz)]
+    near, far = [], []
+    for a in range(3):
+        t0 = builder.fmul(builder.fsub(lanes(a), origin[a]), inv[a])
+        t1 = builder.fmul(builder.fsub(lanes(3 + a), origin[a]), inv[a])
+        near.append(_min(builder, t0, t1))
+        far.append(_max(builder, t0, t1))
+    zero = ir.Constant(_F8, [0.0] * 8)
+    t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
+    t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
+    padding = _splat32(builder, pad)
+    entered = builder.and_(builder.fcmp_ordered("<=", t_in, builder.fadd(t_out, padding)),
+                           builder.fcmp_ordered("<=", t_in, _splat32(builder, bound)))
+    key = builder.fpext(_max(builder, builder.fsub(t_in, padding), zero), _D8)
+    return builder.select(entered, key, ir.Constant(_D8, [float("inf")] * 8)), entered
+
+
+def _box_test_types(box, scalars):
+    """Whether the box tests can take these arguments (a node array, float32 ray)."""
+    return _node_array(box) and box.dtype == types.float32 and all(
+        s == types.float32 for s in scalars)
 
 
 @intrinsic
-def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
-    """Where the ray enters each of the eight boxes in row ``w`` of ``box`` (float32, a
-    C-contiguous row starting with the lanes ``[lo_x * 8, lo_y * 8, lo_z * 8, hi_x * 8,
-    hi_y * 8, hi_z * 8]``), +inf when it misses a box or enters it beyond ``bound``,
-    written to ``keys`` (int64, 8 contiguous) as the keys of :func:`sort_keys8`
-    (the entry's bits, lane in the lowest three). The slab test (Kay and Kajiya 1986)
-    for a ray with no zero direction component (no 0 * inf): t_in = max of the three
-    slabs' near distances and 0, t_out = min of their far ones, entered when
-    ``t_in <= t_out SLACK + SLACK_ABS`` (the slack of the scalar test,
-    :func:`hsr.algorithms.bvh._careful_entry`, which rounding of the distances needs).
-    Returns the mask of entered boxes, bit k for box k (an int64, 0 .. 255)."""
-    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys)
+def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound, keys):
+    """Where the ray enters each of the eight boxes of wide node ``w`` of ``box`` (the
+    float32 records of :func:`hsr.algorithms.bvh.layout.node_records`, a record starting
+    with the lanes ``[lo_x * 8, lo_y * 8, lo_z * 8, hi_x * 8, hi_y * 8, hi_z * 8]``),
+    written to ``keys`` (int64, 8 contiguous) as the keys of :func:`sort_keys8` (the
+    entry's bits, lane in the lowest three; +inf for a box missed or entered beyond the
+    bound). Returns the mask of entered boxes, bit k for box k (an int64, 0 .. 255).
+
+    The slab test (Kay and Kajiya 1986) in float32, eight lanes in one AVX2 register:
+    t_in = max of the slabs' near distances and 0, t_out = min of their far ones. The
+    ray comes as :func:`hsr.algorithms.bvh.boxes.box_frame` makes it (origin and inverse
+    direction rounded to float32, a ``pad`` that bounds the rounding of every distance,
+    Ize 2013), the bound as :func:`hsr.algorithms.bvh.boxes.box_bound` raises it: a box
+    is entered when ``t_in <= t_out + pad`` and ``t_in <= bound``, so every box the exact
+    ray enters within the bound is, and its key ``max(t_in - pad, 0)`` is at most the
+    exact entry (the walk prunes by comparing keys with its bound)."""
+    if not _box_test_types(box, (ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound)):
+        return None
+    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound, keys)
 
     def codegen(context, builder, sig, args):
         entry, entered = _box_test8(context, builder, sig.args, args)
-        data = context.make_array(sig.args[9])(context, builder, args[9]).data
+        data = context.make_array(sig.args[10])(context, builder, args[10]).data
         builder.store(_keys(builder, entry, list(range(8))),
                       builder.bitcast(data, _L8.as_pointer()), align=8)
         return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
@@ -173,15 +231,39 @@ def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys
 
 
 @intrinsic
-def box_mask8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
+def box_mask8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound):
     """The mask of :func:`box_keys8` alone, for walks whose bound never shrinks (any
     hit, every hit): the order of the boxes does not matter to them, so their entries
     are not needed."""
-    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound)
+    if not _box_test_types(box, (ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound)):
+        return None
+    sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound)
 
     def codegen(context, builder, sig, args):
         _, entered = _box_test8(context, builder, sig.args, args)
         return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
+
+    return sig, codegen
+
+
+@intrinsic
+def record_words(typingctx, link, w, first, second):
+    """Words ``first`` and ``second`` of wide node record ``w`` of ``link`` (int32
+    records of :func:`hsr.algorithms.bvh.layout.node_records`), as two int64: the
+    record found by a shift (:func:`_record_pointer`), the words by constant offsets."""
+    if not (_node_array(link) and link.dtype == types.int32):
+        return None
+    sig = types.UniTuple(types.int64, 2)(link, w, first, second)
+
+    def codegen(context, builder, sig, args):
+        array, w_v, a_v, b_v = args
+        w_v = context.cast(builder, w_v, sig.args[1], types.intp)
+        base = _record_pointer(context, builder, sig.args[0], array, w_v, _I32)
+        words = []
+        for v, t in ((a_v, sig.args[2]), (b_v, sig.args[3])):
+            at = context.cast(builder, v, t, types.intp)
+            words.append(builder.sext(builder.load(builder.gep(base, [at])), _I64))
+        return context.make_tuple(builder, sig.return_type, words)
 
     return sig, codegen
 

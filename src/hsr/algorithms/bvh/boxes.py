@@ -1,6 +1,7 @@
-"""Slab tests of a node's eight child boxes for one ray or a packet, the careful versions
-(a ray parallel to a slab, or a bound the float32 boxes must not cut short); the fast
-eight-lane test is :func:`hsr.algorithms.simd.box_keys8`."""
+"""Slab tests of a node's eight child boxes: the ray made ready for the fast float32
+eight-lane test of one ray (:func:`box_frame`, :func:`box_bound`; the test is
+:func:`hsr.algorithms.simd.box_keys8`), and the careful float64 versions for one ray or
+a packet (a ray parallel to a slab, or one float32 cannot hold)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,18 @@ from numba import njit
 from ..simd import SLACK, SLACK_ABS, float_bits
 from .layout import LANES
 
-__all__ = ["inverse_direction", "careful_keys8", "careful_packet_keys8", "open_slabs"]
+__all__ = ["inverse_direction", "box_reach", "box_frame", "box_bound", "careful_keys8",
+           "careful_packet_keys8", "open_slabs"]
+
+# float32's unit roundoff.
+_U32 = 2.0**-24
+
+# A ray whose box distances could reach this (or whose inverse direction is below its
+# inverse) takes the careful float64 test: float32 then keeps them normal and finite.
+FIT32 = 2.0**100
+
+# The largest float32: a bound above it would let a missed box (entered at +inf) pass.
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -19,6 +31,63 @@ def inverse_direction(dx, dy, dz):
     and ``careful`` when there is one (0 * inf is NaN there; see :func:`open_slabs`)."""
     return (1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf,
             1.0 / dz if dz != 0.0 else np.inf, dx == 0.0 or dy == 0.0 or dz == 0.0)
+
+
+@njit(cache=True, nogil=True)
+def box_reach(box, w):
+    """The largest magnitude of the finite bounds of wide node ``w``'s boxes: at the
+    root, of every box in the tree (each lies inside its parent's lane)."""
+    reach = 0.0
+    for q in range(6 * LANES):
+        v = abs(np.float64(box[w, q]))
+        if v < np.inf:
+            reach = max(reach, v)
+    return reach
+
+
+@njit(cache=True, nogil=True, inline="always")
+def box_frame(ox, oy, oz, inv_dx, inv_dy, inv_dz, reach):
+    """The ray as :func:`hsr.algorithms.simd.box_keys8` takes it: ``(ox, oy, oz, inv_dx,
+    inv_dy, inv_dz, pad)`` in float32, then ``pad`` in float64 (for :func:`box_bound`)
+    and whether the ray fits float32 (if not, it takes :func:`careful_keys8`).
+    ``reach``: :func:`box_reach` of the root.
+
+    Why the pad keeps the test conservative (Ize 2013, "Robust BVH ray traversal", for
+    float32): with u = 2**-24, a box's float32 bound p (|p| <= reach = M), the origin o
+    rounded to o32 (off by at most u |o|) and the float64 inverse rounded to inv32
+    (relative error below 1.0000001 u), the computed distance fl(fl(p - o32) inv32) has
+    three relative roundings and the origin's error, so it lies within E = 4.01 u (M +
+    |o|) |inv| <= 4.01 u T of the exact (p - o) / d, T = (M + max |o|) max |inv|. So a
+    box the exact ray enters (t_in <= t_out) has computed distances with t_in' <= t_out'
+    + 2 E, and the test's ``t_in' <= fl(t_out' + pad)`` holds when pad (1 - u) >= 2 E +
+    u T', which pad = 12 u T (T' <= T (1 + 5u) bounds the computed distances) gives with
+    room. The key fl(t_in' - pad) is then at most the exact entry. ``fits``: T <= 2**100
+    and every |inv| >= 2**-100 keep every value normal and finite (a subtraction whose
+    result is subnormal is exact; pad's floor of 2**-100 covers a product that
+    underflows)."""
+    t_scale = (reach + max(abs(ox), abs(oy), abs(oz))) * max(abs(inv_dx), abs(inv_dy),
+                                                              abs(inv_dz))
+    fits = (t_scale <= FIT32) & (min(abs(inv_dx), abs(inv_dy), abs(inv_dz)) >= 1.0 / FIT32)
+    pad = max(12.0 * _U32 * t_scale, 1.0 / FIT32) * (1.0 + 2.0**-20)
+    return (np.float32(ox), np.float32(oy), np.float32(oz), np.float32(inv_dx),
+            np.float32(inv_dy), np.float32(inv_dz), _up32(pad), pad, fits)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _up32(x):
+    """A float32 >= x, for x in float32's normal range (x (1 + 4u) rounds to nearest no
+    lower than x), without the coin-flip branch of rounding to the next float32 exactly
+    (:func:`hsr.algorithms.bvh.layout.up32`), which cost ~20 ns a ray."""
+    return np.float32(x * (1.0 + 4.0 * _U32))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def box_bound(bound, pad):
+    """The walk's bound (float64) for :func:`hsr.algorithms.simd.box_keys8`: bound + pad
+    (the most a computed entry exceeds the exact one; :func:`box_frame`) rounded up to
+    float32, at most the largest float32 so that a missed box (entered at +inf) fails
+    it (rounding a larger value could give +inf)."""
+    return np.float32(min((bound + pad) * (1.0 + 4.0 * _U32), FLOAT32_MAX))
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..simd import next_float32
+from ..simd import next_float32, record_words
 
 __all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "node_records", "child",
            "set_child", "down32", "up32"]
@@ -49,7 +49,7 @@ def node_records(n: int) -> tuple[np.ndarray, np.ndarray]:
 def child(node_link, w, lane):
     """What lane ``lane`` of wide node ``w`` holds, ``(ref, count)``: a wide node's number
     and 0, a leaf's first slot and its triangle count (> 0), or an empty lane (count -1)."""
-    return np.int64(node_link[w, REF + lane]), np.int64(node_link[w, COUNT_AT + lane])
+    return record_words(node_link, w, REF + lane, COUNT_AT + lane)
 
 
 @njit(cache=True, nogil=True, inline="always")

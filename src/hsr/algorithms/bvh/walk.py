@@ -19,7 +19,7 @@ from ..simd import (
     prefetch,
     sort_keys8,
 )
-from .boxes import careful_keys8, inverse_direction
+from .boxes import box_bound, box_frame, box_reach, careful_keys8, inverse_direction
 from .hits import (
     ANY,
     COUNT,
@@ -56,7 +56,7 @@ INTERLEAVE_BYTES = 8 << 20
 
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
- _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_COLUMNS) = range(18)
+ _F_BOUND, _F_T, _F_U, _F_V, _F_Z, _F_PAD, _F_COLUMNS) = range(19)
 
 # ... and int64 (_I_SLOT: the BVH slot of the best hit, _I_FACE its face).
 (_I_RAY, _I_REF, _I_N, _I_TOP, _I_FACE, _I_SLOT, _I_COUNT, _I_FRAMED, _I_CAREFUL, _I_KX,
@@ -127,12 +127,17 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
     keys = np.empty(LANES, dtype=np.int64)  # a node's entry keys (box_keys8)
+    # The largest magnitude of the boxes' bounds, for the float32 box test's pad.
+    reach = box_reach(node_box, root_ref) if root_count == 0 else 0.0
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
     # _I_* constants): the ray (-1: none), where its walk stands, its bound, best hit
     # and hit count, its origin and inverse direction for the box tests, and the
     # triangle test's frame (ray_frame), made at its first leaf.
     slot_f = np.empty((SLOTS, _F_COLUMNS))
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
+    # ... and the ray in float32 for the box tests (box_frame): origin x, y, z, inverse
+    # direction x, y, z, pad.
+    slot_box = np.empty((SLOTS, 7), dtype=np.float32)
     tests = 0
     # The queries' nearest hits get an object and a normal (the pass after the walk):
     # the rays that hit are listed for it, with the slot of each one's hit.
@@ -175,9 +180,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             continue
                     ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
                     # A ray parallel to an axis needs the slab test's NaN care (see
-                    # open_slabs).
+                    # open_slabs), one float32 cannot hold the float64 test.
                     inv_dx, inv_dy, inv_dz, careful = inverse_direction(
                         directions[i, 0], directions[i, 1], directions[i, 2])
+                    ox32, oy32, oz32, ix32, iy32, iz32, pad32, pad, fits = box_frame(
+                        ox, oy, oz, inv_dx, inv_dy, inv_dz, reach)
+                    careful = careful or not fits
                     # No box entered beyond the bound can hold a hit that matters.
                     b = min(t_max[i if per_ray[1] else 0], LARGEST)
                     # A ray that enters none of the root's boxes is answered before it takes
@@ -187,11 +195,11 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     if root_count != 0 or careful:
                         break
                     if mode == NEAREST:
-                        root_mask = box_keys8(node_box, root_ref, ox, oy, oz, inv_dx, inv_dy,
-                                              inv_dz, b, keys)
+                        root_mask = box_keys8(node_box, root_ref, ox32, oy32, oz32, ix32,
+                                              iy32, iz32, pad32, box_bound(b, pad), keys)
                     else:
-                        root_mask = box_mask8(node_box, root_ref, ox, oy, oz, inv_dx, inv_dy,
-                                              inv_dz, b)
+                        root_mask = box_mask8(node_box, root_ref, ox32, oy32, oz32, ix32,
+                                              iy32, iz32, pad32, box_bound(b, pad))
                     if root_mask != 0:
                         break
                     if mode == NEAREST:
@@ -213,6 +221,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ] = ox, oy, oz
                 slot_f[s, _F_IX], slot_f[s, _F_IY], slot_f[s, _F_IZ] = inv_dx, inv_dy, inv_dz
                 slot_i[s, _I_CAREFUL] = careful
+                slot_box[s, 0], slot_box[s, 1], slot_box[s, 2] = ox32, oy32, oz32
+                slot_box[s, 3], slot_box[s, 4], slot_box[s, 5] = ix32, iy32, iz32
+                slot_box[s, 6], slot_f[s, _F_PAD] = pad32, pad
                 slot_f[s, _F_BOUND] = b
                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
                 slot_f[s, _F_Z] = np.inf
@@ -221,6 +232,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
             inv_dx, inv_dy, inv_dz = slot_f[s, _F_IX], slot_f[s, _F_IY], slot_f[s, _F_IZ]
             careful = slot_i[s, _I_CAREFUL] != 0
+            ox32, oy32, oz32 = slot_box[s, 0], slot_box[s, 1], slot_box[s, 2]
+            ix32, iy32, iz32 = slot_box[s, 3], slot_box[s, 4], slot_box[s, 5]
+            pad32, pad = slot_box[s, 6], slot_f[s, _F_PAD]
             done = False
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
@@ -231,10 +245,11 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
                                              inv_dz, b, keys)
                     elif mode != NEAREST:  # (the entries unused: see below)
-                        mask = box_mask8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz, b)
+                        mask = box_mask8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
+                                         pad32, box_bound(b, pad))
                     else:
-                        mask = box_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy, inv_dz,
-                                         b, keys)
+                        mask = box_keys8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
+                                         pad32, box_bound(b, pad), keys)
                     # The ordered walk (Wald et al.'s nearest child first), written out here: as an
                     # inlined function taking the arrays, it paid a reference count per step.
                     # (Measurements: docs/history.md, "Ray core".)
