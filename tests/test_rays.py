@@ -672,7 +672,8 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
             t1 = (hi32[w].astype(np.float64) - o[r][:, None]) * rays[3:, r][:, None]
             t_in = np.maximum(np.minimum(t0, t1).max(axis=0), 0.0)
             t_out = np.maximum(t0, t1).min(axis=0)
-            want[r] = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= bound[r]),
+            limit = min(bound[r] * (1.0 + 1e-15) + 1e-300, 1.7976931348623157e308)
+            want[r] = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= limit),
                                t_in, np.inf)
         walking = np.array([(active >> r) & 1 for r in range(4)], dtype=bool)
         nearest = np.where(walking[:, None], want, np.inf).min(axis=0)
@@ -774,29 +775,43 @@ def _tight_box_rays(rng, n, scale_exponents):
 def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
     """Rays aimed at corners of tight boxes, origins from 0.1 to 1e6 away and directions
     from 1e-8 to 1e8 long: whenever exact rational arithmetic says the ray meets the box,
-    the float32 box test (and the careful float64 one) enters it, and the float32 key is
-    at most the exact entry (the walk prunes boxes by their keys). Without the pad
-    about 3% of these rays miss their box. With the bound at the exact entry rounded up
-    to float64 the box is still entered."""
+    the float32 box test, the careful float64 one and the packets' enter it, also with
+    the bound at the exact entry (rounded up to float64: a hit found there, with a
+    higher face id, must not hide a box holding an equal one), and the walk's pruning
+    by that bound keeps each test's key. Without the float32 test's pad 17% of these
+    rays miss their box; with the float64 tests' bound unpadded 1% of the boxes at the
+    bound were dropped."""
     from fractions import Fraction
 
     from numba import njit
 
     from hsr.algorithms.bvh.boxes import box_bound, box_frame, careful_keys8
-    from hsr.algorithms.simd import box_keys8
+    from hsr.algorithms.bvh.stack import next_box
+    from hsr.algorithms.simd import box_keys8, packet_keys8
 
     @njit
     def box_entered(box, o, inv, reach, bound):
-        """What the walk's float32 box test (its ray from box_frame, bound from box_bound)
-        and the careful float64 test say of lane 0 of ``box``: (entered, key entry,
-        careful entered, fits)."""
+        """What the walk's float32 box test (its ray from box_frame, bound from box_bound),
+        the careful float64 test and the packets' test (four copies of the ray) say of
+        lane 0 of ``box``, and whether each key survives the walk's pruning by the
+        bound (next_box): (entered, careful entered, packet entered, popped, fits)."""
         keys = np.empty(8, dtype=np.int64)
         ox, oy, oz, ix, iy, iz, pad32, pad, fits = box_frame(o[0], o[1], o[2], inv[0], inv[1],
                                                              inv[2], reach)
         fast = box_keys8(box, 0, ox, oy, oz, ix, iy, iz, pad32, box_bound(bound, pad), keys)
-        key = keys[0]
+        stack = np.zeros((3, 3), dtype=np.int64)
+        stack[2, 0] = keys[0]
         careful = careful_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
-        return fast & 1, key, careful & 1, fits
+        stack[2, 1] = keys[0]
+        rays = np.empty((6, 4))
+        for a in range(3):
+            rays[a, :], rays[3 + a, :] = o[a], inv[a]
+        packet = packet_keys8(box, 0, rays, np.full(4, bound), 15, np.empty((4, 8)), keys)
+        stack[2, 2] = keys[0]
+        popped = 0
+        for j in range(3):
+            popped += next_box(stack[0], stack[1], stack[2, j:j + 1], 1, bound, 0)[3] << j
+        return fast & 1, careful & 1, packet & 1, popped, fits
 
     rng = np.random.default_rng(7)
     met = 0
@@ -811,12 +826,10 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
         bound = float(t_in)
         if Fraction(bound) < t_in:
             bound = float(np.nextafter(bound, np.inf))
-        for b in (np.inf, bound):
-            fast, key, careful, fits = box_entered(box, o, 1.0 / d, reach, b)
+        for b in (1.7976931348623157e308, bound):
+            fast, careful, packet, popped, fits = box_entered(box, o, 1.0 / d, reach, b)
             assert fits
-            assert fast == 1, (lo, hi, o, d, b)
-            assert careful == 1 or b < np.inf, (lo, hi, o, d)
-            assert Fraction(float(np.int64(key & ~7).view(np.float64))) <= t_in
+            assert (fast, careful, packet, popped) == (1, 1, 1, 7), (lo, hi, o, d, b)
     assert met > 1000
 
 

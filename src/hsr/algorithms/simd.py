@@ -31,6 +31,8 @@ What it exports, by use:
 
 from __future__ import annotations
 
+import sys
+
 from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
@@ -108,7 +110,7 @@ def _slab_test(builder, offsets, inv, bound):
     the ray's inverse direction, ``bound`` the farthest entry kept. Every operation is
     the scalar test's (Kay and Kajiya 1986), in its order: t_in = max of the slabs'
     near distances and 0, t_out = min of their far ones, entered when
-    ``t_in <= t_out SLACK + SLACK_ABS`` and ``t_in <= bound``."""
+    ``t_in <= t_out SLACK + SLACK_ABS`` and ``t_in <= bound SLACK + SLACK_ABS``."""
     near, far = [], []
     for a in range(3):
         t0 = builder.fmul(offsets[a], inv[a])
@@ -125,8 +127,12 @@ def _slab_test(builder, offsets, inv, bound):
                                                                 constant(0.0)))
     t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
     slack = builder.fadd(builder.fmul(t_out, constant(SLACK)), constant(SLACK_ABS))
+    # The bound with the same slack, at most the largest float (a missed box's +inf
+    # must fail it): hsr.algorithms.bvh.boxes.slack_bound.
+    limit = _min(builder, builder.fadd(builder.fmul(bound, constant(SLACK)),
+                                       constant(SLACK_ABS)), constant(sys.float_info.max))
     entered = builder.and_(builder.fcmp_ordered("<=", t_in, slack),
-                           builder.fcmp_ordered("<=", t_in, bound))
+                           builder.fcmp_ordered("<=", t_in, limit))
     return builder.select(entered, t_in, constant(float("inf"))), entered
 
 

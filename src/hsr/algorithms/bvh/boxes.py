@@ -5,14 +5,16 @@ a packet (a ray parallel to a slab, or one float32 cannot hold)."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 from numba import njit
 
 from ..simd import SLACK, SLACK_ABS, float_bits
 from .layout import LANES
 
-__all__ = ["inverse_direction", "box_reach", "box_frame", "box_bound", "careful_keys8",
-           "careful_packet_keys8", "open_slabs"]
+__all__ = ["inverse_direction", "box_reach", "box_frame", "box_bound", "slack_bound",
+           "careful_keys8", "careful_packet_keys8", "open_slabs"]
 
 # float32's unit roundoff.
 _U32 = 2.0**-24
@@ -20,6 +22,9 @@ _U32 = 2.0**-24
 # A ray whose box distances could reach this (or whose inverse direction is below its
 # inverse) takes the careful float64 test: float32 then keeps them normal and finite.
 FIT32 = 2.0**100
+
+# The largest float64.
+_FLOAT_MAX = sys.float_info.max
 
 # The largest float32: a bound above it would let a missed box (entered at +inf) pass.
 FLOAT32_MAX = 3.4028234663852886e38
@@ -91,6 +96,16 @@ def box_bound(bound, pad):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def slack_bound(bound):
+    """The bound the float64 tests compare a computed entry with: ``bound`` with the slack
+    of the exit distance (:data:`hsr.algorithms.simd.SLACK`), at most the largest float.
+    A computed entry may lie a few roundings above the exact one, and a box entered
+    exactly at the bound (the distance of a hit found) may hold an equal hit of a lower
+    face id, which the answer must not depend on the walk to find."""
+    return min(bound * SLACK + SLACK_ABS, _FLOAT_MAX)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _lane_slabs(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz):
     """The ray parameters (t0x, t1x, t0y, t1y, t0z, t1z) where the ray crosses the low
     and high planes of lane ``lane``'s box of wide node ``w``, in float64."""
@@ -114,7 +129,7 @@ def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
     t_in = max(min(t0x, t1x), min(t0y, t1y), min(t0z, t1z), 0.0)
     t_out = min(max(t0x, t1x), max(t0y, t1y), max(t0z, t1z))
     # The slack is that of hsr.algorithms.simd (see SLACK there).
-    return t_in if t_in <= t_out * SLACK + SLACK_ABS and t_in <= bound else np.inf
+    return t_in if t_in <= t_out * SLACK + SLACK_ABS and t_in <= slack_bound(bound) else np.inf
 
 
 @njit(cache=True, nogil=True, inline="always")
