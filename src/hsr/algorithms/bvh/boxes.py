@@ -134,12 +134,15 @@ def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
 
 @njit(cache=True, nogil=True, inline="always")
 def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
-    """:func:`hsr.algorithms.simd.box_keys8` lane by lane with the NaN care of
-    :func:`_careful_entry`, for rays with a zero direction component."""
+    """:func:`hsr.algorithms.simd.box_keys8` lane by lane in float64 with the NaN care
+    of :func:`_careful_entry`, for rays with a zero direction component or which float32
+    cannot hold; each key lowered by the slack so that it is at most the exact entry."""
     mask = 0
     for lane in range(LANES):
         e = _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound)
-        keys[lane] = float_bits(e) & ~7 | lane
+        # The key at most the exact entry (the walk prunes by it; e may be a few
+        # roundings above).
+        keys[lane] = float_bits(max((e - SLACK_ABS) / SLACK, 0.0)) & ~7 | lane
         mask |= (e < np.inf) << lane
     return mask
 

@@ -20,7 +20,7 @@ from ..simd import (
     prefetch,
     sort_keys8,
 )
-from .boxes import careful_packet_keys8, inverse_direction
+from .boxes import careful_packet_keys8, inverse_direction, slack_bound
 from .hits import (
     ANY,
     COUNT,
@@ -79,6 +79,10 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     # (Measurements: docs/history.md, "Ray core".)
     tris, leaf_face = borrowed(tris), borrowed(leaf_face)
     node_box, node_link = borrowed(node_box), borrowed(node_link)
+    # (The outputs too: handed to listed once a hit, they cost two atomic reference
+    # counts a hit, half of all_hits' listing walk.)
+    out_t, out_face, out_object = borrowed(out_t), borrowed(out_face), borrowed(out_object)
+    out_uv = borrowed(out_uv)
     stack_ref, stack_count, _ = walk_stack(wide_depth, 1)
     stack_rays = np.empty(len(stack_ref), dtype=np.int64)
     stack_t = np.empty((len(stack_ref), 4))  # each ray's entry
@@ -273,7 +277,9 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                 top -= 1
                 keep = 0
                 for r in range(4):
-                    if (stack_rays[top] >> r) & 1 and stack_t[top, r] <= bound[r]:
+                    # (Entries may lie a few roundings above the exact ones.)
+                    if (stack_rays[top] >> r) & 1 and stack_t[top, r] <= slack_bound(
+                            bound[r]):
                         keep |= 1 << r
                 if keep != 0:
                     ref, n, active = stack_ref[top], stack_count[top], np.int64(keep)

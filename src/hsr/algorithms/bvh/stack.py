@@ -8,7 +8,6 @@ import numpy as np
 from numba import njit
 
 from ..simd import float_bits
-from .boxes import slack_bound
 from .layout import LANES
 
 __all__ = ["stack_size", "walk_stack", "next_box"]
@@ -39,11 +38,10 @@ def next_box(stack_ref, stack_count, stack_t, top, bound, bottom):
     one array can hold several rays' stacks): ``(ref, n, top, found)``;
     boxes entered beyond ``bound`` (a hit nearer than them has been found since they
     were pushed) are dropped. The stack holds entries as keys of
-    :func:`hsr.algorithms.simd.sort_keys8`, compared with the bits of the bound with the
-    float64 tests' slack (:func:`hsr.algorithms.bvh.boxes.slack_bound`: their entries
-    may lie a few roundings above the exact ones; + 0.0 makes a bound of -0.0 the +0.0
-    whose bits are the least)."""
-    bound_key = float_bits(slack_bound(bound) + 0.0)
+    :func:`hsr.algorithms.simd.sort_keys8`, each at most the box's exact entry (the box
+    tests make them so), compared with the bound's bits (bound + 0.0 makes a bound of
+    -0.0 the +0.0 whose bits are the least)."""
+    bound_key = float_bits(bound + 0.0)
     while top > bottom:
         top -= 1
         if stack_t[top] <= bound_key:

@@ -121,6 +121,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     # loop for the queries, in a profile; the ray caster's ranking had them).
     tris, leaf_face = borrowed(tris), borrowed(leaf_face)
     node_box, node_link = borrowed(node_box), borrowed(node_link)
+    # (The outputs too: see trace_packets.)
+    out_t, out_face, out_object = borrowed(out_t), borrowed(out_face), borrowed(out_object)
+    out_uv = borrowed(out_uv)
     interleave = tris.size * tris.itemsize + node_box.size * node_box.itemsize > (
         INTERLEAVE_BYTES)
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
