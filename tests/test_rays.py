@@ -672,7 +672,7 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
             t1 = (hi32[w].astype(np.float64) - o[r][:, None]) * rays[3:, r][:, None]
             t_in = np.maximum(np.minimum(t0, t1).max(axis=0), 0.0)
             t_out = np.maximum(t0, t1).min(axis=0)
-            limit = min(bound[r] * (1.0 + 1e-15) + 1e-300, 1.7976931348623157e308)
+            limit = min(float(bound[r]) * (1.0 + 1e-15) + 1e-300, 1.7976931348623157e308)
             want[r] = np.where((t_in <= t_out * (1.0 + 1e-15) + 1e-300) & (t_in <= limit),
                                t_in, np.inf)
         walking = np.array([(active >> r) & 1 for r in range(4)], dtype=bool)
