@@ -50,13 +50,14 @@ _D8 = ir.VectorType(ir.DoubleType(), 8)
 _L8 = ir.VectorType(_I64, 8)
 
 # The bytes of a wide node record (hsr.algorithms.bvh.layout.NODE_WORDS 32-bit words;
-# tests/test_layout.py checks the two agree).
+# tests/test_rays.py::test_node_records_are_read_where_they_are_written checks the two
+# agree).
 NODE_BYTES = 256
 
 
 def _splat(builder, x, width=4):
-    """A float64 value in all ``width`` lanes."""
-    vector = ir.VectorType(ir.DoubleType(), width)
+    """A value (float64 or float32) in all ``width`` lanes."""
+    vector = ir.VectorType(x.type, width)
     v = builder.insert_element(ir.Constant(vector, ir.Undefined), x, ir.Constant(_I32, 0))
     return builder.shuffle_vector(v, ir.Constant(vector, ir.Undefined),
                                   ir.Constant(ir.VectorType(_I32, width), [0] * width))
@@ -160,13 +161,6 @@ def _node_array(array):
             and array.dtype in (types.float32, types.int32))
 
 
-def _splat32(builder, x):
-    """A float32 value in all eight lanes."""
-    v = builder.insert_element(ir.Constant(_F8, ir.Undefined), x, ir.Constant(_I32, 0))
-    return builder.shuffle_vector(v, ir.Constant(_F8, ir.Undefined),
-                                  ir.Constant(ir.VectorType(_I32, 8), [0] * 8))
-
-
 def _box_test8(context, builder, arg_types, args):
     """(key entry, entered) of the float32 slab test of a ray against the eight boxes
     of wide node ``w`` (``args``: box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad,
@@ -181,8 +175,8 @@ def _box_test8(context, builder, arg_types, args):
         p = builder.bitcast(builder.gep(base, [_i64(8 * q)]), _F8.as_pointer())
         return builder.load(p, align=4)
 
-    origin = [_splat32(builder, x) for x in (ox, oy, oz)]
-    inv = [_splat32(builder, x) for x in (ix, iy, iz)]
+    origin = [_splat(builder, x, 8) for x in (ox, oy, oz)]
+    inv = [_splat(builder, x, 8) for x in (ix, iy, iz)]
     near, far = [], []
     for a in range(3):
         t0 = builder.fmul(builder.fsub(lanes(a), origin[a]), inv[a])
@@ -192,9 +186,9 @@ def _box_test8(context, builder, arg_types, args):
     zero = ir.Constant(_F8, [0.0] * 8)
     t_in = _max(builder, _max(builder, near[0], near[1]), _max(builder, near[2], zero))
     t_out = _min(builder, _min(builder, far[0], far[1]), far[2])
-    padding = _splat32(builder, pad)
+    padding = _splat(builder, pad, 8)
     entered = builder.and_(builder.fcmp_ordered("<=", t_in, builder.fadd(t_out, padding)),
-                           builder.fcmp_ordered("<=", t_in, _splat32(builder, bound)))
+                           builder.fcmp_ordered("<=", t_in, _splat(builder, bound, 8)))
     key = builder.fpext(_max(builder, builder.fsub(t_in, padding), zero), _D8)
     return builder.select(entered, key, ir.Constant(_D8, [float("inf")] * 8)), entered
 

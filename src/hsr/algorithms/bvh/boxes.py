@@ -80,10 +80,11 @@ def box_frame(ox, oy, oz, inv_dx, inv_dy, inv_dz, reach):
 
 @njit(cache=True, nogil=True, inline="always")
 def _up32(x):
-    """A float32 >= x, for x in float32's normal range (x (1 + 4u) rounds to nearest no
-    lower than x), without the coin-flip branch of rounding to the next float32 exactly
+    """A float32 >= x for x in float32's normal range (x (1 + 4u) rounds to nearest no
+    lower than x), at most the largest float32 (rounding a larger value could give
+    +inf), without the coin-flip branch of rounding to the next float32 exactly
     (:func:`hsr.algorithms.bvh.layout.up32`), which cost ~20 ns a ray."""
-    return np.float32(x * (1.0 + 4.0 * _U32))
+    return np.float32(min(x * (1.0 + 4.0 * _U32), FLOAT32_MAX))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -91,8 +92,8 @@ def box_bound(bound, pad):
     """The walk's bound (float64) for :func:`hsr.algorithms.simd.box_keys8`: bound + pad
     (the most a computed entry exceeds the exact one; :func:`box_frame`) rounded up to
     float32, at most the largest float32 so that a missed box (entered at +inf) fails
-    it (rounding a larger value could give +inf)."""
-    return np.float32(min((bound + pad) * (1.0 + 4.0 * _U32), FLOAT32_MAX))
+    it."""
+    return _up32(bound + pad)
 
 
 @njit(cache=True, nogil=True, inline="always")
