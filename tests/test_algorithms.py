@@ -498,7 +498,7 @@ def test_bvh_invariants(models_dir, threads):
             assert (bvh.node_max[child] <= bvh.node_max[node]).all()
     for node in np.flatnonzero(leaves):
         slots = slice(bvh.node_start[node], bvh.node_start[node] + bvh.node_count[node])
-        tris = bvh.corners[slots]
+        tris = layout.slot_corners(bvh.corners, np.arange(len(bvh.tri_index))[slots])
         assert np.array_equal(tris, mesh.positions[mesh.faces[bvh.tri_index[slots]]])
         assert (tris >= bvh.node_min[node]).all() and (tris <= bvh.node_max[node]).all()
         # Tight: the float32 box of the triangles, rounded outwards (the build's boxes

@@ -434,7 +434,9 @@ def peak():
     with open("/proc/self/status") as fh:
         return next(int(row.split()[1]) * 1024 for row in fh if row.startswith("VmHWM:"))
 mesh = hsr.scenes.terrain_mesh(600_000)
-hsr.RayScene(hsr.scenes.terrain_mesh(20_000))  # compiled before the reading
+# Compiled before the reading, for both layouts of the corners (blocks, rows).
+hsr.RayScene(hsr.scenes.terrain_mesh(20_000))
+hsr.RayScene(hsr.scenes.terrain_mesh(150_000))
 before = resident()
 try:
     with open("/proc/self/clear_refs", "w") as fh:
@@ -690,14 +692,17 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
     assert {(True, True), (False, False), (True, False)} <= seen
 
 
+@pytest.mark.parametrize("layout", ["rows", "blocks"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
+def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, layout):
     """hsr.algorithms.simd.leaf_filter4 (the watertight test's edge values for four
-    triangles as vector lanes) against the same check written here in NumPy, and
-    against the scalar test (bvh._intersect) it stands in front of: a lane is kept
-    exactly when the scalar test does not return its early miss. Leaves of one to four
-    triangles, corners in float64 and float32, rays through corners and edges (zero
-    edge values), and degenerate triangles (zero sum)."""
+    slots as vector lanes) against the same check written here in NumPy on the
+    triangles' rows, and against the scalar test (bvh._intersect) it stands in front
+    of, reading the same corners: a lane is kept exactly when the scalar test does not
+    return its early miss. Both layouts of the corners (rows; blocks of four slots,
+    the leaf anywhere in its block), leaves of one to four triangles, corners in
+    float64 and float32, rays through corners and edges (zero edge values), and
+    degenerate triangles (zero sum)."""
     from numba import njit
 
     from hsr.algorithms.bvh.triangle import intersect as _intersect
@@ -705,29 +710,37 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
     from hsr.algorithms.simd import leaf_filter4
 
     @njit
-    def run(tris, k0, n, o, d):
+    def run(corners, base, k0, n, o, d):
         kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(o[0], o[1], o[2], d[0], d[1], d[2])
-        mask = leaf_filter4(tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy)
+        lanes = ((1 << n) - 1) << (k0 - base)
+        mask = leaf_filter4(corners, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy)
         scalar = np.empty(n)
         for i in range(n):
-            scalar[i] = _intersect(tris, k0 + i, okx, oky, okz, kx, ky, kz, sx, sy, sz, 0,
-                                   True, d[0], d[1], d[2])[0]
+            scalar[i] = _intersect(corners, k0 + i, okx, oky, okz, kx, ky, kz, sx, sy, sz,
+                                   0, True, d[0], d[1], d[2])[0]
         return mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz)
 
     rng = np.random.default_rng(8)
     tris = rng.normal(size=(4000, 3, 3))
     tris[::9, 2] = tris[::9, 0] + 0.5 * (tris[::9, 1] - tris[::9, 0])  # degenerate
     tris = tris.astype(dtype)
+    corners = corner_blocks_of(tris) if layout == "blocks" else tris
     kept = cleared = 0
     for trial in range(800):
         n = 1 + trial % 4
-        k0 = int(rng.integers(0, len(tris) - 4))
+        if layout == "blocks":  # n slots in one block, from any lane they fit from
+            base = 4 * int(rng.integers(0, len(tris) // 4))
+            k0 = base + int(rng.integers(0, 5 - n))
+        else:
+            base = k0 = int(rng.integers(0, len(tris) - n + 1))
         o = rng.normal(size=3) * 3
         target = tris[k0 + trial % n].astype(np.float64)
         # Aim at a corner, an edge's midpoint or inside the triangle.
         aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
         d = aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
-        mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz) = run(tris, k0, n, o, d)
+        mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz) = run(corners, base, k0, n, o, d)
+        assert mask & ~(((1 << n) - 1) << (k0 - base)) == 0  # the leaf's lanes alone
+        mask >>= k0 - base
         c = tris[k0:k0 + n].astype(np.float64)
         z = c[:, :, kz] - okz
         x = c[:, :, kx] - okx - sx * z
@@ -743,6 +756,15 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype):
         kept += bin(mask).count("1")
         cleared += n - bin(mask).count("1")
     assert kept > 200 and cleared > 200
+
+
+def corner_blocks_of(tris):
+    """(F, 3, 3) rows as the walks' corner blocks (hsr.algorithms.bvh.layout's
+    corner_blocks: slot k's corner j, coordinate a at [k // 4, j, a, k % 4]), written
+    here apart from the build's gather; the lanes past the last row are zeros."""
+    blocks = np.zeros(((len(tris) + 3) // 4 * 4, 3, 3), dtype=tris.dtype)
+    blocks[:len(tris)] = tris
+    return np.ascontiguousarray(blocks.reshape(-1, 4, 3, 3).transpose(0, 2, 3, 1))
 
 
 def _exact_slabs(lo, hi, o, d):

@@ -360,45 +360,70 @@ def packet_keys8_shared(typingctx, box, w, rays, bound, active, out, keys):
     return sig, _packet_keys8(True)
 
 
-def _leaf_offsets(context, builder, tris_type, array, k0_v, n_v, axes, origin):
-    """The corners of triangles ``k0 .. k0 + n - 1`` (n <= 4) on the permuted axes
-    (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates on them
+def _corners(array):
+    """Whether ``array`` can be read as the walks' corners
+    (:mod:`hsr.algorithms.bvh.layout`): rows (T, 3, 3) or blocks (Q, 3, 3, 4),
+    C-contiguous, float32 or float64."""
+    return (isinstance(array, types.Array) and array.ndim in (3, 4) and array.layout == "C"
+            and array.dtype in (types.float32, types.float64))
+
+
+def _leaf_offsets(context, builder, tris_type, array, base_v, lanes_v, axes, origin):
+    """The corners of the four slots from ``base`` (rows, or the block of
+    :func:`hsr.algorithms.bvh.layout.corner_blocks` that starts there) on the permuted
+    axes (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates on them
     (``origin`` okx, oky, okz, scalars): three lists of three ``<4 x double>`` (corner
-    j's x, y, z; a lane per triangle, lanes past n repeat the first triangle). The
-    scalar test's first step (:func:`hsr.algorithms.bvh.triangle.sheared_corners`), corners
-    widened to float64."""
+    j's x, y, z; a lane per slot). In blocks each is one vector load, the axis an offset
+    into the block; in rows a load and an insert per lane, the lanes not in ``lanes``
+    repeating slot ``base`` (so no row past the leaf is read). The scalar test's first
+    step (:func:`hsr.algorithms.bvh.triangle.sheared_corners`), corners widened to
+    float64."""
     ary = context.make_array(tris_type)(context, builder, array)
-    strides = cgutils.unpack_tuple(builder, ary.strides, 3)
+    strides = cgutils.unpack_tuple(builder, ary.strides, tris_type.ndim)
     raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
     element = context.get_value_type(tris_type.dtype)
-    last = builder.sub(n_v, _i64(1))
-    rows = []
-    for i in range(4):
-        lane = builder.select(builder.icmp_signed("<=", _i64(i), last), _i64(i), _i64(0))
-        rows.append(builder.mul(builder.add(k0_v, lane), strides[0]))
+    size = context.get_abi_sizeof(element)
 
-    def corner(j, axis):
-        """Coordinate ``axis`` of corner j of the four triangles, as float64."""
-        v = ir.Constant(_D4, ir.Undefined)
-        offset = builder.add(builder.mul(_i64(j), strides[1]),
-                             builder.mul(axis, strides[2]))
+    if tris_type.ndim == 4:
+        block = builder.gep(raw, [builder.mul(builder.ashr(base_v, _i64(2)), strides[0])])
+        vector = ir.VectorType(element, 4)
+
+        def corner(j, axis):
+            """Coordinate ``axis`` of corner j of the four slots."""
+            at = builder.add(builder.mul(axis, _i64(4 * size)), _i64(12 * size * j))
+            x = builder.load(builder.bitcast(builder.gep(block, [at]), vector.as_pointer()),
+                             align=size)
+            return x if element == ir.DoubleType() else builder.fpext(x, _D4)
+    else:
+        rows = []
         for i in range(4):
-            p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
-                                element.as_pointer())
-            x = builder.load(p)
-            if element != ir.DoubleType():
-                x = builder.fpext(x, ir.DoubleType())
-            v = builder.insert_element(v, x, ir.Constant(_I32, i))
-        return v
+            kept = builder.icmp_signed("!=", builder.and_(lanes_v, _i64(1 << i)), _i64(0))
+            row = builder.add(base_v, builder.select(kept, _i64(i), _i64(0)))
+            rows.append(builder.mul(row, strides[0]))
+
+        def corner(j, axis):
+            """Coordinate ``axis`` of corner j of the four slots, a load per lane."""
+            v = ir.Constant(_D4, ir.Undefined)
+            offset = builder.add(builder.mul(_i64(j), strides[1]),
+                                 builder.mul(axis, strides[2]))
+            for i in range(4):
+                p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
+                                    element.as_pointer())
+                x = builder.load(p)
+                if element != ir.DoubleType():
+                    x = builder.fpext(x, ir.DoubleType())
+                v = builder.insert_element(v, x, ir.Constant(_I32, i))
+            return v
 
     splat = [_splat(builder, x) for x in origin]
     return [[builder.fsub(corner(j, axes[a]), splat[a]) for j in range(3)] for a in range(3)]
 
 
-def _leaf_hits(builder, offsets, sx, sy, n_v):
-    """Bit i set unless the watertight test rules triangle i out (see
-    :func:`leaf_filter4`), for the ray of shear ``sx``, ``sy`` (scalars) and the
-    corners less its origin ``offsets`` (:func:`_leaf_offsets`); an i64 of four bits."""
+def _leaf_hits(builder, offsets, sx, sy, lanes):
+    """Bit i set unless the watertight test rules slot i out (see :func:`leaf_filter4`),
+    for the ray of shear ``sx``, ``sy`` (scalars) and the corners less its origin
+    ``offsets`` (:func:`_leaf_offsets`), of the slots in ``lanes`` (an i64 mask); an
+    i64 of four bits."""
     (dx, dy, zs), shear_x, shear_y = offsets, _splat(builder, sx), _splat(builder, sy)
     xs = [builder.fsub(dx[j], builder.fmul(shear_x, zs[j])) for j in range(3)]
     ys = [builder.fsub(dy[j], builder.fmul(shear_y, zs[j])) for j in range(3)]
@@ -417,38 +442,41 @@ def _leaf_hits(builder, offsets, sx, sy, n_v):
     miss = builder.or_(builder.and_(any3("<"), any3(">")),
                        builder.fcmp_ordered("==", det, zero))
     bits = builder.zext(builder.bitcast(builder.not_(miss), ir.IntType(4)), _I64)
-    # Only the n lanes that hold the leaf's triangles.
-    return builder.and_(bits, builder.sub(builder.shl(_i64(1), n_v), _i64(1)))
+    return builder.and_(bits, lanes)
 
 
 @intrinsic
-def leaf_filter4(typingctx, tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy):
-    """Which of the triangles ``k0 .. k0 + n - 1`` (n <= 4) of ``tris`` ((F, 3, 3),
-    float64 or float32 corners) the ray can hit: bit i set unless the watertight test
-    (:func:`hsr.algorithms.bvh.triangle.intersect`, Woop, Benthin & Wald 2013) finds the edge
-    values of triangle k0 + i of mixed signs or their sum zero, its misses before any
-    culling. The four triangles are the lanes of ``<4 x double>`` vectors, each lane
-    computed with the scalar test's operations in its order (corners widened to
+def leaf_filter4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy):
+    """Which of the four slots from ``base`` of ``tris`` (the walks' corners, rows or
+    blocks, float64 or float32: :mod:`hsr.algorithms.bvh.layout`; in blocks ``base`` a
+    multiple of 4) among ``lanes`` (a mask of four bits, slot base + i at bit i) the ray
+    can hit: bit i set unless the watertight test
+    (:func:`hsr.algorithms.bvh.triangle.intersect`, Woop, Benthin & Wald 2013) finds
+    the edge values of slot base + i of mixed signs or their sum zero, its misses
+    before any culling. The four slots are the lanes of ``<4 x double>`` vectors, each
+    lane computed with the scalar test's operations in its order (corners widened to
     float64, no fused multiply-adds), so a lane is cleared exactly when the scalar test
-    returns its miss there; the caller runs the scalar test on the lanes left (a hit
-    or a culled face; most triangles a ray tests it misses)."""
-    sig = types.int64(tris, k0, n, okx, oky, okz, kx, ky, kz, sx, sy)
+    returns its miss there; the caller runs the scalar test on the lanes left (a hit or
+    a culled face; most triangles a ray tests it misses)."""
+    if not _corners(tris):
+        return None
+    sig = types.int64(tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy)
 
     def codegen(context, builder, sig, args):
-        array, k0_v, n_v, okx, oky, okz, kx, ky, kz, sx, sy = args
-        k0_v = context.cast(builder, k0_v, sig.args[1], types.intp)
-        n_v = context.cast(builder, n_v, sig.args[2], types.intp)
+        array, base_v, lanes_v, okx, oky, okz, kx, ky, kz, sx, sy = args
+        base_v = context.cast(builder, base_v, sig.args[1], types.intp)
+        lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
         axes = [context.cast(builder, v, t, types.intp)
                 for v, t in zip((kx, ky, kz), sig.args[6:9])]
-        offsets = _leaf_offsets(context, builder, sig.args[0], array, k0_v, n_v, axes,
-                                (okx, oky, okz))
-        return _leaf_hits(builder, offsets, sx, sy, n_v)
+        offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v,
+                                axes, (okx, oky, okz))
+        return _leaf_hits(builder, offsets, sx, sy, lanes_v)
 
     return sig, codegen
 
 
 @intrinsic
-def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
+def leaf_filter4_rays(typingctx, tris, base, lanes, frame, axes):
     """:func:`leaf_filter4` for the four rays of a packet that share their origin and
     their permuted axes (a camera's rays mostly do), so that what their tests share, the
     corners read on those axes less the origin, is done once: ``frame`` (11, 4) float64
@@ -456,14 +484,14 @@ def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
     okz; a column per ray, the origin read from ray 0's), ``axes`` (3, 4) int64 (kx,
     ky, kz of ray 0). Returns the four rays' bits of :func:`leaf_filter4`, ray r's at
     bits 4 r .. 4 r + 3; each the same bits, as the same arithmetic."""
-    if frame.layout != "C" or axes.layout != "C":
+    if not _corners(tris) or frame.layout != "C" or axes.layout != "C":
         return None  # read as raw rows: a typing error, not a wrong answer
-    sig = types.int64(tris, k0, n, frame, axes)
+    sig = types.int64(tris, base, lanes, frame, axes)
 
     def codegen(context, builder, sig, args):
-        array, k0_v, n_v, frame_v, axes_v = args
-        k0_v = context.cast(builder, k0_v, sig.args[1], types.intp)
-        n_v = context.cast(builder, n_v, sig.args[2], types.intp)
+        array, base_v, lanes_v, frame_v, axes_v = args
+        base_v = context.cast(builder, base_v, sig.args[1], types.intp)
+        lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
         values = context.make_array(sig.args[3])(context, builder, frame_v).data
         ints = context.make_array(sig.args[4])(context, builder, axes_v).data
 
@@ -471,11 +499,12 @@ def leaf_filter4_rays(typingctx, tris, k0, n, frame, axes):
             return builder.load(builder.gep(pointer, [_i64(at)]))
 
         axes = [load(ints, 4 * a) for a in range(3)]
-        offsets = _leaf_offsets(context, builder, sig.args[0], array, k0_v, n_v, axes,
+        offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v, axes,
                                 [load(values, 4 * (3 + a)) for a in range(3)])
         bits = _i64(0)
         for r in range(4):
-            hits = _leaf_hits(builder, offsets, load(values, r), load(values, 4 + r), n_v)
+            hits = _leaf_hits(builder, offsets, load(values, r), load(values, 4 + r),
+                              lanes_v)
             bits = builder.or_(bits, builder.shl(hits, _i64(4 * r)))
         return bits
 

@@ -164,7 +164,8 @@ class RayScene:
         self.scene_size = float(np.linalg.norm(hi - lo)) if len(self.bvh.leaf_face) else 0.0
         self._outputs = OutputPool()
         # The faces' summed area, sampled (microseconds): _faces_per_ray's density.
-        self._surface_area = surface_area(self.bvh.corners, AREA_SAMPLES)
+        self._surface_area = surface_area(self.bvh.corners, AREA_SAMPLES,
+                                          len(self.bvh.leaf_face))
 
     @property
     def n_faces(self) -> int:

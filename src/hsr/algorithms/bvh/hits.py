@@ -16,12 +16,13 @@ import numpy as np
 from numba import njit
 
 from ..simd import prefetch
-from .layout import NODE_WORDS
+from .layout import NODE_WORDS, slot_row
 from .triangle import face_normal, owns
 
 __all__ = ["NEAREST", "ANY", "COUNT", "ALL", "FIRST", "LARGEST", "RECORD_AHEAD",
            "in_interval", "nearer", "counted", "listed", "finish_list", "sort_listed", "hit_record",
-           "list_records", "check_rays", "plausible_ray", "fetch_box", "surface_area"]
+           "list_records", "check_rays", "plausible_ray", "fetch_slot", "fetch_box",
+           "surface_area"]
 
 # The queries. ALL's and FIRST's walk is COUNT's (every box within the interval, in any
 # order); ALL's stops when its list is full, FIRST's keeps the nearest that fit.
@@ -160,7 +161,7 @@ def list_records(first, last, tris, face_offsets, hit_face, hit_object, hit_norm
     corners of the hit :data:`RECORD_AHEAD` on fetched meanwhile."""
     for j in range(first, last):
         if j + RECORD_AHEAD < last:
-            prefetch(tris, hit_object[j + RECORD_AHEAD], 0)
+            fetch_slot(tris, hit_object[j + RECORD_AHEAD])
         hit_record(tris, hit_object[j], hit_face[j], face_offsets, hit_object, hit_normal, j)
 
 
@@ -230,6 +231,19 @@ def plausible_ray(origins, directions, t_min, t_max, i, per_ray):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def fetch_slot(tris, k):
+    """Prefetch the corners of slot ``k``: its row's first and last value, or its
+    block's lines (in blocks a slot's nine values are spread across the block)."""
+    row = slot_row(tris, k)
+    if tris.ndim == 4:
+        for offset in range(0, tris.strides[0], 64):
+            prefetch(tris, row, offset)
+    else:
+        prefetch(tris, row, 0)
+        prefetch(tris, row, 9 * tris.itemsize - 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def fetch_box(node_box, tris, leaf_face, ref, n, faces):
     """Prefetch the memory of the walk's box (ref, n): a wide node's 256-byte record
     (n == 0), or a leaf's n triangles' corners from slot ref, and their face ids if
@@ -237,9 +251,11 @@ def fetch_box(node_box, tris, leaf_face, ref, n, faces):
     if n == 0:
         for offset in range(0, 4 * NODE_WORDS, 64):
             prefetch(node_box, ref, offset)
-    else:
-        for offset in range(0, n * 9 * tris.itemsize, 64):
-            prefetch(tris, ref, offset)
+    else:  # the rows or blocks of slots ref .. ref + n - 1
+        row = slot_row(tris, ref)
+        for offset in range(0, (slot_row(tris, ref + n - 1) + 1 - row) * tris.strides[0],
+                            64):
+            prefetch(tris, row, offset)
         if faces:
             # Fetched with the corners: read after them it missed on its own.
             # (Measurements: docs/history.md, "Ray core".)
@@ -247,11 +263,14 @@ def fetch_box(node_box, tris, leaf_face, ref, n, faces):
 
 
 @njit(cache=True, nogil=True)
-def surface_area(tris, samples) -> float:
-    """The summed area of the triangles ``tris`` ((F, 3, 3) corners, float32 or
-    float64), estimated from about ``samples`` of them evenly spread over the array
-    (all of them when there are no more): their mean area times F."""
-    n = tris.shape[0]
+def surface_area(tris, samples, n=-1) -> float:
+    """The summed area of the triangles ``tris`` (the first ``n`` slots of the walks'
+    corners, rows or blocks, :mod:`hsr.algorithms.bvh.layout`; all the rows of (F, 3,
+    3) corners for n = -1; float32 or float64), estimated from about ``samples`` of them
+    evenly spread over the slots (all of them when there are no more): their mean area
+    times the slots."""
+    if n < 0:
+        n = tris.shape[0]
     step = max(1, n // max(1, samples))
     total, counted = 0.0, 0
     for k in range(0, n, step):

@@ -37,7 +37,7 @@ from .hits import (
     nearer,
     plausible_ray,
 )
-from .layout import HOT_NODES, LANES, child
+from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, quad_lanes, slot_row
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import walk_stack
 from .triangle import intersect, ray_frame
@@ -208,10 +208,11 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                 # triangles are tested in the same order either way): the watertight
                 # test four triangles at once, then the scalar one on the few that pass
                 # its first check (leaf_filter4; leaf_filter4_rays for the four rays).
-                for quad in range(ref, ref + n, 4):
-                    m = min(4, ref + n - quad)
+                end = ref + n
+                for base in range(leaf_base(tris, ref), end, QUAD):
+                    lanes = quad_lanes(ref, end, base)
                     if one_frame:
-                        lefts = leaf_filter4_rays(tris, quad, m, frame, axes)
+                        lefts = leaf_filter4_rays(tris, base, lanes, frame, axes)
                     for r in range(4):
                         if not (active >> r) & 1 or (mode == ANY and count[r] != 0):
                             continue
@@ -222,14 +223,14 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                         sx, sy, sz = frame[0, r], frame[1, r], frame[2, r]
                         okx, oky, okz = frame[3, r], frame[4, r], frame[5, r]
                         t0, t1 = frame[9, r], frame[10, r]
-                        tests += m
+                        tests += bit_count(lanes)
                         if one_frame:
                             left = (lefts >> (4 * r)) & 15
                         else:
-                            left = leaf_filter4(tris, quad, m, okx, oky, okz, kx, ky, kz, sx,
-                                                sy)
+                            left = leaf_filter4(tris, base, lanes, okx, oky, okz, kx, ky, kz,
+                                                sx, sy)
                         while left != 0:
-                            k = quad + lowest_bit(left)
+                            k = base + lowest_bit(left)
                             left &= left - 1
                             t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
                                                     sz, cull_code, front_ccw, frame[6, r],
@@ -286,7 +287,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                     walking = True
                     break
         if mode != COUNT and best_k[3] >= 0:  # see PACKET_FETCH_AROUND
-            around = max(best_k[3] - PACKET_FETCH_AROUND, 0)
+            around = slot_row(tris, max(best_k[3] - PACKET_FETCH_AROUND, 0))
             for offset in range(0, 2 * PACKET_FETCH_AROUND * 9 * tris.itemsize, 64):
                 prefetch(tris, around, offset)
         for r in range(min(4, hi - first)):

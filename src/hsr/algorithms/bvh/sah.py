@@ -16,7 +16,7 @@ from ...parallel import Workers
 from ...scene.mesh import Scene, SceneLike, as_scene, corner_cross
 from ..simd import grow_box, prefetch
 from .collapse import widen
-from .layout import COUNT_AT, REF, node_records
+from .layout import COUNT_AT, REF, corner_blocks, corner_layout, node_records, set_corner
 
 __all__ = ["LEAF_SIZE", "N_BINS", "world_triangles", "BVH", "build", "binary_tree", "AHEAD"]
 
@@ -37,9 +37,13 @@ class BVH:
 
     - tri_index : (T,) int32 the face id in each slot (degenerate faces are left out),
       in leaf order; leaf_face is the walks' name for it (the same array);
-    - corners : (T, 3, 3) world-space corners of each slot's face (stored in leaf order,
-      so a leaf's triangles are read in one run of memory), float32 when every vertex is
-      exactly a float32 value, else float64 (the tests compute in float64 either way);
+    - corners : the world-space corners of each slot's face, slots in leaf order (a
+      leaf's triangles are one run of memory): (T, 3, 3) rows, or for a scene that fits
+      in :data:`hsr.algorithms.bvh.layout.BLOCKS_BYTES` the blocks of four slots of
+      :func:`hsr.algorithms.bvh.layout.corner_blocks` ((ceil(T / 4), 3, 3, 4); either as
+      rows: :func:`hsr.algorithms.bvh.layout.slot_corners`); float32 when every vertex
+      is exactly a float32 value, else float64 (the tests compute in float64 either
+      way);
     - n_faces : the scene's face count;
     - node_box (W, 64) float32 and node_link (W, 64) int32: the 8-wide tree of
       :func:`hsr.algorithms.bvh.collapse.widen` in the records of
@@ -119,8 +123,11 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
         # A scene whose vertices are all float32 values (as binary PLY, STL and glTF
         # files give them) keeps its corners in float32: half the bytes, and every
         # test reads them back as the same float64 values, so no answer changes.
-        corners = np.empty((len(tri_index), 3, 3),
-                           dtype=np.float32 if _float32_exact(positions) else np.float64)
+        dtype = np.dtype(np.float32 if _float32_exact(positions) else np.float64)
+        if corner_layout(len(tri_index), dtype.itemsize, len(node_box)):
+            corners = corner_blocks(len(tri_index), dtype)
+        else:
+            corners = np.empty((len(tri_index), 3, 3), dtype=dtype)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
     return BVH(tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
@@ -195,14 +202,14 @@ def _float32_exact(positions):
 
 @njit(cache=True, nogil=True)
 def _gather_corners(lo, hi, positions, faces, order, corners):
-    """Rows ``lo .. hi - 1`` of the walks' corners: face ``order[k]``'s, in leaf order."""
+    """Slots ``lo .. hi - 1`` of the walks' corners (rows or blocks,
+    :mod:`hsr.algorithms.bvh.layout`): face ``order[k]``'s, in leaf order."""
     for k in range(lo, hi):
         f = order[k]
         for j in range(3):
             v = faces[f, j]
-            corners[k, j, 0] = positions[v, 0]
-            corners[k, j, 1] = positions[v, 1]
-            corners[k, j, 2] = positions[v, 2]
+            for a in range(3):
+                set_corner(corners, k, j, a, positions[v, a])
 
 
 def _build(prim, slots, workers):

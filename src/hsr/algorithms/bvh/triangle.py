@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .layout import corner
+
 __all__ = ["ray_frame", "face_normal", "sheared_corners", "intersect", "owns"]
 
 
@@ -47,12 +49,17 @@ def ray_frame(ox, oy, oz, dx, dy, dz):
 
 @njit(cache=True, nogil=True, inline="always")
 def face_normal(tris, f):
-    """Slot ``f``'s normal as wound, (B - A) x (C - A), not normalised; in float64
+    """Triangle ``f``'s normal as wound, (B - A) x (C - A), not normalised; in float64
     whether the corners are stored in float32 or float64 (float32 arithmetic would
-    round it differently)."""
-    p0x, p0y, p0z = np.float64(tris[f, 0, 0]), np.float64(tris[f, 0, 1]), np.float64(tris[f, 0, 2])
-    e1x, e1y, e1z = tris[f, 1, 0] - p0x, tris[f, 1, 1] - p0y, tris[f, 1, 2] - p0z
-    e2x, e2y, e2z = tris[f, 2, 0] - p0x, tris[f, 2, 1] - p0y, tris[f, 2, 2] - p0z
+    round it differently). ``tris``: (F, 3, 3) rows or corner blocks
+    (:func:`hsr.algorithms.bvh.layout.corner`)."""
+    p0x = np.float64(corner(tris, f, 0, 0))
+    p0y = np.float64(corner(tris, f, 0, 1))
+    p0z = np.float64(corner(tris, f, 0, 2))
+    e1x, e1y, e1z = (corner(tris, f, 1, 0) - p0x, corner(tris, f, 1, 1) - p0y,
+                     corner(tris, f, 1, 2) - p0z)
+    e2x, e2y, e2z = (corner(tris, f, 2, 0) - p0x, corner(tris, f, 2, 1) - p0y,
+                     corner(tris, f, 2, 2) - p0z)
     return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
 
 
@@ -62,15 +69,15 @@ def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
     so the ray is the +z axis (Woop et al.): (ax, ay, az, bx, by, bz, cx, cy, cz). One
     function for every test that must see the same numbers (the hit test and the
     ownership of an edge hit)."""
-    az = tris[f, 0, kz] - okz
-    bz = tris[f, 1, kz] - okz
-    cz = tris[f, 2, kz] - okz
-    ax = tris[f, 0, kx] - okx - sx * az
-    ay = tris[f, 0, ky] - oky - sy * az
-    bx = tris[f, 1, kx] - okx - sx * bz
-    by = tris[f, 1, ky] - oky - sy * bz
-    cx = tris[f, 2, kx] - okx - sx * cz
-    cy = tris[f, 2, ky] - oky - sy * cz
+    az = corner(tris, f, 0, kz) - okz
+    bz = corner(tris, f, 1, kz) - okz
+    cz = corner(tris, f, 2, kz) - okz
+    ax = corner(tris, f, 0, kx) - okx - sx * az
+    ay = corner(tris, f, 0, ky) - oky - sy * az
+    bx = corner(tris, f, 1, kx) - okx - sx * bz
+    by = corner(tris, f, 1, ky) - oky - sy * bz
+    cx = corner(tris, f, 2, kx) - okx - sx * cz
+    cy = corner(tris, f, 2, ky) - oky - sy * cz
     return ax, ay, az, bx, by, bz, cx, cy, cz
 
 

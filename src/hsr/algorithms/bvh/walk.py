@@ -16,7 +16,6 @@ from ..simd import (
     leaf_filter4,
     lowest_bit,
     min_key8,
-    prefetch,
     sort_keys8,
 )
 from .boxes import box_bound, box_frame, box_reach, careful_keys8, inverse_direction
@@ -29,6 +28,7 @@ from .hits import (
     check_rays,
     counted,
     fetch_box,
+    fetch_slot,
     finish_list,
     hit_record,
     in_interval,
@@ -37,7 +37,7 @@ from .hits import (
     nearer,
     plausible_ray,
 )
-from .layout import HOT_NODES, LANES, child
+from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, quad_lanes
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import next_box, stack_size, walk_stack
 from .triangle import intersect, ray_frame
@@ -314,14 +314,15 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     okx, oky, okz = slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]
                     t0 = t_min[i if per_ray[0] else 0]
                     t1 = t_max[i if per_ray[1] else 0]
-                    for quad in range(ref, ref + n, 4):
-                        # The watertight test four triangles at once, then the scalar one on
-                        # the few that pass its first check (leaf_filter4).
-                        m = min(4, ref + n - quad)
-                        tests += m
-                        left = leaf_filter4(tris, quad, m, okx, oky, okz, kx, ky, kz, sx, sy)
+                    tests += n
+                    end = ref + n
+                    for base in range(leaf_base(tris, ref), end, QUAD):
+                        # The watertight test on four slots at once, then the scalar one
+                        # on the few that pass its first check (leaf_filter4).
+                        left = leaf_filter4(tris, base, quad_lanes(ref, end, base), okx, oky,
+                                            okz, kx, ky, kz, sx, sy)
                         while left != 0:
-                            k = quad + lowest_bit(left)
+                            k = base + lowest_bit(left)
                             left &= left - 1
                             t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
                                                     sz, cull_code, front_ccw, dx, dy, dz)
@@ -416,9 +417,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             # The corners of the hit RECORD_AHEAD hits on are fetched meanwhile: rays
             # that each hit a triangle of their own find it out of cache by now.
             if j + RECORD_AHEAD < n_hits:
-                ahead = hit_slots[j + RECORD_AHEAD]
-                prefetch(tris, ahead, 0)
-                prefetch(tris, ahead, 9 * tris.itemsize - 1)
+                fetch_slot(tris, hit_slots[j + RECORD_AHEAD])
             i = hit_rays[j]
             hit_record(tris, hit_slots[j], out_face[i], face_offsets, out_object, out_normal,
                        i)
