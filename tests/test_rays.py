@@ -724,7 +724,7 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, lay
     tris = rng.normal(size=(4000, 3, 3))
     tris[::9, 2] = tris[::9, 0] + 0.5 * (tris[::9, 1] - tris[::9, 0])  # degenerate
     tris = tris.astype(dtype)
-    corners = corner_blocks_of(tris) if layout == "blocks" else tris
+    corners = corner_blocks_of(tris) if layout == "blocks" else tris.reshape(-1, 9)
     kept = cleared = 0
     for trial in range(800):
         n = 1 + trial % 4
@@ -758,13 +758,67 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, lay
     assert kept > 200 and cleared > 200
 
 
+def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny):
+    """The build keeps a scene's corners in blocks of four slots when corners and nodes
+    fit in layout.BLOCKS_BYTES (the bunny), else in rows (a 150k-face terrain); either
+    way each slot holds its face's corners (checked against the mesh, the blocks' lanes
+    past the last slot zeros). The same tree walked over its blocks and over the same
+    corners as rows (made here from the mesh) gives the same answers bit for bit, in
+    both walks and for every query, on random, inside and camera rays, with the ray
+    caster's ranking too."""
+    from hsr.algorithms.bvh import layout
+    from hsr.algorithms.bvh.packets import trace_packets
+    from hsr.algorithms.bvh.ranking import window_ranking
+    from hsr.algorithms.bvh.walk import trace_range
+
+    terrain = hsr.scenes.terrain_mesh(150_000)
+    for mesh, width in ((bunny, 36), (terrain, 9)):
+        bvh = hsr.RayScene(mesh).bvh
+        assert bvh.corners.shape[1] == width
+        slots = np.arange(len(bvh.leaf_face))
+        rows = mesh.positions[mesh.faces[bvh.leaf_face]]
+        assert np.array_equal(layout.slot_corners(bvh.corners, slots), rows)
+    blocks = hsr.RayScene(bunny).bvh
+    past = np.arange(len(blocks.leaf_face), 4 * len(blocks.corners))  # the last lanes
+    assert len(past) and not layout.slot_corners(blocks.corners, past).any()
+    rows = bunny.positions[bunny.faces[blocks.leaf_face]].reshape(-1, 9)
+    rng = np.random.default_rng(33)
+    lo, hi = np.array(bunny.bounds())
+    n = 4000
+    origins = np.concatenate([rng.uniform(lo, hi, (n, 3)),
+                              rng.uniform(2 * lo - hi, 2 * hi - lo, (n, 3)),
+                              np.repeat([[0.0, 0.1, 0.4]], n, axis=0)])
+    directions = rng.normal(size=(3 * n, 3))
+    directions[2 * n:] = rng.uniform(lo, hi, (n, 3)) - origins[2 * n:]
+    m = len(origins)
+    cam = hsr.Camera.frame(bunny.bounds(), direction=(0, 0, 1))
+    rank = window_ranking(cam.projection_matrix(1.0) @ cam.view_matrix, (0.0, 1.0))
+    face_offsets = np.zeros(1, np.int64)
+    for kernel in (trace_range, trace_packets):
+        for mode, raster in ((0, None), (1, None), (2, None), (0, (1, True, True, rank))):
+            answers = []
+            for corners in (blocks.corners, rows):
+                out = (np.full(m, 7.0), np.full(m, 7, np.int32), np.full(m, 7, np.int32),
+                       np.full((m, 2), 7.0), np.full((m, 3), 7.0), np.full(m, 7, np.int32))
+                kernel(0, m, origins, directions, np.zeros(1), np.full(1, np.inf), mode,
+                       raster, corners, blocks.leaf_face, blocks.node_box, blocks.node_link,
+                       blocks.root_ref, blocks.root_count, blocks.wide_depth, face_offsets,
+                       *out)
+                answers.append(out[:2] + out[3:] if mode == 0 else out[5:])
+            for a, b in zip(*answers):
+                np.testing.assert_array_equal(a, b)
+            if mode == 0:
+                assert (answers[0][1] >= 0).sum() > m // 4  # many hits compared
+
+
 def corner_blocks_of(tris):
-    """(F, 3, 3) rows as the walks' corner blocks (hsr.algorithms.bvh.layout's
-    corner_blocks: slot k's corner j, coordinate a at [k // 4, j, a, k % 4]), written
-    here apart from the build's gather; the lanes past the last row are zeros."""
+    """(F, 3, 3) corners as the walks' corner blocks (hsr.algorithms.bvh.layout's
+    corner_blocks: slot k's corner j, coordinate a at [k // 4, 4 (3 j + a) + k % 4]),
+    written here apart from the build's gather; the lanes past the last face zeros."""
     blocks = np.zeros(((len(tris) + 3) // 4 * 4, 3, 3), dtype=tris.dtype)
     blocks[:len(tris)] = tris
-    return np.ascontiguousarray(blocks.reshape(-1, 4, 3, 3).transpose(0, 2, 3, 1))
+    return np.ascontiguousarray(blocks.reshape(-1, 4, 3, 3).transpose(0, 2, 3, 1)).reshape(
+        -1, 36)
 
 
 def _exact_slabs(lo, hi, o, d):
@@ -1252,8 +1306,13 @@ def test_the_facing_test_reads_float32_corners_in_float64():
     from hsr.algorithms.bvh.triangle import intersect as _intersect
     from hsr.algorithms.bvh.triangle import ray_frame
 
-    @njit
     def test_all(tris, origins, directions, cull_code):
+        # (The corners as the walks keep them: rows of nine values.)
+        return test_rows(np.ascontiguousarray(tris).reshape(len(tris), 9), origins,
+                         directions, cull_code)
+
+    @njit
+    def test_rows(tris, origins, directions, cull_code):
         out = np.empty((len(origins), 4))
         for i in range(len(origins)):
             ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]

@@ -13,7 +13,7 @@ from ..geometry.state import RenderState
 from ..parallel import Workers, split_range
 from .bvh.choice import choose_walk
 from .bvh.hits import NEAREST
-from .bvh.layout import LANES, NODE_WORDS, child
+from .bvh.layout import LANES, NODE_WORDS, ROW_VALUES, child
 from .bvh.packets import trace_packets
 from .bvh.ranking import clip_zw, depth32, ranks_before, window_ranking
 from .bvh.sah import BVH, build
@@ -125,7 +125,9 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     raster = (cull_code, front_ccw, lequal, window_ranking(view_proj, state.depth_range))
     if bvh is None:
         walk = NAIVE
-        nodes = (triangles, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
+        # (The faces' corners as the walks' rows: hsr.algorithms.bvh.layout.)
+        corner_rows = np.ascontiguousarray(triangles).reshape(len(triangles), ROW_VALUES)
+        nodes = (corner_rows, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
                  np.zeros((1, NODE_WORDS), np.int32), 0, 0, 0)
     else:
         walk = (PACKETS if choose_walk(width * height, bvh.n_faces) is trace_packets
@@ -381,8 +383,9 @@ def _cast_rows(r_lo, r_hi, inv_view_proj, width, height, raster, walk, tris, lea
 @njit(cache=True, nogil=True)
 def _naive_walk(n, origins, directions, t_near, raster, tris, out_t, out_face, out_uv):
     """Rays 0 .. n - 1, each against every face in order (``tris``: the faces' world
-    corners): the literal method, with the walks' answers (``out_t``, ``out_face``, the
-    weights of corners 1 and 2 in ``out_uv``) and ranking. Returns the tests made."""
+    corners as rows, :mod:`hsr.algorithms.bvh.layout`): the literal method, with the
+    walks' answers (``out_t``, ``out_face``, the weights of corners 1 and 2 in
+    ``out_uv``) and ranking. Returns the tests made."""
     cull_code, front_ccw, lequal, rank = raster
     for i in range(n):
         ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]

@@ -362,61 +362,79 @@ def packet_keys8_shared(typingctx, box, w, rays, bound, active, out, keys):
 
 def _corners(array):
     """Whether ``array`` can be read as the walks' corners
-    (:mod:`hsr.algorithms.bvh.layout`): rows (T, 3, 3) or blocks (Q, 3, 3, 4),
+    (:mod:`hsr.algorithms.bvh.layout`: rows (T, 9) or blocks (Q, 36)): 2-D,
     C-contiguous, float32 or float64."""
-    return (isinstance(array, types.Array) and array.ndim in (3, 4) and array.layout == "C"
+    return (isinstance(array, types.Array) and array.ndim == 2 and array.layout == "C"
             and array.dtype in (types.float32, types.float64))
 
 
 def _leaf_offsets(context, builder, tris_type, array, base_v, lanes_v, axes, origin):
-    """The corners of the four slots from ``base`` (rows, or the block of
-    :func:`hsr.algorithms.bvh.layout.corner_blocks` that starts there) on the permuted
-    axes (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates on them
-    (``origin`` okx, oky, okz, scalars): three lists of three ``<4 x double>`` (corner
-    j's x, y, z; a lane per slot). In blocks each is one vector load, the axis an offset
-    into the block; in rows a load and an insert per lane, the lanes not in ``lanes``
-    repeating slot ``base`` (so no row past the leaf is read). The scalar test's first
-    step (:func:`hsr.algorithms.bvh.triangle.sheared_corners`), corners widened to
-    float64."""
+    """The corners of the four slots from ``base`` (rows, or the block that starts
+    there: :mod:`hsr.algorithms.bvh.layout`, told apart by the array's width) on the
+    permuted axes (``axes`` kx, ky, kz as intp values) less the ray origin's coordinates
+    on them (``origin`` okx, oky, okz, scalars): three lists of three ``<4 x double>``
+    (corner j's x, y, z; a lane per slot). In blocks each is one vector load, the axis
+    an offset into the block; in rows a load and an insert per lane, the lanes not in
+    ``lanes`` repeating slot ``base`` (so no row past the leaf is read). The scalar
+    test's first step (:func:`hsr.algorithms.bvh.triangle.sheared_corners`), corners
+    widened to float64."""
     ary = context.make_array(tris_type)(context, builder, array)
-    strides = cgutils.unpack_tuple(builder, ary.strides, tris_type.ndim)
+    stride = cgutils.unpack_tuple(builder, ary.strides, 2)[0]
+    width = cgutils.unpack_tuple(builder, ary.shape, 2)[1]
     raw = builder.bitcast(ary.data, ir.IntType(8).as_pointer())
     element = context.get_value_type(tris_type.dtype)
     size = context.get_abi_sizeof(element)
 
-    if tris_type.ndim == 4:
-        block = builder.gep(raw, [builder.mul(builder.ashr(base_v, _i64(2)), strides[0])])
+    def from_block():
+        block = builder.gep(raw, [builder.mul(builder.ashr(base_v, _i64(2)), stride)])
         vector = ir.VectorType(element, 4)
 
         def corner(j, axis):
-            """Coordinate ``axis`` of corner j of the four slots."""
+            """Coordinate ``axis`` of corner j of the block's four slots."""
             at = builder.add(builder.mul(axis, _i64(4 * size)), _i64(12 * size * j))
             x = builder.load(builder.bitcast(builder.gep(block, [at]), vector.as_pointer()),
                              align=size)
             return x if element == ir.DoubleType() else builder.fpext(x, _D4)
-    else:
+
+        return [[corner(j, axes[a]) for j in range(3)] for a in range(3)]
+
+    def from_rows():
         rows = []
         for i in range(4):
             kept = builder.icmp_signed("!=", builder.and_(lanes_v, _i64(1 << i)), _i64(0))
             row = builder.add(base_v, builder.select(kept, _i64(i), _i64(0)))
-            rows.append(builder.mul(row, strides[0]))
+            rows.append(builder.gep(raw, [builder.mul(row, stride)]))
 
         def corner(j, axis):
             """Coordinate ``axis`` of corner j of the four slots, a load per lane."""
             v = ir.Constant(_D4, ir.Undefined)
-            offset = builder.add(builder.mul(_i64(j), strides[1]),
-                                 builder.mul(axis, strides[2]))
+            offset = builder.mul(builder.add(_i64(3 * j), axis), _i64(size))
             for i in range(4):
-                p = builder.bitcast(builder.gep(raw, [builder.add(rows[i], offset)]),
-                                    element.as_pointer())
+                p = builder.bitcast(builder.gep(rows[i], [offset]), element.as_pointer())
                 x = builder.load(p)
                 if element != ir.DoubleType():
                     x = builder.fpext(x, ir.DoubleType())
                 v = builder.insert_element(v, x, ir.Constant(_I32, i))
             return v
 
+        return [[corner(j, axes[a]) for j in range(3)] for a in range(3)]
+
     splat = [_splat(builder, x) for x in origin]
-    return [[builder.fsub(corner(j, axes[a]), splat[a]) for j in range(3)] for a in range(3)]
+    # The layout by the array's width (one array type for both: the walks compile once).
+    blocked = builder.icmp_signed("==", width, _i64(36))
+    with builder.if_else(blocked) as (then, otherwise):
+        with then:
+            in_block = from_block()
+            block_end = builder.basic_block
+        with otherwise:
+            in_rows = from_rows()
+            rows_end = builder.basic_block
+    values = [[builder.phi(_D4) for j in range(3)] for a in range(3)]
+    for a in range(3):
+        for j in range(3):
+            values[a][j].add_incoming(in_block[a][j], block_end)
+            values[a][j].add_incoming(in_rows[a][j], rows_end)
+    return [[builder.fsub(values[a][j], splat[a]) for j in range(3)] for a in range(3)]
 
 
 def _leaf_hits(builder, offsets, sx, sy, lanes):
@@ -449,15 +467,15 @@ def _leaf_hits(builder, offsets, sx, sy, lanes):
 def leaf_filter4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy):
     """Which of the four slots from ``base`` of ``tris`` (the walks' corners, rows or
     blocks, float64 or float32: :mod:`hsr.algorithms.bvh.layout`; in blocks ``base`` a
-    multiple of 4) among ``lanes`` (a mask of four bits, slot base + i at bit i) the ray
-    can hit: bit i set unless the watertight test
-    (:func:`hsr.algorithms.bvh.triangle.intersect`, Woop, Benthin & Wald 2013) finds
-    the edge values of slot base + i of mixed signs or their sum zero, its misses
-    before any culling. The four slots are the lanes of ``<4 x double>`` vectors, each
-    lane computed with the scalar test's operations in its order (corners widened to
-    float64, no fused multiply-adds), so a lane is cleared exactly when the scalar test
-    returns its miss there; the caller runs the scalar test on the lanes left (a hit or
-    a culled face; most triangles a ray tests it misses)."""
+    multiple of 4, :func:`hsr.algorithms.bvh.layout.leaf_base`) among ``lanes`` (a mask
+    of four bits, slot base + i at bit i) the ray can hit: bit i set unless the
+    watertight test (:func:`hsr.algorithms.bvh.triangle.intersect`, Woop, Benthin & Wald
+    2013) finds the edge values of slot base + i of mixed signs or their sum zero, its
+    misses before any culling. The four slots are the lanes of ``<4 x double>`` vectors,
+    each lane computed with the scalar test's operations in its order (corners widened
+    to float64, no fused multiply-adds), so a lane is cleared exactly when the scalar
+    test returns its miss there; the caller runs the scalar test on the lanes left (a
+    hit or a culled face; most triangles a ray tests it misses)."""
     if not _corners(tris):
         return None
     sig = types.int64(tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy)

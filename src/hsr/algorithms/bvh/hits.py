@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from ..simd import prefetch
-from .layout import NODE_WORDS, slot_row
+from .layout import NODE_WORDS, ROW_VALUES, slot_row
 from .triangle import face_normal, owns
 
 __all__ = ["NEAREST", "ANY", "COUNT", "ALL", "FIRST", "LARGEST", "RECORD_AHEAD",
@@ -232,15 +232,13 @@ def plausible_ray(origins, directions, t_min, t_max, i, per_ray):
 
 @njit(cache=True, nogil=True, inline="always")
 def fetch_slot(tris, k):
-    """Prefetch the corners of slot ``k``: its row's first and last value, or its
-    block's lines (in blocks a slot's nine values are spread across the block)."""
+    """Prefetch the corners of slot ``k``: every line of its row, or of its block (in
+    blocks a slot's nine values are spread across the block)."""
     row = slot_row(tris, k)
-    if tris.ndim == 4:
-        for offset in range(0, tris.strides[0], 64):
-            prefetch(tris, row, offset)
-    else:
-        prefetch(tris, row, 0)
-        prefetch(tris, row, 9 * tris.itemsize - 1)
+    prefetch(tris, row, 0)
+    for offset in range(64, tris.strides[0], 64):
+        prefetch(tris, row, offset)
+    prefetch(tris, row, tris.strides[0] - 1)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -262,15 +260,18 @@ def fetch_box(node_box, tris, leaf_face, ref, n, faces):
             prefetch(leaf_face, ref, 0)
 
 
+def surface_area(tris, samples, n=None) -> float:
+    """The summed area of the triangles ``tris``: (F, 3, 3) corners, or the first ``n``
+    slots of the walks' corners (rows or blocks, :mod:`hsr.algorithms.bvh.layout`);
+    float32 or float64. Estimated from about ``samples`` of them evenly spread over the
+    slots (all of them when there are no more): their mean area times the slots."""
+    if tris.ndim == 3:
+        tris, n = np.ascontiguousarray(tris).reshape(len(tris), ROW_VALUES), len(tris)
+    return _surface_area(tris, samples, len(tris) if n is None else n)
+
+
 @njit(cache=True, nogil=True)
-def surface_area(tris, samples, n=-1) -> float:
-    """The summed area of the triangles ``tris`` (the first ``n`` slots of the walks'
-    corners, rows or blocks, :mod:`hsr.algorithms.bvh.layout`; all the rows of (F, 3,
-    3) corners for n = -1; float32 or float64), estimated from about ``samples`` of them
-    evenly spread over the slots (all of them when there are no more): their mean area
-    times the slots."""
-    if n < 0:
-        n = tris.shape[0]
+def _surface_area(tris, samples, n):
     step = max(1, n // max(1, samples))
     total, counted = 0.0, 0
     for k in range(0, n, step):

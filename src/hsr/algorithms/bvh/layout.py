@@ -3,26 +3,25 @@ its eight child boxes as float32 bounds rounded outwards, then eight references 
 eight counts (:func:`node_records`). Nodes are numbered in level order, so the first
 :data:`HOT_NODES` are the top of the tree.
 
-A leaf's triangles are a run of slots of the corners, in one of two layouts
-(:func:`corner_layout` chooses): rows, (T, 3, 3), a slot's nine values together; or
-blocks of four slots (:func:`corner_blocks`), (ceil(T / 4), 3, 3, 4), each coordinate of
-a block's four corners one run of memory, so the four-triangle test reads it as one
-vector. :func:`corner`, :func:`leaf_base` and :func:`slot_row` read either; the walks
-are compiled for the layout they are given."""
+A leaf's triangles are a run of slots of the corners, one 2-D array in one of two
+layouts (:func:`corner_layout` chooses; the array's width tells them apart): rows, (T,
+9), a slot's nine values together (corner j's coordinate a at 3 j + a); or blocks of
+four slots (:func:`corner_blocks`), (ceil(T / 4), 36), each coordinate of a block's four
+corners one run of memory, so the four-triangle test reads it as one vector.
+:func:`corner`, :func:`leaf_base` and :func:`slot_row` read either. One array type for
+both: the walks are compiled once, not once a layout."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from numba.core import types
-from numba.extending import overload
 
 from ..simd import next_float32, record_words
 
-__all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "QUAD", "BLOCKS_BYTES",
-           "node_records", "child", "set_child", "corner_layout", "corner_blocks",
-           "slot_corners", "corner", "set_corner", "leaf_base", "slot_row", "quad_lanes",
-           "down32", "up32"]
+__all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "QUAD", "ROW_VALUES",
+           "BLOCK_VALUES", "BLOCKS_BYTES", "node_records", "child", "set_child",
+           "corner_layout", "corner_rows", "corner_blocks", "slot_corners", "corner",
+           "set_corner", "leaf_base", "slot_row", "quad_lanes", "down32", "up32"]
 
 # Children per node: the eight-box test is one AVX-512 vector, and fewer nodes are walked.
 # (Measurements: docs/history.md, "Ray core".)
@@ -72,6 +71,9 @@ def set_child(node_link, w, lane, ref, count):
 # Slots a corner block holds: the four-triangle test's lanes (simd.leaf_filter4).
 QUAD = 4
 
+# A row's values (a slot's three corners), a block's (four slots').
+ROW_VALUES, BLOCK_VALUES = 9, 9 * QUAD
+
 # A scene whose corners and nodes fit in this keeps its corners in blocks: its walks
 # are bound by their instructions, which the blocks' vector reads cut. A larger one
 # keeps rows: its walks wait on memory, and a leaf of rows spans fewer cache lines (a
@@ -83,105 +85,64 @@ BLOCKS_BYTES = 8 << 20
 def corner_layout(n_slots: int, itemsize: int, n_nodes: int) -> bool:
     """Whether a tree of ``n_nodes`` wide nodes over ``n_slots`` slots of corners of
     ``itemsize`` bytes keeps them in blocks (see :data:`BLOCKS_BYTES`)."""
-    return n_slots * 9 * itemsize + n_nodes * NODE_WORDS * 4 <= BLOCKS_BYTES
+    return n_slots * ROW_VALUES * itemsize + n_nodes * NODE_WORDS * 4 <= BLOCKS_BYTES
+
+
+def corner_rows(n: int, dtype) -> np.ndarray:
+    """Room for ``n`` slots' corners in rows, uninitialised: ``(n, 9)``, slot k's corner
+    j, coordinate a at ``[k, 3 j + a]``."""
+    return np.empty((n, ROW_VALUES), dtype=dtype)
 
 
 def corner_blocks(n: int, dtype) -> np.ndarray:
-    """Room for ``n`` slots' corners in blocks: ``(ceil(n / 4), 3, 3, 4)``, zeros; slot
-    k's corner j, coordinate a at ``[k // 4, j, a, k % 4]`` (:func:`corner`). A block is
-    the four slots' corner j, coordinate a side by side: the four-triangle test reads
-    each as one vector load (and the triangle test's permutation of the axes is an
-    offset), where rows take a load and an insert per value. The lanes past slot
-    n - 1 stay zeros; no walk tests them (a leaf's lanes are masked:
-    :func:`quad_lanes`)."""
-    return np.zeros(((n + QUAD - 1) // QUAD, 3, 3, QUAD), dtype=dtype)
+    """Room for ``n`` slots' corners in blocks: ``(ceil(n / 4), 36)``, zeros; slot k's
+    corner j, coordinate a at ``[k // 4, 4 (3 j + a) + k % 4]`` (:func:`corner`). A block
+    holds the four slots' corner j, coordinate a side by side: the four-triangle test
+    reads each as one vector load (and the triangle test's permutation of the axes is an
+    offset), where rows take a load and an insert per value. The lanes past slot n - 1
+    stay zeros; no walk tests them (a leaf's lanes are masked: :func:`quad_lanes`)."""
+    return np.zeros(((n + QUAD - 1) // QUAD, BLOCK_VALUES), dtype=dtype)
 
 
 def slot_corners(tris: np.ndarray, slots) -> np.ndarray:
-    """The corners of ``slots`` of ``tris`` (rows or blocks) as (..., 3, 3) rows:
+    """The corners of ``slots`` of ``tris`` (rows or blocks) as (..., 3, 3):
     ``[slot, corner, coordinate]``."""
     slots = np.asarray(slots)
-    if tris.ndim == 3:
-        return tris[slots]
-    return tris[slots // QUAD, :, :, slots % QUAD]
+    if tris.shape[1] == ROW_VALUES:
+        return tris[slots].reshape(slots.shape + (3, 3))
+    blocks = tris.reshape(len(tris), 3, 3, QUAD)
+    return blocks[slots // QUAD, :, :, slots % QUAD]
 
 
+@njit(cache=True, nogil=True, inline="always")
 def corner(tris, k, j, a):
-    """Coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris``: rows or blocks
-    (compiled for either by the overload below)."""
-    return tris[k // QUAD, j, a, k % QUAD] if tris.ndim == 4 else tris[k, j, a]
+    """Coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris``, rows or blocks:
+    without a branch, the layout's shift (0 or 2) read from the array's width."""
+    shift = (tris.shape[1] == BLOCK_VALUES) << 1
+    return tris[k >> shift, ((3 * j + a) << shift) + (k & ((1 << shift) - 1))]
 
 
+@njit(cache=True, nogil=True, inline="always")
 def set_corner(tris, k, j, a, value):
     """Make coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris`` ``value``."""
-    if tris.ndim == 4:
-        tris[k // QUAD, j, a, k % QUAD] = value
+    if tris.shape[1] == BLOCK_VALUES:
+        tris[k >> 2, 4 * (3 * j + a) + (k & 3)] = value
     else:
-        tris[k, j, a] = value
+        tris[k, 3 * j + a] = value
 
 
+@njit(cache=True, nogil=True, inline="always")
 def leaf_base(tris, ref):
     """The first slot of the first four-slot group the leaf test reads for a leaf from
     slot ``ref``: ``ref`` itself in rows, the start of its block in blocks (the test then
     reads groups ``base``, ``base + 4``, ... with :func:`quad_lanes`' masks)."""
-    return ref - ref % QUAD if tris.ndim == 4 else ref
+    return ref & ~3 if tris.shape[1] == BLOCK_VALUES else ref
 
 
+@njit(cache=True, nogil=True, inline="always")
 def slot_row(tris, k):
     """The row of ``tris`` (its first index) where slot ``k``'s corners start."""
-    return k // QUAD if tris.ndim == 4 else k
-
-
-def _layout(tris):
-    """The layout of an array type as the overloads see it: 4 blocks, 3 rows, else
-    None (not corners)."""
-    if isinstance(tris, types.Array) and tris.ndim in (3, 4):
-        return tris.ndim
-    return None
-
-
-@overload(corner, inline="always")
-def _corner_compiled(tris, k, j, a):
-    if _layout(tris) == 4:
-        def blocked(tris, k, j, a):
-            return tris[k >> 2, j, a, k & 3]
-        return blocked
-    if _layout(tris) == 3:
-        def rows(tris, k, j, a):
-            return tris[k, j, a]
-        return rows
-    return None
-
-
-@overload(set_corner, inline="always")
-def _set_corner_compiled(tris, k, j, a, value):
-    if _layout(tris) == 4:
-        def blocked(tris, k, j, a, value):
-            tris[k >> 2, j, a, k & 3] = value
-        return blocked
-    if _layout(tris) == 3:
-        def rows(tris, k, j, a, value):
-            tris[k, j, a] = value
-        return rows
-    return None
-
-
-@overload(leaf_base, inline="always")
-def _leaf_base_compiled(tris, ref):
-    if _layout(tris) == 4:
-        return lambda tris, ref: ref & ~3
-    if _layout(tris) == 3:
-        return lambda tris, ref: ref
-    return None
-
-
-@overload(slot_row, inline="always")
-def _slot_row_compiled(tris, k):
-    if _layout(tris) == 4:
-        return lambda tris, k: k >> 2
-    if _layout(tris) == 3:
-        return lambda tris, k: k
-    return None
+    return k >> 2 if tris.shape[1] == BLOCK_VALUES else k
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -16,7 +16,15 @@ from ...parallel import Workers
 from ...scene.mesh import Scene, SceneLike, as_scene, corner_cross
 from ..simd import grow_box, prefetch
 from .collapse import widen
-from .layout import COUNT_AT, REF, corner_blocks, corner_layout, node_records, set_corner
+from .layout import (
+    COUNT_AT,
+    REF,
+    corner_blocks,
+    corner_layout,
+    corner_rows,
+    node_records,
+    set_corner,
+)
 
 __all__ = ["LEAF_SIZE", "N_BINS", "world_triangles", "BVH", "build", "binary_tree", "AHEAD"]
 
@@ -38,12 +46,12 @@ class BVH:
     - tri_index : (T,) int32 the face id in each slot (degenerate faces are left out),
       in leaf order; leaf_face is the walks' name for it (the same array);
     - corners : the world-space corners of each slot's face, slots in leaf order (a
-      leaf's triangles are one run of memory): (T, 3, 3) rows, or for a scene that fits
-      in :data:`hsr.algorithms.bvh.layout.BLOCKS_BYTES` the blocks of four slots of
-      :func:`hsr.algorithms.bvh.layout.corner_blocks` ((ceil(T / 4), 3, 3, 4); either as
-      rows: :func:`hsr.algorithms.bvh.layout.slot_corners`); float32 when every vertex
-      is exactly a float32 value, else float64 (the tests compute in float64 either
-      way);
+      leaf's triangles are one run of memory): (T, 9) rows, or for a scene that fits in
+      :data:`hsr.algorithms.bvh.layout.BLOCKS_BYTES` the blocks of four slots of
+      :func:`hsr.algorithms.bvh.layout.corner_blocks` ((ceil(T / 4), 36); either as
+      (T, 3, 3): :func:`hsr.algorithms.bvh.layout.slot_corners`); float32 when every
+      vertex is exactly a float32 value, else float64 (the tests compute in float64
+      either way);
     - n_faces : the scene's face count;
     - node_box (W, 64) float32 and node_link (W, 64) int32: the 8-wide tree of
       :func:`hsr.algorithms.bvh.collapse.widen` in the records of
@@ -127,7 +135,7 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
         if corner_layout(len(tri_index), dtype.itemsize, len(node_box)):
             corners = corner_blocks(len(tri_index), dtype)
         else:
-            corners = np.empty((len(tri_index), 3, 3), dtype=dtype)
+            corners = corner_rows(len(tri_index), dtype)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
     return BVH(tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
