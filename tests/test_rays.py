@@ -760,7 +760,7 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, lay
 
 def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny):
     """The build keeps a scene's corners in blocks of four slots when corners and nodes
-    fit in layout.BLOCKS_BYTES (the bunny), else in rows (a 150k-face terrain); either
+    fit in layout.BLOCKS_BYTES (the bunny), else in rows (a 120k-face terrain); either
     way each slot holds its face's corners (checked against the mesh, the blocks' lanes
     past the last slot zeros). The same tree walked over its blocks and over the same
     corners as rows (made here from the mesh) gives the same answers bit for bit, in
@@ -771,14 +771,13 @@ def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny
     from hsr.algorithms.bvh.ranking import window_ranking
     from hsr.algorithms.bvh.walk import trace_range
 
-    terrain = hsr.scenes.terrain_mesh(150_000)
-    for mesh, width in ((bunny, 36), (terrain, 9)):
-        bvh = hsr.RayScene(mesh).bvh
+    blocks = hsr.RayScene(bunny).bvh
+    terrain = hsr.scenes.terrain_mesh(120_000)
+    for mesh, bvh, width in ((bunny, blocks, 36), (terrain, hsr.RayScene(terrain).bvh, 9)):
         assert bvh.corners.shape[1] == width
         slots = np.arange(len(bvh.leaf_face))
         rows = mesh.positions[mesh.faces[bvh.leaf_face]]
         assert np.array_equal(layout.slot_corners(bvh.corners, slots), rows)
-    blocks = hsr.RayScene(bunny).bvh
     past = np.arange(len(blocks.leaf_face), 4 * len(blocks.corners))  # the last lanes
     assert len(past) and not layout.slot_corners(blocks.corners, past).any()
     rows = bunny.positions[bunny.faces[blocks.leaf_face]].reshape(-1, 9)
