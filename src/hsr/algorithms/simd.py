@@ -386,6 +386,7 @@ def _leaf_offsets(context, builder, tris_type, array, base_v, lanes_v, axes, ori
     size = context.get_abi_sizeof(element)
 
     def from_block():
+        # (base is a multiple of 4, a block's first slot: layout.leaf_base.)
         block = builder.gep(raw, [builder.mul(builder.ashr(base_v, _i64(2)), stride)])
         vector = ir.VectorType(element, 4)
 
@@ -420,7 +421,8 @@ def _leaf_offsets(context, builder, tris_type, array, base_v, lanes_v, axes, ori
         return [[corner(j, axes[a]) for j in range(3)] for a in range(3)]
 
     splat = [_splat(builder, x) for x in origin]
-    # The layout by the array's width (one array type for both: the walks compile once).
+    # The layout by the array's width, layout.BLOCK_VALUES (36) in blocks (one array
+    # type for both layouts: the walks compile once).
     blocked = builder.icmp_signed("==", width, _i64(36))
     with builder.if_else(blocked) as (then, otherwise):
         with then:

@@ -115,20 +115,32 @@ def slot_corners(tris: np.ndarray, slots) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _shift(tris):
+    """log2 of the slots a row of ``tris`` holds: 2 in blocks, 0 in rows (read from the
+    array's width, without a branch)."""
+    return (tris.shape[1] == BLOCK_VALUES) << 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _at(tris, k, j, a):
+    """Where coordinate ``a`` of corner ``j`` of slot ``k`` lies in ``tris``: (row,
+    column), in either layout."""
+    shift = _shift(tris)
+    return k >> shift, ((3 * j + a) << shift) + (k & ((1 << shift) - 1))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def corner(tris, k, j, a):
-    """Coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris``, rows or blocks:
-    without a branch, the layout's shift (0 or 2) read from the array's width."""
-    shift = (tris.shape[1] == BLOCK_VALUES) << 1
-    return tris[k >> shift, ((3 * j + a) << shift) + (k & ((1 << shift) - 1))]
+    """Coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris``, rows or blocks."""
+    row, column = _at(tris, k, j, a)
+    return tris[row, column]
 
 
 @njit(cache=True, nogil=True, inline="always")
 def set_corner(tris, k, j, a, value):
     """Make coordinate ``a`` of corner ``j`` of slot ``k`` of ``tris`` ``value``."""
-    if tris.shape[1] == BLOCK_VALUES:
-        tris[k >> 2, 4 * (3 * j + a) + (k & 3)] = value
-    else:
-        tris[k, 3 * j + a] = value
+    row, column = _at(tris, k, j, a)
+    tris[row, column] = value
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -136,13 +148,14 @@ def leaf_base(tris, ref):
     """The first slot of the first four-slot group the leaf test reads for a leaf from
     slot ``ref``: ``ref`` itself in rows, the start of its block in blocks (the test then
     reads groups ``base``, ``base + 4``, ... with :func:`quad_lanes`' masks)."""
-    return ref & ~3 if tris.shape[1] == BLOCK_VALUES else ref
+    shift = _shift(tris)
+    return (ref >> shift) << shift
 
 
 @njit(cache=True, nogil=True, inline="always")
 def slot_row(tris, k):
     """The row of ``tris`` (its first index) where slot ``k``'s corners start."""
-    return k >> 2 if tris.shape[1] == BLOCK_VALUES else k
+    return k >> _shift(tris)
 
 
 @njit(cache=True, nogil=True, inline="always")
