@@ -5,7 +5,7 @@ the compiled walk (a run of instructions executed equally often), with the code 
 heaviest blocks.
 
     python benchmarks/profile_walk.py [--src SRC ...] [--model M] [--set inside|random]
-        [--query cast|occluded|count] [--rays 50000] [--repeat 4] [--blocks 12]
+        [--query cast|occluded|count] [--rays 50000] [--repeat 4] [--blocks 12] [--native]
 
 Each ``--src`` (a checkout's ``src`` folder; default this one's) runs in a process of
 its own under ``valgrind --tool=callgrind --branch-sim=yes --dump-instr=yes``, one thread;
@@ -14,7 +14,14 @@ checkouts give comparable counts (e.g. a change against its base, in a ``git wor
 Under valgrind Numba compiles for the CPU valgrind shows (AVX2, no AVX-512): each eight
 float64 lanes are two registers where AVX-512 machines use one. Needs valgrind and, for
 the code of the blocks, objdump (Debian's valgrind and binutils). A minute or more a
-source: the JIT compiles under valgrind. Runs on demand, never in the test suite."""
+source: the JIT compiles under valgrind. Runs on demand, never in the test suite.
+
+``--native`` samples time instead, on this CPU's own code (AVX-512 where it has it):
+``perf record -e cpu-clock`` (the kernel's software clock, which works where a VM has
+no hardware counters; Debian's linux-perf), the samples that land in the compiled walk
+grouped into runs of instructions that end at a jump, each with its share of the walk's
+samples and the instruction most of them landed on (a long wait shows there, or just
+after it). Defaults then 1M rays, 10 times."""
 
 from __future__ import annotations
 
@@ -135,17 +142,74 @@ def blocks(counts, rays):
     return [tuple(r[:5]) for r in runs]
 
 
+def child_command(src, args, out):
+    """The command line of the child process that runs the query for ``src``."""
+    return [sys.executable, __file__, "--child", src, "--out", out, "--model", args.model,
+            "--set", args.set, "--query", args.query, "--rays", str(args.rays), "--repeat",
+            str(args.repeat)]
+
+
+def runs(code_at):
+    """The dumped code's instructions (sorted addresses) cut after each jump or return:
+    runs that execute start to end."""
+    cut, run = [], []
+    for address in sorted(code_at):
+        run.append(address)
+        if code_at[address].startswith(("j", "ret")):
+            cut.append(run)
+            run = []
+    return cut + ([run] if run else [])
+
+
+def profile_native(src, args):
+    """Run the query for checkout ``src`` under ``perf record`` and print where the
+    walk's time samples land; the child's last line of error when it fails, else
+    None."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out, data = os.path.join(tmp, "walk.json"), os.path.join(tmp, "perf.data")
+        command = ["perf", "record", "-q", "-e", "cpu-clock", "-F", "20000", "-o", data,
+                   "--"] + child_command(src, args, out)
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0 or not os.path.exists(out):
+            return f"{src}: {(done.stderr.strip().splitlines() or ['failed'])[-1]}"
+        script = subprocess.run(["perf", "script", "-i", data, "-F", "ip"],
+                                capture_output=True, text=True)
+        samples = collections.Counter(int(line, 16) for line in script.stdout.split())
+        with open(out) as f:
+            walked = json.load(f)
+        print(f"\n{src}: {args.query}, {args.set} rays ({walked['rays']:,} walked), "
+              f"native code, time samples")
+        for start, end, code in walked["regions"]:
+            inside = {a: c for a, c in samples.items() if start <= a < end}
+            total = sum(inside.values())
+            if total == 0:
+                continue
+            print(f"{total:,} samples in the walk, {100 * total / sum(samples.values()):.0f}% "
+                  f"of the process's (the rest: loading, compiling, making the rays)")
+            code_at = disassembly(code, start)
+            print("| run | share of the walk | instructions | most samples on | "
+                  "its first instructions |")
+            print("|---|---|---|---|---|")
+            found = [(sum(inside.get(a, 0) for a in run), run) for run in runs(code_at)]
+            for count, run in sorted(found, key=lambda f: -f[0])[:args.blocks]:
+                if count == 0:
+                    break
+                top = max(run, key=lambda a: inside.get(a, 0))
+                head = "; ".join(code_at[a] for a in run[:3])
+                print(f"| {run[0] - start:#x} | {100 * count / total:.1f}% | {len(run)} | "
+                      f"{top - start:#x} {code_at[top]} "
+                      f"({100 * inside.get(top, 0) / total:.1f}%) | {head} |")
+    return None
+
+
 def profile(src, args):
     """Run the query for checkout ``src`` under valgrind and print its counts; the
     child's last line of error when it fails, else None."""
     with tempfile.TemporaryDirectory() as tmp:
         out, trace = os.path.join(tmp, "walk.json"), os.path.join(tmp, "callgrind.out")
         command = ["valgrind", "--tool=callgrind", "--branch-sim=yes", "--dump-instr=yes",
-                   f"--callgrind-out-file={trace}", f"--log-file={trace}.log",
-                   sys.executable, __file__,
-                   "--child", src, "--out", out, "--model", args.model, "--set", args.set,
-                   "--query", args.query, "--rays", str(args.rays), "--repeat",
-                   str(args.repeat)]
+                   f"--callgrind-out-file={trace}", f"--log-file={trace}.log"]
+        command += child_command(src, args, out)
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
             return f"{src}: {(done.stderr.strip().splitlines() or ['failed'])[-1]}"
@@ -181,20 +245,27 @@ def main(argv=None):
     parser.add_argument("--model", default=BUNNY)
     parser.add_argument("--set", choices=("inside", "random"), default="inside")
     parser.add_argument("--query", choices=("cast", "occluded", "count"), default="cast")
-    parser.add_argument("--rays", type=int, default=50_000)
-    parser.add_argument("--repeat", type=int, default=4)
+    parser.add_argument("--rays", type=int, help="default 50000 (1000000 with --native)")
+    parser.add_argument("--repeat", type=int, help="default 4 (10 with --native)")
     parser.add_argument("--blocks", type=int, default=12)
+    parser.add_argument("--native", action="store_true",
+                        help="sample time with perf on the native code instead")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
         child(args)
         return 0
-    if shutil.which("valgrind") is None:
-        print("profile_walk.py needs valgrind (apt-get install valgrind)", file=sys.stderr)
+    if args.rays is None:
+        args.rays = 1_000_000 if args.native else 50_000
+    if args.repeat is None:
+        args.repeat = 10 if args.native else 4
+    tool, package = ("perf", "linux-perf") if args.native else ("valgrind", "valgrind")
+    if shutil.which(tool) is None:
+        print(f"profile_walk.py needs {tool} (apt-get install {package})", file=sys.stderr)
         return 2
     for src in args.src or [os.path.join(HERE, "..", "src")]:
-        problem = profile(os.path.abspath(src), args)
+        problem = (profile_native if args.native else profile)(os.path.abspath(src), args)
         if problem:
             print(f"profile_walk.py: {problem}", file=sys.stderr)
             return 2
