@@ -126,8 +126,8 @@ def cast(triangles, camera, width, height, state, workers, bvh: BVH | None = Non
     if bvh is None:
         walk = NAIVE
         # (The faces' corners as the walks' rows: hsr.algorithms.bvh.layout.)
-        corner_rows = np.ascontiguousarray(triangles).reshape(len(triangles), ROW_VALUES)
-        nodes = (corner_rows, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
+        face_rows = np.ascontiguousarray(triangles).reshape(len(triangles), ROW_VALUES)
+        nodes = (face_rows, np.zeros(0, np.int32), np.zeros((1, NODE_WORDS), np.float32),
                  np.zeros((1, NODE_WORDS), np.int32), 0, 0, 0)
     else:
         walk = (PACKETS if choose_walk(width * height, bvh.n_faces) is trace_packets

@@ -51,7 +51,7 @@ def ray_frame(ox, oy, oz, dx, dy, dz):
 def face_normal(tris, f):
     """Triangle ``f``'s normal as wound, (B - A) x (C - A), not normalised; in float64
     whether the corners are stored in float32 or float64 (float32 arithmetic would
-    round it differently). ``tris``: (F, 3, 3) rows or corner blocks
+    round it differently). ``tris``: the walks' corners, rows or blocks
     (:func:`hsr.algorithms.bvh.layout.corner`)."""
     p0x = np.float64(corner(tris, f, 0, 0))
     p0y = np.float64(corner(tris, f, 0, 1))
