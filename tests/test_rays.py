@@ -579,15 +579,15 @@ def test_the_vector_box_test_equals_a_numpy_float32_slab_test():
     operations round as IEEE says, so the bits must agree): boxes around, beside and
     behind the origin, empty lanes (at +inf), thin boxes, a bound cutting some boxes
     off, pads from none to large. A box is entered when t_in <= t_out + pad and t_in <=
-    bound; its key is the bits of max(t_in - pad, 0) as float64 with the lane in the
-    lowest three."""
+    bound; its key (int32) is the bits of max(t_in - pad, 0) (float32) with the lane in
+    the lowest three."""
     from numba import njit
 
     from hsr.algorithms.simd import box_keys8, box_mask8
 
     @njit
     def entries(box, w, o, inv, pad, bound):
-        keys = np.empty(8, dtype=np.int64)
+        keys = np.empty(8, dtype=np.int32)
         mask = box_keys8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], pad, bound, keys)
         alone = box_mask8(box, w, o[0], o[1], o[2], inv[0], inv[1], inv[2], pad, bound)
         return keys, mask, alone
@@ -617,10 +617,10 @@ def test_the_vector_box_test_equals_a_numpy_float32_slab_test():
             t_in = np.maximum(np.maximum(near[0], near[1]), np.maximum(near[2], f32(0)))
             t_out = np.minimum(np.minimum(far[0], far[1]), far[2])
             hit = (t_in <= t_out + pad) & (t_in <= bound)
-            want = np.where(hit, np.maximum(t_in - pad, f32(0)).astype(np.float64), np.inf)
+            want = np.where(hit, np.maximum(t_in - pad, f32(0)), f32(np.inf)).astype(f32)
             keys, mask, alone = entries(box, w, o, inv, pad, bound)
             np.testing.assert_array_equal(keys & 7, np.arange(8))
-            np.testing.assert_array_equal(keys >> 3, want.view(np.int64) >> 3)
+            np.testing.assert_array_equal(keys >> 3, want.view(np.int32) >> 3)
             assert mask == alone == sum(1 << k for k in range(8) if hit[k])
             checked += 8
             entered += hit.sum()
@@ -870,22 +870,24 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
         the careful float64 test and the packets' test (four copies of the ray) say of
         lane 0 of ``box``, and whether each key survives the walk's pruning by the
         bound (next_box): (entered, careful entered, packet entered, popped, fits)."""
-        keys = np.empty(8, dtype=np.int64)
+        keys = np.empty(8, dtype=np.int32)  # the single-ray walks' (the packets' int64)
         ox, oy, oz, ix, iy, iz, pad32, pad, fits = box_frame(o[0], o[1], o[2], inv[0], inv[1],
                                                              inv[2], reach)
         fast = box_keys8(box, 0, ox, oy, oz, ix, iy, iz, pad32, box_bound(bound, pad), keys)
-        stack = np.zeros((3, 3), dtype=np.int64)
-        stack[2, 0] = keys[0]
+        stack = np.zeros((2, 2), dtype=np.int64)
+        stack_t = np.zeros(2, dtype=np.int32)
+        stack_t[0] = keys[0]
         careful = careful_keys8(box, 0, o[0], o[1], o[2], inv[0], inv[1], inv[2], bound, keys)
-        stack[2, 1] = keys[0]
+        stack_t[1] = keys[0]
         rays = np.empty((6, 4))
         for a in range(3):
             rays[a, :], rays[3 + a, :] = o[a], inv[a]
         entries = np.empty((4, 8))
-        packet = packet_keys8(box, 0, rays, np.full(4, bound), 15, entries, keys)
+        packet = packet_keys8(box, 0, rays, np.full(4, bound), 15, entries,
+                              np.empty(8, dtype=np.int64))
         popped = 0
         for j in range(2):
-            popped += next_box(stack[0], stack[1], stack[2, j:j + 1], 1, bound, 0)[3] << j
+            popped += next_box(stack[0], stack[1], stack_t[j:j + 1], 1, bound, 0)[3] << j
         # The packet walk's pop keeps a ray's entry within the slack of its bound.
         popped += (entries[0, 0] <= slack_bound(bound)) << 2
         return fast & 1, careful & 1, packet & 1, popped, fits
@@ -968,50 +970,79 @@ def test_node_records_are_read_where_they_are_written():
     np.testing.assert_array_equal(got[..., 1], lane - 1)
 
 
-def test_the_lane_keys_sort_like_python_and_round_entries_down():
-    """hsr.algorithms.simd.box_keys8's keys sorted by sort_keys8 (a vector sorting
-    network on the entries' bits; min_key8 gives the first) against Python's sort of
-    (entry rounded down to eight units in the last place, lane) pairs, the rounding done
-    here on NumPy's view of the bits: equal entries, zeros, +inf (missed lanes), tiny
-    and huge values; each key's lane is in its three low bits and its entry, read back,
-    lies at most seven units in the last place below the true one (never above it: the
-    walk's pruning compares it with the bound)."""
+@pytest.mark.parametrize("width", [32, 64])
+def test_the_lane_keys_sort_like_python_and_round_entries_down(width):
+    """Keys of entries (their IEEE bits, the lane in the three low bits: float32 in
+    int32, as box_keys8 writes them for the single-ray walks, and float64 in int64, the
+    packets') sorted by sort_keys8 (a vector sorting network on the keys; min_key8 gives
+    the first) against Python's sort of (entry rounded down to eight units in the last
+    place, lane) pairs, the rounding done here on NumPy's view of the bits: equal
+    entries, zeros, +inf (missed lanes), tiny and huge values; each key's lane is in its
+    three low bits and its entry, read back, lies at most seven units in the last place
+    below the true one (never above it: the walk's pruning compares it with the
+    bound)."""
     from numba import njit
 
-    from hsr.algorithms.simd import float_bits, min_key8, sort_keys8
+    from hsr.algorithms.simd import float32_bits, float_bits, min_key8, sort_keys8
+
+    real, whole = (np.float32, np.int32) if width == 32 else (np.float64, np.int64)
 
     @njit
-    def keys(e):
-        out = np.empty(8, dtype=np.int64)
+    def keys(e, out):
         for lane in range(8):
-            out[lane] = float_bits(e[lane]) & ~7 | lane
+            out[lane] = (float32_bits(e[lane]) if width == 32 else float_bits(e[lane])
+                         ) & ~7 | lane
         least = min_key8(out)  # (the walk takes its next box from it before sorting)
         sort_keys8(out)
         if least != out[0]:
             out[:] = -1
         return out
 
-    @njit
-    def bits(x):
-        return float_bits(x)
-
     rng = np.random.default_rng(11)
-    pool = np.array([0.0, 0.0, 1.0, 1.0, 5e-324, 1e-300, 0.5, 2.0, 1e300, np.inf, np.inf])
+    pool = np.array([0.0, 0.0, 1.0, 1.0, 1e-45, 1e-40, 0.5, 2.0, 3e38, np.inf, np.inf]
+                    if width == 32 else
+                    [0.0, 0.0, 1.0, 1.0, 5e-324, 1e-300, 0.5, 2.0, 1e300, np.inf, np.inf])
     for trial in range(3000):
         e = (rng.choice(pool, 8) if trial % 2 else rng.exponential(1.0, 8)
              * (rng.random(8) > 0.2) + np.where(rng.random(8) < 0.3, np.inf, 0.0))
-        got = keys(e)
-        coarse = e.view(np.int64) >> 3
+        e = e.astype(real)
+        got = keys(e, np.empty(8, dtype=whole))
+        coarse = e.view(whole) >> 3
         assert [k & 7 for k in got] == [lane for _, lane in sorted(zip(coarse, range(8)))]
         if len(set(coarse)) == 8:  # no near-ties: the order of the values themselves
             assert [k & 7 for k in got] == list(np.argsort(e, kind="stable"))
         for k in got:
             true = e[k & 7]
-            back = np.int64(k & ~7).view(np.float64)
-            assert back <= true and bits(true) - (k & ~7) <= 7
-    # The walk compares keys with a bound's bits: -0.0 (a hit at t = -0.0 >= t_min 0)
-    # must read as the least bound, not a negative integer below every key.
-    assert bits(-0.0 + 0.0) == 0 and bits(np.inf) > bits(1.7976931348623157e308)
+            back = whole(k & ~7).view(real)
+            assert back <= true and true.view(whole) - (k & ~7) <= 7
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 1e39), st.floats(0.0, 1e39), st.integers(0, 7),
+       st.sampled_from([1.0, 1e-30, 1e-40, 1e-44, 1e-300]))
+def test_a_key_at_or_before_the_bound_is_never_pruned(entry, above, lane, scale):
+    """The single-ray walks' pruning (stack.next_box) keeps a box whose exact entry is at
+    most the bound, whatever its lane: below32 gives a float32 at most the entry (the
+    careful test's key), above32 one at least the bound, and a key built from the first
+    passes bound_key of the second; in float32's normal range, its subnormal range (the
+    absolute rounding there), beyond its largest value, at 0 and -0.0 (a hit at t = 0)."""
+    from numba import njit
+
+    from hsr.algorithms.bvh.boxes import FLOAT32_MAX, above32, below32
+    from hsr.algorithms.bvh.stack import bound_key
+    from hsr.algorithms.simd import float32_bits as bits_in_numba
+
+    float32_bits = njit(lambda x: bits_in_numba(x))
+    entry *= scale
+    bound = entry + above * scale
+    low, high = below32(entry), above32(bound)
+    assert np.float64(low) <= entry and 0.0 <= low
+    assert np.float64(high) >= bound or high == np.float32(FLOAT32_MAX)
+    key = float32_bits(low) & ~7 | lane
+    assert key <= bound_key(bound)
+    assert key <= bound_key(-0.0) or entry > 0.0
+    assert below32(np.inf) == np.inf  # a missed lane stays after every entered one
+    assert float32_bits(below32(1e300)) & ~7 | 7 < float32_bits(np.float32(np.inf)) & ~7
 
 
 def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
@@ -1056,6 +1087,42 @@ def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
             np.testing.assert_array_equal(single, packet)
             np.testing.assert_array_equal(single, interleaved)
         assert (answers[0][0 if mode == 0 else 0] != 7).all()  # every ray written
+
+
+def test_rays_from_a_vertex_name_the_lowest_face_around_it(walk_model):
+    """A ray from a mesh vertex (t_min 0) meets every face around it at t = 0, a tie
+    the lowest face id must win whichever boxes hold those faces, in both single-ray
+    walks (the bunny's, the terrain's interleaved one) and in packets (four rays from
+    each vertex, one origin). Reference: Moller-Trumbore over every face, each face
+    around the vertex turned so that the vertex is its first corner (its t is then
+    exactly 0). Before the fix, a hit at t = 0 made the walk's pruning bound the bits of
+    0.0, below the keys of the other boxes entered at 0 (their lane in the low bits),
+    so their faces were dropped: half of the bunny's rays named a higher face."""
+    from hsr.algorithms.bvh.packets import trace_packets
+
+    mesh, rays = walk_model
+    bvh = rays.bvh
+    rng = np.random.default_rng(21)
+    vertex = np.repeat(rng.choice(np.unique(mesh.faces), 50, replace=False), 4)
+    origins = mesh.positions[vertex]
+    directions = rng.normal(size=(len(origins), 3))
+    hits = rays.cast(origins, directions)
+    n = len(origins)
+    out = (np.empty(n), np.empty(n, np.int32), np.empty(n, np.int32), np.empty((n, 2)),
+           np.empty((n, 3)), np.empty(n, np.int32))
+    trace_packets(0, n, origins, directions, np.zeros(1), np.full(1, np.inf), 0, None,
+                  bvh.corners, bvh.leaf_face, bvh.node_box, bvh.node_link, bvh.root_ref,
+                  bvh.root_count, bvh.wide_depth, rays.face_offsets, *out)
+    for i, v in enumerate(vertex):
+        faces = mesh.faces.copy()
+        for turn in (1, 2):  # v first, the winding kept
+            at = faces[:, turn] == v
+            faces[at] = np.roll(faces[at], -turn, axis=1)
+        want_t, want_f = brute_force(mesh.positions[faces], origins[i:i + 1],
+                                     directions[i:i + 1])[:2]
+        assert want_t[0] == 0.0
+        assert (hits.t[i], hits.face_id[i]) == (0.0, want_f[0]), i
+        assert (out[0][i], out[1][i]) == (0.0, want_f[0]), i
 
 
 def test_interleaved_walks_answer_each_ray_as_if_walked_alone(walk_model):

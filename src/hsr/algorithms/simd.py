@@ -23,7 +23,7 @@ What it exports, by use:
 - a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once) and
   :func:`leaf_filter4_rays` (four rays from one origin);
 - ordering and bits: :func:`min_key8`, :func:`sort_keys8`, :func:`lowest_bit`,
-  :func:`bit_count`, :func:`float_bits`, :func:`next_float32`;
+  :func:`bit_count`, :func:`float_bits`, :func:`float32_bits`, :func:`next_float32`;
 - the build: :func:`grow_box` (a bin's box grown by a face's);
 - memory: :func:`prefetch` (a hint, never a change of result) and :func:`borrowed` (a
   view without reference counts, for the walks' loops).
@@ -39,8 +39,8 @@ from numba.extending import intrinsic
 
 __all__ = ["NODE_BYTES", "box_keys8", "box_mask8", "record_words", "packet_keys8",
            "packet_keys8_shared", "leaf_filter4", "leaf_filter4_rays", "min_key8",
-           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "next_float32", "grow_box",
-           "prefetch", "borrowed"]
+           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "float32_bits",
+           "next_float32", "grow_box", "prefetch", "borrowed"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -48,6 +48,7 @@ _D4 = ir.VectorType(ir.DoubleType(), 4)
 _F8 = ir.VectorType(ir.FloatType(), 8)
 _D8 = ir.VectorType(ir.DoubleType(), 8)
 _L8 = ir.VectorType(_I64, 8)
+_K8 = ir.VectorType(_I32, 8)
 
 # The bytes of a wide node record (hsr.algorithms.bvh.layout.NODE_WORDS 32-bit words;
 # tests/test_rays.py::test_node_records_are_read_where_they_are_written checks the two
@@ -139,9 +140,11 @@ def _slab_test(builder, offsets, inv, bound):
 
 def _keys(builder, entries, lanes):
     """The entries' IEEE bits with the lowest three replaced by the lane (see
-    :func:`sort_keys8`)."""
-    return builder.or_(builder.and_(builder.bitcast(entries, _L8), ir.Constant(_L8, [~7] * 8)),
-                       ir.Constant(_L8, lanes))
+    :func:`sort_keys8`): ``<8 x i32>`` keys of float32 entries, ``<8 x i64>`` of float64
+    ones."""
+    kind = _K8 if entries.type.element == ir.FloatType() else _L8
+    return builder.or_(builder.and_(builder.bitcast(entries, kind),
+                                    ir.Constant(kind, [~7] * 8)), ir.Constant(kind, lanes))
 
 
 def _record_pointer(context, builder, array_type, array, record, element):
@@ -164,8 +167,8 @@ def _node_array(array):
 def _box_test8(context, builder, arg_types, args):
     """(key entry, entered) of the float32 slab test of a ray against the eight boxes
     of wide node ``w`` (``args``: box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad,
-    bound; see :func:`box_keys8`): the key entry is ``max(t_in - pad, 0)`` widened to
-    float64, +inf where the box is not entered."""
+    bound; see :func:`box_keys8`): the key entry is ``max(t_in - pad, 0)`` (float32),
+    +inf where the box is not entered."""
     array, row, ox, oy, oz, ix, iy, iz, pad, bound = args[:10]
     row = context.cast(builder, row, arg_types[1], types.intp)
     base = _record_pointer(context, builder, arg_types[0], array, row, ir.FloatType())
@@ -189,8 +192,8 @@ def _box_test8(context, builder, arg_types, args):
     padding = _splat(builder, pad, 8)
     entered = builder.and_(builder.fcmp_ordered("<=", t_in, builder.fadd(t_out, padding)),
                            builder.fcmp_ordered("<=", t_in, _splat(builder, bound, 8)))
-    key = builder.fpext(_max(builder, builder.fsub(t_in, padding), zero), _D8)
-    return builder.select(entered, key, ir.Constant(_D8, [float("inf")] * 8)), entered
+    key = _max(builder, builder.fsub(t_in, padding), zero)
+    return builder.select(entered, key, ir.Constant(_F8, [float("inf")] * 8)), entered
 
 
 def _box_test_types(box, scalars):
@@ -204,9 +207,11 @@ def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound,
     """Where the ray enters each of the eight boxes of wide node ``w`` of ``box`` (the
     float32 records of :func:`hsr.algorithms.bvh.layout.node_records`, a record starting
     with the lanes ``[lo_x * 8, lo_y * 8, lo_z * 8, hi_x * 8, hi_y * 8, hi_z * 8]``),
-    written to ``keys`` (int64, 8 contiguous) as the keys of :func:`sort_keys8` (the
-    entry's bits, lane in the lowest three; +inf for a box missed or entered beyond the
-    bound). Returns the mask of entered boxes, bit k for box k (an int64, 0 .. 255).
+    written to ``keys`` (int32, 8 contiguous) as the keys of :func:`sort_keys8` (the
+    float32 entry's bits, lane in the lowest three; +inf for a box missed or entered
+    beyond the bound). Returns the mask of entered boxes, bit k for box k (an int64, 0 ..
+    255). The keys are 32-bit, one 256-bit vector, which the closest-hit walk orders
+    faster than float64 keys (measurements: docs/history.md, "Ray core").
 
     The slab test (Kay and Kajiya 1986) in float32, eight lanes in one AVX2 register:
     t_in = max of the slabs' near distances and 0, t_out = min of their far ones. The
@@ -216,15 +221,15 @@ def box_keys8(typingctx, box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound,
     is entered when ``t_in <= t_out + pad`` and ``t_in <= bound``, so every box the exact
     ray enters within the bound is, and its key ``max(t_in - pad, 0)`` is at most the
     exact entry (the walk prunes by comparing keys with its bound)."""
-    if not _box_test_types(box, (ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound)):
+    if not (_box_test_types(box, (ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound))
+            and _key_array(keys, types.int32)):
         return None
     sig = types.int64(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, pad, bound, keys)
 
     def codegen(context, builder, sig, args):
         entry, entered = _box_test8(context, builder, sig.args, args)
-        data = context.make_array(sig.args[10])(context, builder, args[10]).data
         builder.store(_keys(builder, entry, list(range(8))),
-                      builder.bitcast(data, _L8.as_pointer()), align=8)
+                      _keys_pointer(context, builder, sig.args[10], args[10]), align=4)
         return builder.zext(builder.bitcast(entered, ir.IntType(8)), _I64)
 
     return sig, codegen
@@ -537,62 +542,78 @@ _ROUNDS8 = ([(0, 1), (2, 3), (4, 5), (6, 7)], [(0, 2), (1, 3), (4, 6), (5, 7)],
             [(1, 2), (3, 4), (5, 6)])
 
 
+def _key_array(array, dtype=None):
+    """Whether ``array`` can hold eight keys of :func:`sort_keys8`: 1-D, C-contiguous,
+    int32 or int64 (``dtype`` alone, if given)."""
+    return (isinstance(array, types.Array) and array.ndim == 1 and array.layout == "C"
+            and array.dtype in ((dtype,) if dtype else (types.int32, types.int64)))
+
+
 def _keys_pointer(context, builder, array_type, array):
-    """The eight int64 keys of ``array`` (contiguous) as one ``<8 x i64>`` pointer."""
+    """The eight keys of ``array`` (contiguous, int32 or int64) as one ``<8 x i32>`` or
+    ``<8 x i64>`` pointer."""
+    kind = _K8 if array_type.dtype == types.int32 else _L8
     return builder.bitcast(context.make_array(array_type)(context, builder, array).data,
-                           _L8.as_pointer())
+                           kind.as_pointer())
 
 
 def _permuted(builder, v, lanes):
-    """``v`` (``<8 x i64>``) with its lanes in the order ``lanes``."""
-    return builder.shuffle_vector(v, ir.Constant(_L8, ir.Undefined),
+    """``v`` (eight lanes) with its lanes in the order ``lanes``."""
+    return builder.shuffle_vector(v, ir.Constant(v.type, ir.Undefined),
                                   ir.Constant(ir.VectorType(_I32, 8), lanes))
 
 
 @intrinsic
 def min_key8(typingctx, keys):
-    """The least of the eight int64 ``keys`` (8 contiguous; :func:`sort_keys8`'s keys):
-    the nearest entered lane's, in three rounds of vector min with shuffles. The
+    """The least of the eight ``keys`` (int32 or int64, 8 contiguous; :func:`sort_keys8`'s
+    keys), as an int64: the nearest entered lane's, in three rounds of vector min with
+    shuffles. The
     ordered walk takes its next box from it while the sorting network orders the rest
     for the stack: six rounds fewer between a node's box test and the next node's
     read. One thread, the bunny's 1M random rays, cast, ms mean of eight alternating
     runs' minimums: 50.7 -> 49.6 (lower in seven of eight); the 1M-face terrain's,
     68.5-69.7 -> 67.3-69.3."""
+    if not _key_array(keys):
+        return None
     sig = types.int64(keys)
 
     def codegen(context, builder, sig, args):
-        v = builder.load(_keys_pointer(context, builder, sig.args[0], args[0]), align=8)
+        v = builder.load(_keys_pointer(context, builder, sig.args[0], args[0]), align=4)
         for partner in ([4, 5, 6, 7, 0, 1, 2, 3], [2, 3, 0, 1, 6, 7, 4, 5],
                         [1, 0, 3, 2, 5, 4, 7, 6]):
             other = _permuted(builder, v, partner)
             v = builder.select(builder.icmp_signed("<", v, other), v, other)
-        return builder.extract_element(v, ir.Constant(_I32, 0))
+        least = builder.extract_element(v, ir.Constant(_I32, 0))
+        return builder.sext(least, _I64) if v.type == _K8 else least
 
     return sig, codegen
 
 
 @intrinsic
 def sort_keys8(typingctx, keys):
-    """Sort the eight int64 ``keys`` (8 contiguous) in place, least first: the lanes of a
-    wide node nearest first, when each key is the lane's entry distance (>= 0, or +inf
-    for a missed lane) read as its IEEE bits, whose integer order is the order of the
-    values, with the three lowest bits replaced by the lane (``key & 7``;
-    :func:`box_keys8` writes them so). So keys are distinct, entries within eight
-    units in the last place of each other go in lane order (the walk's order only sets
-    how soon a hit prunes, never the answer), and ``key & ~7`` read back is the entry
-    rounded down by at most seven units in the last place, never past the true entry:
-    a bound compared with it keeps every box the true entry would keep (see
-    :func:`hsr.algorithms.bvh.stack.next_box`).
+    """Sort the eight ``keys`` (int32 or int64, 8 contiguous) in place, least first: the
+    lanes of a wide node nearest first, when each key is the lane's entry distance (>= 0,
+    or +inf for a missed lane) read as its IEEE bits (float32's in int32 keys, as
+    :func:`box_keys8` writes them; float64's in int64, the packets'), whose integer order
+    is the order of the values, with the three lowest bits replaced by the lane (``key &
+    7``). So keys are distinct, entries within eight units in the last place of each
+    other go in lane order (the walk's order only sets how soon a hit prunes, never the
+    answer), and ``key & ~7`` read back is the entry rounded down by at most seven units
+    in the last place, never past the true entry; the pruning compares keys with a
+    bound's key whose low bits are all set, so it keeps every box the true entry would
+    keep (see :func:`hsr.algorithms.bvh.stack.next_box`).
 
     Batcher's odd-even merge network as six rounds of vector min and max with
     shuffles: no branch. Scalar selects written in Numba were turned into branches by
     the compiler (seen with ``inspect_asm``), and which lanes are nearest is what a
     random ray makes unpredictable."""
+    if not _key_array(keys):
+        return None
     sig = types.void(keys)
 
     def codegen(context, builder, sig, args):
         pointer = _keys_pointer(context, builder, sig.args[0], args[0])
-        v = builder.load(pointer, align=8)
+        v = builder.load(pointer, align=4)
         for pairs in _ROUNDS8:
             partner, take = list(range(8)), list(range(8))
             for i, j in pairs:
@@ -603,7 +624,7 @@ def sort_keys8(typingctx, keys):
             low = builder.select(below, v, other)
             high = builder.select(below, other, v)
             v = builder.shuffle_vector(low, high, ir.Constant(ir.VectorType(_I32, 8), take))
-        builder.store(v, pointer, align=8)
+        builder.store(v, pointer, align=4)
         return context.get_dummy_value()
 
     return sig, codegen
@@ -644,6 +665,18 @@ def float_bits(typingctx, x):
 
     def codegen(context, builder, sig, args):
         return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def float32_bits(typingctx, x):
+    """The IEEE bits of a float32 as an int64 (the int32 bits sign-extended: for a value
+    >= 0 their integer order is the values' order, as :func:`box_keys8`'s keys)."""
+    sig = types.int64(types.float32)
+
+    def codegen(context, builder, sig, args):
+        return builder.sext(builder.bitcast(args[0], _I32), _I64)
 
     return sig, codegen
 

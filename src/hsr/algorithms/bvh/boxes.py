@@ -10,11 +10,11 @@ import sys
 import numpy as np
 from numba import njit
 
-from ..simd import SLACK, SLACK_ABS, float_bits
+from ..simd import SLACK, SLACK_ABS, float32_bits, float_bits
 from .layout import LANES
 
 __all__ = ["inverse_direction", "box_reach", "box_frame", "box_bound", "slack_bound",
-           "careful_keys8", "careful_packet_keys8", "open_slabs"]
+           "below32", "above32", "careful_keys8", "careful_packet_keys8", "open_slabs"]
 
 # float32's unit roundoff.
 _U32 = 2.0**-24
@@ -28,6 +28,9 @@ _FLOAT_MAX = sys.float_info.max
 
 # The largest float32: a bound above it would let a missed box (entered at +inf) pass.
 FLOAT32_MAX = 3.4028234663852886e38
+
+# float32's least normal number: below it float32 rounds by an absolute 2**-150.
+_TINY32 = 2.0**-126
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -97,6 +100,23 @@ def box_bound(bound, pad):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def below32(x):
+    """A float32 at most ``x`` (>= 0, or +inf, which stays +inf), at most the largest
+    float32: ``x`` lowered by a relative 4u and by float32's least normal before it is
+    rounded to nearest, so neither the relative rounding of the normal range (u) nor the
+    absolute one below it (2**-150) can take it above ``x``."""
+    low = np.float32(min(max(x * (1.0 - 4.0 * _U32) - _TINY32, 0.0), FLOAT32_MAX))
+    return low if x < np.inf else np.float32(np.inf)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def above32(x):
+    """A float32 at least ``x`` (>= 0, or -0.0) unless ``x`` is above the largest float32,
+    which it then is: :func:`below32`'s margins the other way, without a branch."""
+    return np.float32(min(x * (1.0 + 4.0 * _U32) + _TINY32, FLOAT32_MAX))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def slack_bound(bound):
     """The bound the float64 tests compare a computed entry with: ``bound`` with the slack
     of the exit distance (:data:`hsr.algorithms.simd.SLACK`), at most the largest float.
@@ -137,13 +157,15 @@ def _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound):
 def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
     """:func:`hsr.algorithms.simd.box_keys8` lane by lane in float64 with the NaN care
     of :func:`_careful_entry`, for rays with a zero direction component or which float32
-    cannot hold; each key lowered by the slack so that it is at most the exact entry."""
+    cannot hold; each key (int32, as the fast test's) lowered by the slack and rounded
+    down to float32, so that it is at most the exact entry."""
     mask = 0
     for lane in range(LANES):
         e = _careful_entry(box, w, lane, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound)
         # The key at most the exact entry (the walk prunes by it; e may be a few
-        # roundings above).
-        keys[lane] = float_bits(max((e - SLACK_ABS) / SLACK, 0.0)) & ~7 | lane
+        # roundings above). An entry beyond float32's range keeps the largest float32,
+        # still before the missed lanes' +inf.
+        keys[lane] = float32_bits(below32(max((e - SLACK_ABS) / SLACK, 0.0))) & ~7 | lane
         mask |= (e < np.inf) << lane
     return mask
 

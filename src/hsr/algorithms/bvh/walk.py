@@ -129,7 +129,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
-    keys = np.empty(LANES, dtype=np.int64)  # a node's entry keys (box_keys8)
+    keys = np.empty(LANES, dtype=np.int32)  # a node's entry keys (box_keys8)
     # The largest magnitude of the boxes' bounds, for the float32 box test's pad.
     reach = box_reach(node_box, root_ref) if root_count == 0 else 0.0
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
