@@ -355,10 +355,7 @@ def packet_keys8_shared(typingctx, box, w, rays, bound, active, out, keys):
     """:func:`packet_keys8` for four rays from one origin (a camera's): the bounds less
     the origin are computed once for the four rays (the origin read from ray 0; the
     caller checks that the four are equal). The same arithmetic, so the same entries bit
-    for bit, with 6 of the 24 subtractions (one thread, 1M rays, ms min of three
-    alternating runs of the packet walk: the 1M-face terrain's filling rays 179.5-183.3
-    -> 175.3-176.8, the bunny's 87.6-88.0 -> 84.1-85.5, its framed view 50.8-51.2 ->
-    48.1-48.7)."""
+    for bit, with 6 of the 24 subtractions (measurements: docs/history.md, "Ray core")."""
     if any(a.layout != "C" for a in (rays, bound, out, keys)):
         return None
     sig = types.int64(box, w, rays, bound, active, out, keys)
@@ -567,12 +564,9 @@ def _permuted(builder, v, lanes):
 def min_key8(typingctx, keys):
     """The least of the eight ``keys`` (int32 or int64, 8 contiguous; :func:`sort_keys8`'s
     keys), as an int64: the nearest entered lane's, in three rounds of vector min with
-    shuffles. The
-    ordered walk takes its next box from it while the sorting network orders the rest
-    for the stack: six rounds fewer between a node's box test and the next node's
-    read. One thread, the bunny's 1M random rays, cast, ms mean of eight alternating
-    runs' minimums: 50.7 -> 49.6 (lower in seven of eight); the 1M-face terrain's,
-    68.5-69.7 -> 67.3-69.3."""
+    shuffles. The ordered walk takes its next box from it while the sorting network
+    orders the rest for the stack: six rounds fewer between a node's box test and the
+    next node's read (measurements: docs/history.md, "Ray core")."""
     if not _key_array(keys):
         return None
     sig = types.int64(keys)
@@ -687,8 +681,8 @@ def grow_box(typingctx, bins, i, prim, k):
     y, z, a spare word) by the box of row ``k`` of ``prim`` (float64, 2-D, rows of at
     least 7 words starting lo x, y, z, hi x, y, z): two ``<4 x double>`` min / max
     where the scalar code made six, each a load and a store of the bin (the BVH build's
-    binning, :func:`hsr.algorithms.bvh._bin_faces`: the bunny's 8 ns a face -> 5). The
-    spare words take the row's words 3 and 6, and are never read."""
+    binning in :mod:`hsr.algorithms.bvh.sah`; measurements: docs/history.md, "Ray
+    core"). The spare words take the row's words 3 and 6, and are never read."""
     sig = types.void(bins, i, prim, k)
 
     def codegen(context, builder, sig, args):
@@ -715,8 +709,8 @@ def next_float32(typingctx, x, up):
     """The float32 next to ``x`` (not NaN) towards +inf when ``up``, else towards -inf:
     ``np.nextafter`` by the bits, as the IEEE layout orders them (a step of one in the
     magnitude's bits; from zero, the smallest subnormal of the step's sign). Numba's
-    ``np.nextafter`` calls libm: the wide tree's outward rounding of 3.4M bounds (the
-    1M-face terrain) spent 20 ms in it."""
+    ``np.nextafter`` calls libm, slow for the wide tree's millions of outward roundings
+    (measurements: docs/history.md, "Ray core")."""
     sig = types.float32(types.float32, types.boolean)
 
     def codegen(context, builder, sig, args):

@@ -31,7 +31,7 @@ __all__ = ["RayScene", "RayHits", "RayHitLists", "RayError"]
 # hand-off, small enough that uneven rays (misses cost little) balance between threads.
 CHUNK = 4096
 # Faces whose mean area, times the faces, stands for the scene's surface area there (the
-# leaf order spreads them over the whole scene; all of them took 6 ms at 1M faces).
+# leaf order spreads them over the whole scene; summing all is slow at 1M faces).
 AREA_SAMPLES = 4096
 # Runs of four rays cast to estimate it: up to 64 (a few hundred microseconds), one per
 # 1024 rays of the query from eight up.
@@ -264,11 +264,8 @@ class RayScene:
         kernel = self._walk(origins, directions, t0, t1)
         # The calling thread's kept threads (hsr.render's, default_workspace), not a
         # pool started and stopped per call: the pool thread exiting after a call took
-        # the GIL from the next one's Python set-up. Two threads, the bunny's 1M random
-        # rays, cast, ms min of 25 calls averaged over ten alternating processes, threads
-        # kept per process in a first trial: 26.8 -> 26.2, lower in eight of ten
-        # (Open3D's ratio moved less: its calls, which alternate with these in the
-        # benchmark, had been slowed by the exiting thread too).
+        # the GIL from the next one's Python set-up (measurements: docs/history.md, "Ray
+        # core").
         with default_workspace(self.threads, replace=False) as workers, \
                 progress_bar(progress, n, "rays", unit="ray") as bar:
             # Chunks of CHUNK rays or more, about 16 per thread: a chunk's hand-off
@@ -365,11 +362,9 @@ def _coherent(origins, directions, size):
 
     The runs are judged one by one, stopping once more than a quarter are incoherent
     (the answer is no by then). Random rays stop after a quarter of the runs, whose rays
-    lie spread over the query and mostly out of cache when a call starts. (The choice
-    of walk for the bunny's 1M random rays, timed right after a 25 ms cast of them, min
-    of 20: 0.34 ms as NumPy over all 256 runs, 0.24 as NumPy stopping after a quarter,
-    0.08 with a kernel for the runs' test.) A NaN or zero direction makes its run
-    incoherent (its comparisons are false; the walk refuses the ray)."""
+    lie spread over the query and mostly out of cache when a call starts (measurements:
+    docs/history.md, "Ray core"). A NaN or zero direction makes its run incoherent (its
+    comparisons are false; the walk refuses the ray)."""
     reach = 1e-2 * size
     runs = _sample_runs(origins.shape[0])
     m = runs.shape[0]

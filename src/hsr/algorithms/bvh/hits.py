@@ -192,8 +192,9 @@ def check_rays(lo, hi, origins, directions, t_min, t_max):
     """(problem, ray) of the first bad ray of ``lo .. hi - 1``, (0, -1) when all are
     good (``t_min`` / ``t_max`` per ray, or length 1 for all). Problems: 1 an origin
     not finite, 2 a direction not finite, 3 a zero direction, 4 t_min NaN or infinite,
-    5 t_max NaN, 6 t_min < 0, 7 t_min > t_max. A test with a branch per check (10 ms a
-    million rays): the walks call it only for rays :func:`plausible_ray` flags."""
+    5 t_max NaN, 6 t_min < 0, 7 t_min > t_max. A test with a branch per check, so the
+    walks call it only for rays :func:`plausible_ray` flags (measurements:
+    docs/history.md, "Ray core")."""
     per_ray = t_min.shape[0] > 1, t_max.shape[0] > 1
     for i in range(lo, hi):
         for a in range(3):

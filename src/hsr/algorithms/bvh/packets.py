@@ -70,9 +70,7 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
     the node's bounds less the origin (:func:`hsr.algorithms.simd.packet_keys8_shared`)
     and, along the same permuted axes, a leaf's corners less it
     (:func:`hsr.algorithms.simd.leaf_filter4_rays`), with the same arithmetic, so the
-    same answers (one thread, 1M rays, ms min of alternating runs, each step: the
-    bunny's filling rays 88 -> 84-85 -> 77-79, its framed view 51 -> 48-49 -> 46-47,
-    the 1M terrain's filling rays 181-183 -> 174-177 -> 171-175)."""
+    same answers (measurements: docs/history.md, "Ray core")."""
     cull_code, front_ccw = (0, True) if raster is None else (raster[0], raster[1])
     # Views without reference counts (the caller holds the arrays): the inlined triangle test
     # otherwise counted one at each hit, two atomic instructions.

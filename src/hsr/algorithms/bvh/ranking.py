@@ -105,17 +105,14 @@ def t_bound(t, z, zc0, zc1, wc0, wc1, rank):
     ray): ``t`` plus the rays' tie reach (:func:`tie_reach`, ``rank[10]``), else past
     the next float32 above ``z``. With the reach only an add waits on the hit, where
     solving takes two divisions after the depth's own, and the walk's next step waits
-    on the bound: the packet walk of the 1M-face terrain filling 1024x1024, one thread,
-    208.1 -> 201.1 ms (the median of five alternating runs' minimums; 188 without
-    ranking)."""
+    on the bound (measurements: docs/history.md, "Ray core")."""
     reach, depth_scale, depth_offset = rank[10], rank[8], rank[9]
     if reach == reach:
         return min(1.0, t * (1.0 + 1e-9) + reach)
     if depth_scale == 0.0:
         return 1.0
-    # next_float32, not np.nextafter, which calls libm (0.7% of a 1M-face terrain's
-    # frame in a profile; no change measured in the walk's time): the same float32 for
-    # every finite z.
+    # next_float32, not np.nextafter, which calls libm: the same float32 for every
+    # finite z.
     z_next = next_float32(z, True)
     zn = (np.float64(z_next) - depth_offset) / depth_scale
     denom = zn * wc1 - zc1
