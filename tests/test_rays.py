@@ -8,6 +8,7 @@ input refused with a RayError. (Open3D's RaycastingScene is the benchmark's peer
 
 from __future__ import annotations
 
+import functools
 import os
 
 import numpy as np
@@ -1017,6 +1018,28 @@ def test_the_lane_keys_sort_like_python_and_round_entries_down(width):
             assert back <= true and true.view(whole) - (k & ~7) <= 7
 
 
+@functools.cache
+def _pruning_rule():
+    """A kernel of the single-ray walks' pruning rule, compiled once: (below32(entry),
+    above32(bound), the key of below32(entry) in ``lane``, bound_key(bound),
+    bound_key(-0.0), the bits of below32(+inf) and of below32(1e300) with the lane bits
+    set)."""
+    from numba import njit
+
+    from hsr.algorithms.bvh.boxes import above32, below32
+    from hsr.algorithms.bvh.stack import bound_key
+    from hsr.algorithms.simd import float32_bits
+
+    @njit
+    def rule(entry, bound, lane):
+        low = below32(entry)
+        return (low, above32(bound), float32_bits(low) & ~7 | lane, bound_key(bound),
+                bound_key(-0.0), float32_bits(below32(np.inf)),
+                float32_bits(below32(1e300)) | 7)
+
+    return rule
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.floats(0.0, 1e39), st.floats(0.0, 1e39), st.integers(0, 7),
        st.sampled_from([1.0, 1e-30, 1e-40, 1e-44, 1e-300]))
@@ -1026,23 +1049,18 @@ def test_a_key_at_or_before_the_bound_is_never_pruned(entry, above, lane, scale)
     careful test's key), above32 one at least the bound, and a key built from the first
     passes bound_key of the second; in float32's normal range, its subnormal range (the
     absolute rounding there), beyond its largest value, at 0 and -0.0 (a hit at t = 0)."""
-    from numba import njit
+    from hsr.algorithms.bvh.boxes import FLOAT32_MAX
 
-    from hsr.algorithms.bvh.boxes import FLOAT32_MAX, above32, below32
-    from hsr.algorithms.bvh.stack import bound_key
-    from hsr.algorithms.simd import float32_bits as bits_in_numba
-
-    float32_bits = njit(lambda x: bits_in_numba(x))
     entry *= scale
     bound = entry + above * scale
-    low, high = below32(entry), above32(bound)
+    low, high, key, limit, limit_at_zero, missed, largest = _pruning_rule()(entry, bound,
+                                                                            lane)
     assert np.float64(low) <= entry and 0.0 <= low
     assert np.float64(high) >= bound or high == np.float32(FLOAT32_MAX)
-    key = float32_bits(low) & ~7 | lane
-    assert key <= bound_key(bound)
-    assert key <= bound_key(-0.0) or entry > 0.0
-    assert below32(np.inf) == np.inf  # a missed lane stays after every entered one
-    assert float32_bits(below32(1e300)) & ~7 | 7 < float32_bits(np.float32(np.inf)) & ~7
+    assert key <= limit
+    assert key <= limit_at_zero or entry > 0.0
+    # A missed lane (+inf) stays after every entered one, however far.
+    assert missed == np.float32(np.inf).view(np.int32) and largest < missed
 
 
 def test_packets_give_the_one_ray_answers_bit_for_bit(bunny):
