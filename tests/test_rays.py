@@ -62,21 +62,35 @@ def bunny(models_dir):
     return hsr.load(os.path.join(models_dir, "stanford-bunny.obj"))
 
 
-@pytest.fixture(params=["bunny", "terrain"])
+@pytest.fixture(params=["terrain30k", "terrain"])
 def walk_model(request):
-    """(mesh, RayScene) on either side of INTERLEAVE_BYTES: the bunny, whose walks go a
-    ray at a time to their end, and a 120k-face terrain, whose walks switch between
-    eight rays in turn (checked here, so each test runs both walks)."""
-    from hsr.algorithms.bvh.walk import INTERLEAVE_BYTES
+    """(mesh, RayScene) on either side of INTERLEAVE_BYTES on every CPU family it is set
+    for: a 30k-face terrain (2.3 MiB of corners and nodes), whose walks go a ray at a
+    time to their end, and a 120k-face terrain, whose walks switch between eight rays in
+    turn (checked here, so each test runs both walks). (The bunny, 5.4 MiB, is on one
+    side on an AMD CPU and on the other on an Intel one.)"""
+    from hsr.algorithms.bvh.walk import INTERLEAVE_BY_VENDOR, INTERLEAVE_BYTES
 
-    if request.param == "bunny":
-        mesh = request.getfixturevalue("bunny")
-    else:
-        mesh = hsr.scenes.terrain_mesh(120_000)
+    mesh = hsr.scenes.terrain_mesh(30_000 if request.param == "terrain30k" else 120_000)
     rays = hsr.RayScene(mesh)
     walked_bytes = rays.bvh.corners.nbytes + rays.bvh.node_box.nbytes
-    assert (walked_bytes > INTERLEAVE_BYTES) == (request.param == "terrain")
+    for threshold in (INTERLEAVE_BYTES, *INTERLEAVE_BY_VENDOR.values()):
+        assert (walked_bytes > threshold) == (request.param == "terrain")
     return mesh, rays
+
+
+def test_the_interleaving_threshold_is_the_cpu_familys(tmp_path):
+    """INTERLEAVE_BYTES is the threshold measured for this machine's CPU family, read
+    from the vendor in /proc/cpuinfo; an unknown vendor, or no such file, takes the AMD
+    one (the first measured)."""
+    from hsr.algorithms.bvh.walk import INTERLEAVE_BY_VENDOR, interleave_bytes
+
+    for vendor, want in (("GenuineIntel", 4 << 20), ("AuthenticAMD", 8 << 20),
+                         ("HygonGenuine", 8 << 20)):
+        cpuinfo = tmp_path / vendor
+        cpuinfo.write_text(f"processor\t: 0\nvendor_id\t: {vendor}\ncpu family\t: 6\n")
+        assert interleave_bytes(str(cpuinfo)) == want
+    assert interleave_bytes(str(tmp_path / "none")) == INTERLEAVE_BY_VENDOR["AuthenticAMD"]
 
 
 def pixel_rays(camera, width, height):
@@ -1149,8 +1163,8 @@ def test_interleaved_walks_answer_each_ray_as_if_walked_alone(walk_model):
     has more): every ray of a long chunk (slots refilled thousands of times, a last
     round part-full) gets, in all three queries, exactly what it gets walked alone (a
     range of one ray), with random and axis-parallel rays (the careful box test) mixed
-    and per-ray intervals; a sample's any-hit answers equal brute force. The bunny, below
-    INTERLEAVE_BYTES, walks each ray to its end: the same holds."""
+    and per-ray intervals; a sample's any-hit answers equal brute force. A 30k-face
+    terrain, below INTERLEAVE_BYTES, walks each ray to its end: the same holds."""
     from hsr.algorithms.bvh.layout import HOT_NODES
     from hsr.algorithms.bvh.walk import SLOTS, trace_range
 
@@ -1203,8 +1217,8 @@ def test_rays_that_miss_the_root_are_answered_as_misses_between_walking_rays(wal
     model, or towards it but stopped short by t_max) sit between rays that walk, every
     output of every ray is written (outputs start as garbage) and equals the packet
     walk's, which has no such shortcut; the rays stopped short answer as misses, and
-    the nearest hits of a sample equal brute force. The bunny is walked a ray at a time,
-    a 120k-face terrain (above INTERLEAVE_BYTES) eight rays in turn."""
+    the nearest hits of a sample equal brute force. A 30k-face terrain is walked a ray
+    at a time, a 120k-face terrain (above INTERLEAVE_BYTES) eight rays in turn."""
     from hsr.algorithms.bvh.packets import trace_packets
     from hsr.algorithms.bvh.walk import trace_range
 

@@ -78,7 +78,8 @@ ROW_VALUES, BLOCK_VALUES = 9, 9 * QUAD
 # are bound by their instructions, which the blocks' vector reads cut. A larger one
 # keeps rows: its walks wait on memory, and a leaf of rows spans fewer cache lines (a
 # leaf's blocks hold other leaves' slots too). (Measurements: docs/history.md, "Ray
-# core".) The interleaved walk's threshold (walk.INTERLEAVE_BYTES) is the same.
+# core".) The interleaved walk's threshold (walk.INTERLEAVE_BYTES) is the same on an AMD
+# CPU, half of it on an Intel one.
 BLOCKS_BYTES = 8 << 20
 
 

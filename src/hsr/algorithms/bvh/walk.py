@@ -42,7 +42,8 @@ from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import next_box, stack_size, walk_stack
 from .triangle import intersect, ray_frame
 
-__all__ = ["SLOTS", "INTERLEAVE_BYTES", "trace_range"]
+__all__ = ["SLOTS", "INTERLEAVE_BY_VENDOR", "INTERLEAVE_BYTES", "interleave_bytes",
+           "trace_range"]
 
 # Rays one thread walks at once (trace_range): a walk is a chain of memory reads, each
 # waiting on the one before, and past the cache each costs a trip to the last-level
@@ -50,9 +51,26 @@ __all__ = ["SLOTS", "INTERLEAVE_BYTES", "trace_range"]
 SLOTS = 8
 
 # Scenes whose corners and nodes fit in this are walked a ray at a time, to its end:
-# their reads come from the cache, and switching rays costs more than it hides.
-# (Measurements: docs/history.md, "Ray core".)
-INTERLEAVE_BYTES = 8 << 20
+# their reads come from the cache, and switching rays costs more than it hides. Where
+# that stops holding is the CPU family's (its caches' latency), measured on each; others
+# take the first. (Measurements: docs/history.md, "Ray core".)
+INTERLEAVE_BY_VENDOR = {"AuthenticAMD": 8 << 20, "GenuineIntel": 4 << 20}
+
+
+def interleave_bytes(cpuinfo: str = "/proc/cpuinfo") -> int:
+    """:data:`INTERLEAVE_BY_VENDOR`'s threshold for this machine's CPU (its ``vendor_id``
+    in ``cpuinfo``), the AMD one where the vendor is not listed or cannot be read."""
+    try:
+        with open(cpuinfo) as fh:
+            vendor = next((line.split(":", 1)[1].strip() for line in fh
+                           if line.startswith("vendor_id")), "")
+    except OSError:
+        vendor = ""
+    return INTERLEAVE_BY_VENDOR.get(vendor, INTERLEAVE_BY_VENDOR["AuthenticAMD"])
+
+
+# This machine's (a constant of the compiled walk; Numba's cache is per CPU).
+INTERLEAVE_BYTES = interleave_bytes()
 
 # The columns of trace_range's slot state: float64 ...
 (_F_OX, _F_OY, _F_OZ, _F_IX, _F_IY, _F_IZ, _F_SX, _F_SY, _F_SZ, _F_OKX, _F_OKY, _F_OKZ,
