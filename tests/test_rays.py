@@ -998,15 +998,14 @@ def test_the_lane_keys_sort_like_python_and_round_entries_down(width):
     bound)."""
     from numba import njit
 
-    from hsr.algorithms.simd import float32_bits, float_bits, min_key8, sort_keys8
+    from hsr.algorithms.simd import float_bits, min_key8, sort_keys8
 
     real, whole = (np.float32, np.int32) if width == 32 else (np.float64, np.int64)
 
     @njit
     def keys(e, out):
         for lane in range(8):
-            out[lane] = (float32_bits(e[lane]) if width == 32 else float_bits(e[lane])
-                         ) & ~7 | lane
+            out[lane] = float_bits(e[lane]) & ~7 | lane  # (e's width: 32 or 64 bits)
         least = min_key8(out)  # (the walk takes its next box from it before sorting)
         sort_keys8(out)
         if least != out[0]:
@@ -1042,14 +1041,14 @@ def _pruning_rule():
 
     from hsr.algorithms.bvh.boxes import above32, below32
     from hsr.algorithms.bvh.stack import bound_key
-    from hsr.algorithms.simd import float32_bits
+    from hsr.algorithms.simd import float_bits
 
     @njit
     def rule(entry, bound, lane):
         low = below32(entry)
-        return (low, above32(bound), float32_bits(low) & ~7 | lane, bound_key(bound),
-                bound_key(-0.0), float32_bits(below32(np.inf)),
-                float32_bits(below32(1e300)) | 7)
+        return (low, above32(bound), float_bits(low) & ~7 | lane, bound_key(bound),
+                bound_key(-0.0), float_bits(below32(np.inf)),
+                float_bits(below32(1e300)) | 7)
 
     return rule
 

@@ -23,7 +23,7 @@ What it exports, by use:
 - a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once) and
   :func:`leaf_filter4_rays` (four rays from one origin);
 - ordering and bits: :func:`min_key8`, :func:`sort_keys8`, :func:`lowest_bit`,
-  :func:`bit_count`, :func:`float_bits`, :func:`float32_bits`, :func:`next_float32`;
+  :func:`bit_count`, :func:`float_bits`, :func:`next_float32`;
 - the build: :func:`grow_box` (a bin's box grown by a face's);
 - memory: :func:`prefetch` (a hint, never a change of result) and :func:`borrowed` (a
   view without reference counts, for the walks' loops).
@@ -39,8 +39,8 @@ from numba.extending import intrinsic
 
 __all__ = ["NODE_BYTES", "box_keys8", "box_mask8", "record_words", "packet_keys8",
            "packet_keys8_shared", "leaf_filter4", "leaf_filter4_rays", "min_key8",
-           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "float32_bits",
-           "next_float32", "grow_box", "prefetch", "borrowed"]
+           "sort_keys8", "lowest_bit", "bit_count", "float_bits", "next_float32", "grow_box",
+           "prefetch", "borrowed"]
 
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -653,24 +653,17 @@ def bit_count(typingctx, x):
 
 @intrinsic
 def float_bits(typingctx, x):
-    """The IEEE bits of a float64 as an int64 (for a value >= 0 their integer order is
-    the values' order; see :func:`sort_keys8`)."""
-    sig = types.int64(types.float64)
+    """The IEEE bits of a float64, or of a float32 (its 32 bits, sign-extended), as an
+    int64: for a value >= 0 their integer order is the values' order (the keys of
+    :func:`sort_keys8`, float64's in the packets, float32's in :func:`box_keys8`)."""
+    if x not in (types.float32, types.float64):
+        return None
+    sig = types.int64(x)
 
     def codegen(context, builder, sig, args):
-        return builder.bitcast(args[0], ir.IntType(64))
-
-    return sig, codegen
-
-
-@intrinsic
-def float32_bits(typingctx, x):
-    """The IEEE bits of a float32 as an int64 (the int32 bits sign-extended: for a value
-    >= 0 their integer order is the values' order, as :func:`box_keys8`'s keys)."""
-    sig = types.int64(types.float32)
-
-    def codegen(context, builder, sig, args):
-        return builder.sext(builder.bitcast(args[0], _I32), _I64)
+        if sig.args[0] == types.float32:
+            return builder.sext(builder.bitcast(args[0], _I32), _I64)
+        return builder.bitcast(args[0], _I64)
 
     return sig, codegen
 

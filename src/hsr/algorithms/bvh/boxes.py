@@ -10,7 +10,7 @@ import sys
 import numpy as np
 from numba import njit
 
-from ..simd import SLACK, SLACK_ABS, float32_bits, float_bits
+from ..simd import SLACK, SLACK_ABS, float_bits
 from .layout import LANES
 
 __all__ = ["inverse_direction", "box_reach", "box_frame", "box_bound", "slack_bound",
@@ -112,8 +112,9 @@ def below32(x):
 @njit(cache=True, nogil=True, inline="always")
 def above32(x):
     """A float32 at least ``x`` (>= 0, or -0.0) unless ``x`` is above the largest float32,
-    which it then is: :func:`below32`'s margins the other way, without a branch."""
-    return np.float32(min(x * (1.0 + 4.0 * _U32) + _TINY32, FLOAT32_MAX))
+    which it then is: :func:`_up32` of ``x`` raised by float32's least normal, so that the
+    rounding below it (absolute) cannot take it under ``x`` either."""
+    return _up32(x + _TINY32)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -165,7 +166,7 @@ def careful_keys8(box, w, ox, oy, oz, inv_dx, inv_dy, inv_dz, bound, keys):
         # The key at most the exact entry (the walk prunes by it; e may be a few
         # roundings above). An entry beyond float32's range keeps the largest float32,
         # still before the missed lanes' +inf.
-        keys[lane] = float32_bits(below32(max((e - SLACK_ABS) / SLACK, 0.0))) & ~7 | lane
+        keys[lane] = float_bits(below32(max((e - SLACK_ABS) / SLACK, 0.0))) & ~7 | lane
         mask |= (e < np.inf) << lane
     return mask
 

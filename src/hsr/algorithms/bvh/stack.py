@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..simd import float32_bits
+from ..simd import float_bits
 from .boxes import above32
 from .layout import LANES
 
@@ -41,7 +41,7 @@ def bound_key(bound):
     whose entry part (``key & ~7``) is at most the bound's float32, whatever its lane
     bits, so it passes; the bits of the bound itself failed the keys of lanes 1 to 7
     entered at 0 when a hit at t = 0 (a ray from a vertex) had made the bound 0."""
-    return float32_bits(above32(bound)) | 7
+    return float_bits(above32(bound)) | 7
 
 
 @njit(cache=True, nogil=True, inline="always")
