@@ -1356,6 +1356,33 @@ def test_bad_rays_in_a_coherent_query_raise_only_the_error():
             rays.cast(origins, directions)
 
 
+def test_coherent_rays_that_miss_along_an_axis_warn_nothing(models_dir):
+    """Camera-like rays from one point, half of them missing with a zero direction
+    component: the footprint estimate that chooses their walk (which casts a sample of
+    them) must not multiply a miss's infinite distance by that zero (NumPy's "invalid
+    value" warning reached the user), and the answers equal the brute force's."""
+    import warnings
+
+    cow = hsr.load(os.path.join(models_dir, "cow.obj"))
+    rays = hsr.RayScene(cow)
+    n = 4096
+    origins = np.tile([0.0, 0.0, 10.0], (n, 1))
+    directions = np.zeros((n, 3))
+    directions[:, 0] = np.linspace(-0.02, 0.02, n)
+    directions[:, 2] = -1.0
+    directions[n // 2:, 0] = 0.0  # along the axis past the model: they miss
+    directions[n // 2:, 1] = np.linspace(1.0, 1.01, n - n // 2)
+    directions[n // 2:, 2] = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        hits = rays.cast(origins, directions)
+    expected_t, expected_face, _, _ = brute_force(cow.positions[cow.faces], origins,
+                                                  directions)
+    assert (hits.face_id[n // 2:] == -1).all() and (hits.face_id[:n // 2] >= 0).any()
+    np.testing.assert_array_equal(hits.face_id, expected_face)
+    np.testing.assert_allclose(hits.t, expected_t, rtol=1e-9)
+
+
 def test_float32_vertices_keep_float32_corners_and_every_answer(bunny):
     """A scene whose vertices are all float32 values (as binary PLY, STL and glTF give
     them) keeps its BVH corners in float32; every query and the ray caster (with back

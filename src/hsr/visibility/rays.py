@@ -321,7 +321,10 @@ class RayScene:
         whole = (face.reshape(-1, 4) >= 0).all(axis=1)
         if not whole.any():
             return 0.0
-        points = (o + t[:, None] * d).reshape(-1, 4, 3)[whole]
+        # Only the runs whose rays all hit: a miss's t is inf, and inf times a zero
+        # direction component is NaN (and NumPy's warning).
+        points = (o.reshape(-1, 4, 3)[whole]
+                  + t.reshape(-1, 4)[whole][..., None] * d.reshape(-1, 4, 3)[whole])
         spacing = np.linalg.norm(points[:, 3] - points[:, 0], axis=1) / 3
         first = d.reshape(-1, 4, 3)[whole, 0]
         cosine = np.abs(np.einsum("rc,rc->r", normal.reshape(-1, 4, 3)[whole, 0], first)

@@ -24,11 +24,9 @@ from .hits import (
     COUNT,
     LARGEST,
     NEAREST,
-    RECORD_AHEAD,
     check_rays,
     counted,
     fetch_box,
-    fetch_slot,
     finish_list,
     hit_record,
     in_interval,
@@ -160,12 +158,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     # direction x, y, z, pad.
     slot_box = np.empty((SLOTS, 7), dtype=np.float32)
     tests = 0
-    # The queries' nearest hits get an object and a normal (the pass after the walk):
-    # the rays that hit are listed for it, with the slot of each one's hit.
+    # The queries' nearest hits get an object and a normal as their walks end.
     records = mode == NEAREST and raster is None
-    hit_rays = np.empty(hi - lo if records else 0, dtype=np.int64)
-    hit_slots = np.empty(hi - lo if records else 0, dtype=np.int64)
-    n_hits = 0
     next_ray, busy = lo, 0
     if leaf_face.shape[0] == 0:  # no faces: every ray misses
         for i in range(lo, hi):
@@ -403,21 +397,16 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 fetch_box(node_box, tris, leaf_face, ref, n,
                           mode == NEAREST or lists is not None)
                 continue
-            # The ray's answer; a hit's object and normal come in the pass below.
-            # (Written out here: as a function taking the arrays, even inlined, it took
-            # 70 ns a ray.)
+            # The ray's answer, and a hit's object and normal while its corners are in
+            # cache. (Written out here: as a function taking the arrays, even inlined, it
+            # took 70 ns a ray. Measurements: docs/history.md, "Ray core".)
             if mode == NEAREST:
                 out_t[i] = slot_f[s, _F_T]
                 out_face[i] = slot_i[s, _I_FACE]
                 out_uv[i, 0], out_uv[i, 1] = slot_f[s, _F_U], slot_f[s, _F_V]
                 if records:
-                    if slot_i[s, _I_SLOT] >= 0:
-                        hit_rays[n_hits] = i
-                        hit_slots[n_hits] = slot_i[s, _I_SLOT]
-                        n_hits += 1
-                    else:
-                        out_object[i] = -1
-                        out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+                    hit_record(tris, slot_i[s, _I_SLOT], out_face[i], face_offsets,
+                               out_object, out_normal, i)
             elif lists is None:
                 out_count[i] = slot_i[s, _I_COUNT]
             else:
@@ -427,18 +416,6 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             busy -= 1
         if busy == 0 and next_ray == hi:
             break
-    # Each hit's object and normal in a pass of its own, over the hits alone: inside
-    # the walk's loop this code slowed it.
-    # (Measurements: docs/history.md, "Ray core".)
-    if records:
-        for j in range(n_hits):
-            # The corners of the hit RECORD_AHEAD hits on are fetched meanwhile: rays
-            # that each hit a triangle of their own find it out of cache by now.
-            if j + RECORD_AHEAD < n_hits:
-                fetch_slot(tris, hit_slots[j + RECORD_AHEAD])
-            i = hit_rays[j]
-            hit_record(tris, hit_slots[j], out_face[i], face_offsets, out_object, out_normal,
-                       i)
     if lists is not None:
         list_records(lists[lo], lists[hi], tris, face_offsets, out_face, out_object,
                      out_normal)
