@@ -111,8 +111,11 @@ def costs(callgrind_out, start, end):
 
 
 def disassembly(code, start):
-    """{address: instruction text} of the dumped code, or {} without objdump."""
+    """{address: instruction text} of the dumped code, or {} without objdump (said once
+    on stderr: the tables then lack the blocks' code)."""
     if shutil.which("objdump") is None:
+        print("profile_walk.py: no objdump (apt-get install binutils): the blocks' code "
+              "is left out", file=sys.stderr)
         return {}
     text = subprocess.run(["objdump", "-D", "-b", "binary", "-m", "i386:x86-64",
                            f"--adjust-vma={start:#x}", code], capture_output=True,
