@@ -111,8 +111,8 @@ def costs(callgrind_out, start, end):
 
 
 def disassembly(code, start):
-    """{address: instruction text} of the dumped code, or {} without objdump (said once
-    on stderr: the tables then lack the blocks' code)."""
+    """{address: instruction text} of the dumped code, or {} without objdump (said on
+    stderr: the tables then lack the blocks' code)."""
     if shutil.which("objdump") is None:
         print("profile_walk.py: no objdump (apt-get install binutils): the blocks' code "
               "is left out", file=sys.stderr)

@@ -323,10 +323,10 @@ class RayScene:
             return 0.0
         # Only the runs whose rays all hit: a miss's t is inf, and inf times a zero
         # direction component is NaN (and NumPy's warning).
-        points = (o.reshape(-1, 4, 3)[whole]
-                  + t.reshape(-1, 4)[whole][..., None] * d.reshape(-1, 4, 3)[whole])
+        run_d = d.reshape(-1, 4, 3)[whole]
+        points = o.reshape(-1, 4, 3)[whole] + t.reshape(-1, 4)[whole][..., None] * run_d
         spacing = np.linalg.norm(points[:, 3] - points[:, 0], axis=1) / 3
-        first = d.reshape(-1, 4, 3)[whole, 0]
+        first = run_d[:, 0]
         cosine = np.abs(np.einsum("rc,rc->r", normal.reshape(-1, 4, 3)[whole, 0], first)
                         ) / np.linalg.norm(first, axis=1)
         footprint = spacing ** 2 / np.maximum(cosine, 0.1)
