@@ -876,7 +876,7 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
     from numba import njit
 
     from hsr.algorithms.bvh.boxes import box_bound, box_frame, careful_keys8, slack_bound
-    from hsr.algorithms.bvh.stack import next_box
+    from hsr.algorithms.bvh.stack import bound_key, next_box
     from hsr.algorithms.simd import box_keys8, packet_keys8
 
     @njit
@@ -902,7 +902,8 @@ def test_the_box_test_never_misses_a_box_the_exact_ray_meets():
                               np.empty(8, dtype=np.int64))
         popped = 0
         for j in range(2):
-            popped += next_box(stack[0], stack[1], stack_t[j:j + 1], 1, bound, 0)[3] << j
+            popped += next_box(stack[0], stack[1], stack_t[j:j + 1], 1, bound_key(bound),
+                               0)[3] << j
         # The packet walk's pop keeps a ray's entry within the slack of its bound.
         popped += (entries[0, 0] <= slack_bound(bound)) << 2
         return fast & 1, careful & 1, packet & 1, popped, fits

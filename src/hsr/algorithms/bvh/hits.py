@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from ..simd import prefetch
-from .layout import NODE_WORDS, ROW_VALUES, slot_row
+from .layout import NODE_WORDS, ROW_VALUES, nowrap, slot_row
 from .triangle import face_normal, owns
 
 __all__ = ["NEAREST", "ANY", "COUNT", "ALL", "FIRST", "LARGEST", "RECORD_AHEAD",
@@ -169,22 +169,23 @@ def list_records(first, last, tris, face_offsets, hit_face, hit_object, hit_norm
 def hit_record(tris, k, f, face_offsets, out_object, out_normal, i):
     """The object and the unit normal (as wound) of the hit in slot ``k`` (face ``f``),
     or -1 and 0 for a miss (k < 0)."""
+    at = nowrap(i)  # (no negative-index wraparound)
     if k < 0:
-        out_object[i] = -1
-        out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+        out_object[at] = -1
+        out_normal[at, 0] = out_normal[at, 1] = out_normal[at, 2] = 0.0
         return
     # The instance: the last offset at or below f (binary search).
     a, b = 0, face_offsets.shape[0] - 1
     while b - a > 1:
         m = (a + b) // 2
-        if face_offsets[m] <= f:
+        if face_offsets[nowrap(m)] <= f:
             a = m
         else:
             b = m
-    out_object[i] = a
+    out_object[at] = a
     nx, ny, nz = face_normal(tris, k)
     norm = np.sqrt(nx * nx + ny * ny + nz * nz)
-    out_normal[i, 0], out_normal[i, 1], out_normal[i, 2] = nx / norm, ny / norm, nz / norm
+    out_normal[at, 0], out_normal[at, 1], out_normal[at, 2] = nx / norm, ny / norm, nz / norm
 
 
 @njit(cache=True, nogil=True)
@@ -222,11 +223,12 @@ def plausible_ray(origins, directions, t_min, t_max, i, per_ray):
     """Whether ray ``i`` cannot be bad, without branches: a sum of the six coordinates
     is NaN or infinite when one of them is (x - x is then NaN); a sum that overflows is
     a false alarm, which :func:`check_rays`' exact tests then clear."""
-    s = (origins[i, 0] + origins[i, 1] + origins[i, 2] + directions[i, 0]
-         + directions[i, 1] + directions[i, 2])
-    zero = (directions[i, 0] == 0.0) & (directions[i, 1] == 0.0) & (directions[i, 2] == 0.0)
-    t0 = t_min[i if per_ray[0] else 0]
-    t1 = t_max[i if per_ray[1] else 0]
+    at = nowrap(i)  # (no negative-index wraparound)
+    s = (origins[at, 0] + origins[at, 1] + origins[at, 2] + directions[at, 0]
+         + directions[at, 1] + directions[at, 2])
+    zero = (directions[at, 0] == 0.0) & (directions[at, 1] == 0.0) & (directions[at, 2] == 0.0)
+    t0 = t_min[nowrap(i if per_ray[0] else 0)]
+    t1 = t_max[nowrap(i if per_ray[1] else 0)]
     return not (((s - s) != 0.0) | zero | ((t0 - t0) != 0.0) | (t0 < 0.0) | (t1 != t1)
                 | (t0 > t1))
 

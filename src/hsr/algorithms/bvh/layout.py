@@ -20,7 +20,7 @@ from ..simd import next_float32, record_words
 
 __all__ = ["LANES", "NODE_WORDS", "REF", "COUNT_AT", "HOT_NODES", "QUAD", "ROW_VALUES",
            "BLOCK_VALUES", "BLOCKS_BYTES", "node_records", "child", "set_child",
-           "corner_layout", "corner_rows", "corner_blocks", "slot_corners", "corner",
+           "nowrap", "corner_layout", "corner_rows", "corner_blocks", "slot_corners", "corner",
            "set_corner", "leaf_base", "slot_row", "quad_lanes", "down32", "up32"]
 
 # Children per node: the eight-box test is one AVX-512 vector, and fewer nodes are walked.
@@ -116,6 +116,14 @@ def slot_corners(tris: np.ndarray, slots) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def nowrap(i):
+    """Index ``i`` (>= 0) as unsigned: Numba then reads ``a[i]`` without the wraparound
+    of a negative index (two instructions a read; the walks' indices are never
+    negative)."""
+    return np.uint64(i)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _shift(tris):
     """log2 of the slots a row of ``tris`` holds: 2 in blocks, 0 in rows (read from the
     array's width, without a branch)."""
@@ -125,9 +133,9 @@ def _shift(tris):
 @njit(cache=True, nogil=True, inline="always")
 def _at(tris, k, j, a):
     """Where coordinate ``a`` of corner ``j`` of slot ``k`` lies in ``tris``: (row,
-    column), in either layout."""
+    column), in either layout (:func:`nowrap`)."""
     shift = _shift(tris)
-    return k >> shift, ((3 * j + a) << shift) + (k & ((1 << shift) - 1))
+    return nowrap(k >> shift), nowrap(((3 * j + a) << shift) + (k & ((1 << shift) - 1)))
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -9,7 +9,7 @@ from numba import njit
 
 from ..simd import float_bits
 from .boxes import above32
-from .layout import LANES
+from .layout import LANES, nowrap
 
 __all__ = ["stack_size", "walk_stack", "bound_key", "next_box"]
 
@@ -45,16 +45,17 @@ def bound_key(bound):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def next_box(stack_ref, stack_count, stack_t, top, bound, bottom):
+def next_box(stack_ref, stack_count, stack_t, top, limit, bottom):
     """The next box still worth entering from the stack (slots ``bottom .. top - 1``;
     one array can hold several rays' stacks): ``(ref, n, top, found)``;
-    boxes entered beyond ``bound`` (a hit nearer than them has been found since they
-    were pushed) are dropped. The stack holds entries as keys of
+    boxes entered beyond the walk's bound (a hit nearer than them has been found since
+    they were pushed) are dropped: those whose key is above ``limit``, the bound's
+    :func:`bound_key`. The stack holds entries as keys of
     :func:`hsr.algorithms.simd.sort_keys8`, each at most the box's exact entry (the box
-    tests make them so), compared with :func:`bound_key`."""
-    limit = bound_key(bound)
+    tests make them so)."""
     while top > bottom:
         top -= 1
-        if stack_t[top] <= limit:
-            return np.int64(stack_ref[top]), np.int64(stack_count[top]), top, True
+        up = nowrap(top)  # (no negative-index wraparound)
+        if stack_t[up] <= limit:
+            return np.int64(stack_ref[up]), np.int64(stack_count[up]), top, True
     return np.int64(0), np.int64(0), top, False

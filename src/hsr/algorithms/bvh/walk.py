@@ -35,9 +35,9 @@ from .hits import (
     nearer,
     plausible_ray,
 )
-from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, quad_lanes
+from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, nowrap, quad_lanes
 from .ranking import clip_zw, depth32, ranks_before, t_bound
-from .stack import next_box, stack_size, walk_stack
+from .stack import bound_key, next_box, stack_size, walk_stack
 from .triangle import intersect, ray_frame
 
 __all__ = ["SLOTS", "INTERLEAVE_BY_VENDOR", "INTERLEAVE_BYTES", "interleave_bytes",
@@ -76,7 +76,7 @@ INTERLEAVE_BYTES = interleave_bytes()
 
 # ... and int64 (_I_SLOT: the BVH slot of the best hit, _I_FACE its face).
 (_I_RAY, _I_REF, _I_N, _I_TOP, _I_FACE, _I_SLOT, _I_COUNT, _I_FRAMED, _I_CAREFUL, _I_KX,
- _I_KY, _I_KZ, _I_COLUMNS) = range(13)
+ _I_KY, _I_KZ, _I_LIMIT, _I_COLUMNS) = range(14)
 
 
 # error_model "numpy": IEEE division, without the zero test Numba adds to each division
@@ -155,21 +155,23 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     slot_f = np.empty((SLOTS, _F_COLUMNS))
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
     # ... and the ray in float32 for the box tests (box_frame): origin x, y, z, inverse
-    # direction x, y, z, pad.
-    slot_box = np.empty((SLOTS, 7), dtype=np.float32)
+    # direction x, y, z, pad, and the bound as the test takes it (box_bound; _I_LIMIT
+    # holds it as the stack's key, bound_key): both change only with the bound, at a hit.
+    slot_box = np.empty((SLOTS, 8), dtype=np.float32)
     tests = 0
     # The queries' nearest hits get an object and a normal as their walks end.
     records = mode == NEAREST and raster is None
     next_ray, busy = lo, 0
     if leaf_face.shape[0] == 0:  # no faces: every ray misses
         for i in range(lo, hi):
+            at = nowrap(i)
             if mode == NEAREST:
-                out_t[i], out_face[i], out_object[i] = np.inf, -1, -1
-                out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
+                out_t[at], out_face[at], out_object[at] = np.inf, -1, -1
+                out_uv[at, 0], out_uv[at, 1] = 0.0, 0.0
                 if records:
-                    out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+                    out_normal[at, 0] = out_normal[at, 1] = out_normal[at, 2] = 0.0
             elif lists is None:  # (a list is empty already)
-                out_count[i] = 0
+                out_count[at] = 0
         next_ray = hi
     while True:
         for s in range(SLOTS):
@@ -181,6 +183,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if i < 0:  # a free slot takes the next ray, if there is one
                 while next_ray < hi:
                     i = next_ray
+                    at = nowrap(i)
                     # Each ray is checked as its slot takes it: its data is read here anyway.
                     # (Measurements: docs/history.md, "Ray core".)
                     if not plausible_ray(origins, directions, t_min, t_max, i, per_ray):
@@ -190,19 +193,19 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             return 0, problem, bad
                     next_ray += 1
                     if lists is not None:
-                        if lists[i + 1] == lists[i]:
+                        if lists[i + 1] == lists[at]:
                             i = -1  # nothing to list: the count found no hit
                             continue
-                    ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+                    ox, oy, oz = origins[at, 0], origins[at, 1], origins[at, 2]
                     # A ray parallel to an axis needs the slab test's NaN care (see
                     # open_slabs), one float32 cannot hold the float64 test.
                     inv_dx, inv_dy, inv_dz, careful = inverse_direction(
-                        directions[i, 0], directions[i, 1], directions[i, 2])
+                        directions[at, 0], directions[at, 1], directions[at, 2])
                     ox32, oy32, oz32, ix32, iy32, iz32, pad32, pad, fits = box_frame(
                         ox, oy, oz, inv_dx, inv_dy, inv_dz, reach)
                     careful = careful or not fits
                     # No box entered beyond the bound can hold a hit that matters.
-                    b = min(t_max[i if per_ray[1] else 0], LARGEST)
+                    b = min(t_max[nowrap(i if per_ray[1] else 0)], LARGEST)
                     # A ray that enters none of the root's boxes is answered before it takes
                     # a slot; one that enters starts its walk with this test's mask (and
                     # keys) instead of a second test.
@@ -218,12 +221,12 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     if root_mask != 0:
                         break
                     if mode == NEAREST:
-                        out_t[i], out_face[i], out_object[i] = np.inf, -1, -1
-                        out_uv[i, 0], out_uv[i, 1] = 0.0, 0.0
+                        out_t[at], out_face[at], out_object[at] = np.inf, -1, -1
+                        out_uv[at, 0], out_uv[at, 1] = 0.0, 0.0
                         if records:
-                            out_normal[i, 0] = out_normal[i, 1] = out_normal[i, 2] = 0.0
+                            out_normal[at, 0] = out_normal[at, 1] = out_normal[at, 2] = 0.0
                     elif lists is None:
-                        out_count[i] = 0
+                        out_count[at] = 0
                     i = -1
                 if i < 0:
                     continue
@@ -240,8 +243,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 slot_box[s, 3], slot_box[s, 4], slot_box[s, 5] = ix32, iy32, iz32
                 slot_box[s, 6], slot_f[s, _F_PAD] = pad32, pad
                 slot_f[s, _F_BOUND] = b
+                slot_box[s, 7], slot_i[s, _I_LIMIT] = box_bound(b, pad), bound_key(b)
                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
                 slot_f[s, _F_Z] = np.inf
+            at = nowrap(i)  # (its reads then skip the negative-index wraparound)
             ref, n, top = slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP]
             b = slot_f[s, _F_BOUND]
             ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
@@ -250,6 +255,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             ox32, oy32, oz32 = slot_box[s, 0], slot_box[s, 1], slot_box[s, 2]
             ix32, iy32, iz32 = slot_box[s, 3], slot_box[s, 4], slot_box[s, 5]
             pad32, pad = slot_box[s, 6], slot_f[s, _F_PAD]
+            bound32, limit = slot_box[s, 7], slot_i[s, _I_LIMIT]
             done = False
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
@@ -261,10 +267,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                              inv_dz, b, keys)
                     elif mode != NEAREST:  # (the entries unused: see below)
                         mask = box_mask8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
-                                         pad32, box_bound(b, pad))
+                                         pad32, bound32)
                     else:
                         mask = box_keys8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
-                                         pad32, box_bound(b, pad), keys)
+                                         pad32, bound32, keys)
                     # The ordered walk (Wald et al.'s nearest child first), written out here: as an
                     # inlined function taking the arrays, it paid a reference count per step.
                     # (Measurements: docs/history.md, "Ray core".)
@@ -284,8 +290,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             while rest != 0:
                                 other = lowest_bit(rest)
                                 rest &= rest - 1
-                                stack_ref[top], stack_count[top] = child(node_link, ref,
-                                                                         other)
+                                up = nowrap(top)
+                                stack_ref[up], stack_count[up] = child(node_link, ref, other)
                                 top += 1
                         else:
                             # The walk goes on into the nearest entered lane as soon
@@ -293,8 +299,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             # stack meanwhile, nearest first in keys[1 .. m].
                             m = bit_count(mask) - 1  # the entered lanes pushed
                             if m == 1:  # two: one comparison
-                                near = keys[lowest_bit(mask)]
-                                far = keys[lowest_bit(mask & (mask - 1))]
+                                near = keys[nowrap(lowest_bit(mask))]
+                                far = keys[nowrap(lowest_bit(mask & (mask - 1)))]
                                 keys[1] = max(near, far)
                                 lane = min(near, far) & 7
                             else:
@@ -303,16 +309,16 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                 # entered lanes lead (a missed lane sorts last, at +inf).
                                 sort_keys8(keys)
                             for j in range(m, 0, -1):
-                                stack_ref[top], stack_count[top] = child(node_link, ref,
-                                                                         keys[j] & 7)
-                                stack_t[top] = keys[j]
+                                up, key = nowrap(top), keys[nowrap(j)]
+                                stack_ref[up], stack_count[up] = child(node_link, ref, key & 7)
+                                stack_t[up] = key
                                 top += 1
                         ref, n = child(node_link, ref, lane)
                         if interleave and (n != 0 or ref >= HOT_NODES):
                             break
                         continue
                 else:  # a leaf: slots ref .. ref + n - 1
-                    dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+                    dx, dy, dz = directions[at, 0], directions[at, 1], directions[at, 2]
                     if slot_i[s, _I_FRAMED] == 0:
                         # Made at the first leaf: three of four random rays at the bunny
                         # reach none.
@@ -324,8 +330,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     kx, ky, kz = slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ]
                     sx, sy, sz = slot_f[s, _F_SX], slot_f[s, _F_SY], slot_f[s, _F_SZ]
                     okx, oky, okz = slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]
-                    t0 = t_min[i if per_ray[0] else 0]
-                    t1 = t_max[i if per_ray[1] else 0]
+                    t0 = t_min[nowrap(i if per_ray[0] else 0)]
+                    t1 = t_max[nowrap(i if per_ray[1] else 0)]
                     tests += n
                     end = ref + n
                     for base in range(leaf_base(tris, ref), end, QUAD):
@@ -351,14 +357,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                                         slot_i[s, _I_COUNT] += 1
                                         continue
                                     slot_i[s, _I_COUNT], b = listed(
-                                        mode, t, leaf_face[k], v, w, k, i, lists,
+                                        mode, t, leaf_face[nowrap(k)], v, w, k, i, lists,
                                         slot_i[s, _I_COUNT], b, out_t, out_face, out_uv,
                                         out_object)
                                     if b < 0.0:  # every hit the count found
                                         done = True
                                         break
                                 continue
-                            f = leaf_face[k]
+                            f = leaf_face[nowrap(k)]
                             if raster is not None:
                                 rank = raster[3]
                                 zc0, zc1, wc0, wc1 = clip_zw(rank, ox, oy, oz, dx, dy, dz)
@@ -378,14 +384,17 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             break
                     if done:
                         break
+                    # The bound may have shrunk (a nearer hit).
+                    bound32, limit = box_bound(b, pad), bound_key(b)
                 if mode == NEAREST:
-                    ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top, b,
-                                                    s * one_stack)
+                    ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top,
+                                                    limit, s * one_stack)
                 else:
                     walking = top > s * one_stack
                     if walking:
                         top -= 1
-                        ref, n = np.int64(stack_ref[top]), np.int64(stack_count[top])
+                        up = nowrap(top)
+                        ref, n = np.int64(stack_ref[up]), np.int64(stack_count[up])
                 if not walking:
                     done = True
                     break
@@ -394,6 +403,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             if not done:  # the next step reads memory likely not in cache: fetch it
                 slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP] = ref, n, top
                 slot_f[s, _F_BOUND] = b
+                slot_box[s, 7], slot_i[s, _I_LIMIT] = bound32, limit
                 fetch_box(node_box, tris, leaf_face, ref, n,
                           mode == NEAREST or lists is not None)
                 continue
@@ -401,14 +411,14 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             # cache. (Written out here: as a function taking the arrays, even inlined, it
             # took 70 ns a ray. Measurements: docs/history.md, "Ray core".)
             if mode == NEAREST:
-                out_t[i] = slot_f[s, _F_T]
-                out_face[i] = slot_i[s, _I_FACE]
-                out_uv[i, 0], out_uv[i, 1] = slot_f[s, _F_U], slot_f[s, _F_V]
+                out_t[at] = slot_f[s, _F_T]
+                out_face[at] = slot_i[s, _I_FACE]
+                out_uv[at, 0], out_uv[at, 1] = slot_f[s, _F_U], slot_f[s, _F_V]
                 if records:
-                    hit_record(tris, slot_i[s, _I_SLOT], out_face[i], face_offsets,
+                    hit_record(tris, slot_i[s, _I_SLOT], out_face[at], face_offsets,
                                out_object, out_normal, i)
             elif lists is None:
-                out_count[i] = slot_i[s, _I_COUNT]
+                out_count[at] = slot_i[s, _I_COUNT]
             else:
                 finish_list(i, lists, slot_i[s, _I_COUNT], out_t, out_face, out_uv,
                             out_object)
