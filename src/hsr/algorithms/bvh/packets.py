@@ -37,7 +37,7 @@ from .hits import (
     nearer,
     plausible_ray,
 )
-from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, quad_lanes, slot_row
+from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, nowrap, quad_lanes, slot_row
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import walk_stack
 from .triangle import intersect, ray_frame
@@ -168,19 +168,19 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                             lane = min_key8(keys) & 7
                             sort_keys8(keys)
                         for j in range(m, 0, -1):
-                            pushed = keys[j] & 7
-                            stack_ref[top], stack_count[top] = child(node_link, ref, pushed)
+                            pushed, up = keys[nowrap(j)] & 7, nowrap(top)
+                            stack_ref[up], stack_count[up] = child(node_link, ref, pushed)
                             # A box pushed is often walked next by another of the packet's
                             # rays: fetch it now.
                             # (Measurements: docs/history.md, "Ray core".)
-                            if stack_count[top] > 0 or stack_ref[top] >= HOT_NODES:
-                                fetch_box(node_box, tris, leaf_face, stack_ref[top],
-                                           stack_count[top], mode == NEAREST or lists is not None)
-                            stack_rays[top] = (mask >> (4 * pushed)) & 15
-                            stack_t[top, 0] = entries[0, pushed]
-                            stack_t[top, 1] = entries[1, pushed]
-                            stack_t[top, 2] = entries[2, pushed]
-                            stack_t[top, 3] = entries[3, pushed]
+                            if stack_count[up] > 0 or stack_ref[up] >= HOT_NODES:
+                                fetch_box(node_box, tris, leaf_face, stack_ref[up],
+                                           stack_count[up], mode == NEAREST or lists is not None)
+                            stack_rays[up] = (mask >> (4 * pushed)) & 15
+                            stack_t[up, 0] = entries[0, pushed]
+                            stack_t[up, 1] = entries[1, pushed]
+                            stack_t[up, 2] = entries[2, pushed]
+                            stack_t[up, 3] = entries[3, pushed]
                             top += 1
                     active = (mask >> (4 * lane)) & 15
                     ref, n = child(node_link, ref, lane)
@@ -247,13 +247,13 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
                                         count[r] += 1
                                         continue
                                     count[r], bound[r] = listed(
-                                        mode, t, leaf_face[k], v, w, k, first + r, lists,
-                                        count[r], bound[r], out_t, out_face, out_uv,
+                                        mode, t, leaf_face[nowrap(k)], v, w, k, first + r,
+                                        lists, count[r], bound[r], out_t, out_face, out_uv,
                                         out_object)
                                     if bound[r] < 0.0:  # every hit: done, as ANY
                                         break
                                 continue
-                            f = leaf_face[k]
+                            f = leaf_face[nowrap(k)]
                             if raster is not None:
                                 rank = raster[3]
                                 zc0, zc1, wc0, wc1 = clip_zw(rank, rays[0, r], rays[1, r],
@@ -274,14 +274,15 @@ def trace_packets(lo, hi, origins, directions, t_min, t_max, mode, raster, tris,
             walking = False
             while top > 0:
                 top -= 1
+                up = nowrap(top)  # (no negative-index wraparound)
                 keep = 0
                 for r in range(4):
                     # (Entries may lie a few roundings above the exact ones.)
-                    if (stack_rays[top] >> r) & 1 and stack_t[top, r] <= slack_bound(
+                    if (stack_rays[up] >> r) & 1 and stack_t[up, r] <= slack_bound(
                             bound[r]):
                         keep |= 1 << r
                 if keep != 0:
-                    ref, n, active = stack_ref[top], stack_count[top], np.int64(keep)
+                    ref, n, active = stack_ref[up], stack_count[up], np.int64(keep)
                     walking = True
                     break
         if mode != COUNT and best_k[3] >= 0:  # see PACKET_FETCH_AROUND

@@ -22,6 +22,7 @@ from .boxes import box_bound, box_frame, box_reach, careful_keys8, inverse_direc
 from .hits import (
     ANY,
     COUNT,
+    FIRST,
     LARGEST,
     NEAREST,
     check_rays,
@@ -35,7 +36,7 @@ from .hits import (
     nearer,
     plausible_ray,
 )
-from .layout import HOT_NODES, LANES, QUAD, child, leaf_base, nowrap, quad_lanes
+from .layout import HOT_NODES, LANES, QUAD, child, fetch_links, leaf_base, nowrap, quad_lanes
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import bound_key, next_box, stack_size, walk_stack
 from .triangle import intersect, ray_frame
@@ -156,7 +157,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     slot_i = np.full((SLOTS, _I_COLUMNS), -1, dtype=np.int64)
     # ... and the ray in float32 for the box tests (box_frame): origin x, y, z, inverse
     # direction x, y, z, pad, and the bound as the test takes it (box_bound; _I_LIMIT
-    # holds it as the stack's key, bound_key): both change only with the bound, at a hit.
+    # holds it as the stack's key, bound_key): both change only with the bound, at a
+    # hit, so are made once a leaf.
     slot_box = np.empty((SLOTS, 8), dtype=np.float32)
     tests = 0
     # The queries' nearest hits get an object and a normal as their walks end.
@@ -249,28 +251,30 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
             at = nowrap(i)  # (its reads then skip the negative-index wraparound)
             ref, n, top = slot_i[s, _I_REF], slot_i[s, _I_N], slot_i[s, _I_TOP]
             b = slot_f[s, _F_BOUND]
-            ox, oy, oz = slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ]
-            inv_dx, inv_dy, inv_dz = slot_f[s, _F_IX], slot_f[s, _F_IY], slot_f[s, _F_IZ]
             careful = slot_i[s, _I_CAREFUL] != 0
-            ox32, oy32, oz32 = slot_box[s, 0], slot_box[s, 1], slot_box[s, 2]
-            ix32, iy32, iz32 = slot_box[s, 3], slot_box[s, 4], slot_box[s, 5]
-            pad32, pad = slot_box[s, 6], slot_f[s, _F_PAD]
             bound32, limit = slot_box[s, 7], slot_i[s, _I_LIMIT]
+            # (The ray's origin, inverse direction and pad are read from the slot where
+            # they are used: held in locals, they were spilled and read back at each step.)
             done = False
             while True:
                 if n == 0:  # a wide node: walk on into its nearest entered box
+                    fetch_links(node_link, ref)
                     if root_mask != 0:
                         mask = root_mask  # (and keys hold its entries)
                         root_mask = 0
                     elif careful:
-                        mask = careful_keys8(node_box, ref, ox, oy, oz, inv_dx, inv_dy,
-                                             inv_dz, b, keys)
+                        mask = careful_keys8(node_box, ref, slot_f[s, _F_OX],
+                                             slot_f[s, _F_OY], slot_f[s, _F_OZ],
+                                             slot_f[s, _F_IX], slot_f[s, _F_IY],
+                                             slot_f[s, _F_IZ], b, keys)
                     elif mode != NEAREST:  # (the entries unused: see below)
-                        mask = box_mask8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
-                                         pad32, bound32)
+                        mask = box_mask8(node_box, ref, slot_box[s, 0], slot_box[s, 1],
+                                         slot_box[s, 2], slot_box[s, 3], slot_box[s, 4],
+                                         slot_box[s, 5], slot_box[s, 6], bound32)
                     else:
-                        mask = box_keys8(node_box, ref, ox32, oy32, oz32, ix32, iy32, iz32,
-                                         pad32, bound32, keys)
+                        mask = box_keys8(node_box, ref, slot_box[s, 0], slot_box[s, 1],
+                                         slot_box[s, 2], slot_box[s, 3], slot_box[s, 4],
+                                         slot_box[s, 5], slot_box[s, 6], bound32, keys)
                     # The ordered walk (Wald et al.'s nearest child first), written out here: as an
                     # inlined function taking the arrays, it paid a reference count per step.
                     # (Measurements: docs/history.md, "Ray core".)
@@ -325,7 +329,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         (slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ],
                          slot_f[s, _F_SX], slot_f[s, _F_SY], slot_f[s, _F_SZ],
                          slot_f[s, _F_OKX], slot_f[s, _F_OKY], slot_f[s, _F_OKZ]) = ray_frame(
-                            ox, oy, oz, dx, dy, dz)
+                            slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ], dx, dy, dz)
                         slot_i[s, _I_FRAMED] = 1
                     kx, ky, kz = slot_i[s, _I_KX], slot_i[s, _I_KY], slot_i[s, _I_KZ]
                     sx, sy, sz = slot_f[s, _F_SX], slot_f[s, _F_SY], slot_f[s, _F_SZ]
@@ -367,7 +371,9 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             f = leaf_face[nowrap(k)]
                             if raster is not None:
                                 rank = raster[3]
-                                zc0, zc1, wc0, wc1 = clip_zw(rank, ox, oy, oz, dx, dy, dz)
+                                zc0, zc1, wc0, wc1 = clip_zw(
+                                    rank, slot_f[s, _F_OX], slot_f[s, _F_OY], slot_f[s, _F_OZ],
+                                    dx, dy, dz)
                                 z = depth32(t, zc0, zc1, wc0, wc1, rank[8], rank[9])
                                 if ranks_before(z, f, slot_f[s, _F_Z], slot_i[s, _I_FACE],
                                                  raster[2]):
@@ -384,8 +390,8 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                             break
                     if done:
                         break
-                    # The bound may have shrunk (a nearer hit).
-                    bound32, limit = box_bound(b, pad), bound_key(b)
+                    if mode == NEAREST or mode == FIRST:  # (a hit may have lowered the bound)
+                        bound32, limit = box_bound(b, slot_f[s, _F_PAD]), bound_key(b)
                 if mode == NEAREST:
                     ref, n, top, walking = next_box(stack_ref, stack_count, stack_t, top,
                                                     limit, s * one_stack)
