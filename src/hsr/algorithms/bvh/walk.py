@@ -208,6 +208,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     careful = careful or not fits
                     # No box entered beyond the bound can hold a hit that matters.
                     b = min(t_max[nowrap(i if per_ray[1] else 0)], LARGEST)
+                    bound32 = box_bound(b, pad)  # (the root's test's, then the slot's)
                     # A ray that enters none of the root's boxes is answered before it takes
                     # a slot; one that enters starts its walk with this test's mask (and
                     # keys) instead of a second test.
@@ -216,10 +217,10 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                         break
                     if mode == NEAREST:
                         root_mask = box_keys8(node_box, root_ref, ox32, oy32, oz32, ix32,
-                                              iy32, iz32, pad32, box_bound(b, pad), keys)
+                                              iy32, iz32, pad32, bound32, keys)
                     else:
                         root_mask = box_mask8(node_box, root_ref, ox32, oy32, oz32, ix32,
-                                              iy32, iz32, pad32, box_bound(b, pad))
+                                              iy32, iz32, pad32, bound32)
                     if root_mask != 0:
                         break
                     if mode == NEAREST:
@@ -245,7 +246,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                 slot_box[s, 3], slot_box[s, 4], slot_box[s, 5] = ix32, iy32, iz32
                 slot_box[s, 6], slot_f[s, _F_PAD] = pad32, pad
                 slot_f[s, _F_BOUND] = b
-                slot_box[s, 7], slot_i[s, _I_LIMIT] = box_bound(b, pad), bound_key(b)
+                slot_box[s, 7], slot_i[s, _I_LIMIT] = bound32, bound_key(b)
                 slot_f[s, _F_T], slot_f[s, _F_U], slot_f[s, _F_V] = np.inf, 0.0, 0.0
                 slot_f[s, _F_Z] = np.inf
             at = nowrap(i)  # (its reads then skip the negative-index wraparound)
