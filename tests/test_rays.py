@@ -773,6 +773,69 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, lay
     assert kept > 200 and cleared > 200
 
 
+@pytest.mark.parametrize("layout", ["rows", "blocks"])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_the_four_triangle_test_gives_the_scalar_tests_values_bit_for_bit(dtype, layout):
+    """hsr.algorithms.simd.leaf_test4 (the whole watertight test in four vector lanes,
+    which the interleaved walk takes in place of the scalar test) against the scalar
+    test (triangle.intersect, no culling) on the same corners: its bits are
+    leaf_filter4's, and for each lane kept, t = row 0 / det and the barycentrics =
+    rows 1 .. 3 / det are the scalar test's (t, u, v, w) bit for bit. Both layouts,
+    float64 and float32 corners, leaves of one to four slots anywhere in their block,
+    rays at corners, edges and insides, degenerate triangles."""
+    from numba import njit
+
+    from hsr.algorithms.bvh.triangle import intersect as _intersect
+    from hsr.algorithms.bvh.triangle import ray_frame
+    from hsr.algorithms.simd import leaf_filter4, leaf_test4
+
+    @njit(error_model="numpy")  # (a missed lane's det may be zero)
+    def run(corners, base, k0, n, o, d):
+        kx, ky, kz, sx, sy, sz, okx, oky, okz = ray_frame(o[0], o[1], o[2], d[0], d[1], d[2])
+        lanes = ((1 << n) - 1) << (k0 - base)
+        out = np.full((5, 4), np.nan)
+        mask = leaf_test4(corners, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, sz, out)
+        filtered = leaf_filter4(corners, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy)
+        got, want = np.zeros((n, 4)), np.zeros((n, 4))
+        for i in range(n):
+            t, u, v, w = _intersect(corners, k0 + i, okx, oky, okz, kx, ky, kz, sx, sy, sz,
+                                    0, True, d[0], d[1], d[2])
+            want[i] = t, u, v, w
+            lane = k0 - base + i
+            det = out[4, lane]
+            got[i] = (out[0, lane] / det, out[1, lane] / det, out[2, lane] / det,
+                      out[3, lane] / det)
+        return mask, filtered, got, want
+
+    rng = np.random.default_rng(18)
+    tris = rng.normal(size=(4000, 3, 3))
+    tris[::9, 2] = tris[::9, 0] + 0.5 * (tris[::9, 1] - tris[::9, 0])  # degenerate
+    tris = tris.astype(dtype)
+    corners = corner_blocks_of(tris) if layout == "blocks" else tris.reshape(-1, 9)
+    hits = 0
+    for trial in range(800):
+        n = 1 + trial % 4
+        if layout == "blocks":
+            base = 4 * int(rng.integers(0, len(tris) // 4))
+            k0 = base + int(rng.integers(0, 5 - n))
+        else:
+            base = k0 = int(rng.integers(0, len(tris) - n + 1))
+        o = rng.normal(size=3) * 3
+        target = tris[k0 + trial % n].astype(np.float64)
+        aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
+        d = aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
+        mask, filtered, got, want = run(corners, base, k0, n, o, d)
+        assert mask == filtered
+        for i in range(n):
+            if (mask >> (k0 - base + i)) & 1:
+                assert want[i, 0] != -1.0  # (no culling: a kept lane is a hit)
+                np.testing.assert_array_equal(got[i].view(np.int64), want[i].view(np.int64))
+                hits += 1
+            else:
+                assert want[i, 0] == -1.0
+    assert hits > 200
+
+
 def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny):
     """The build keeps a scene's corners in blocks of four slots when corners and nodes
     fit in layout.BLOCKS_BYTES (the bunny), else in rows (a 120k-face terrain); either

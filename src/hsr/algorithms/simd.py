@@ -20,7 +20,8 @@ What it exports, by use:
   :func:`box_mask8` (one ray, the mask alone), :func:`record_words` (a node's
   references), :func:`packet_keys8` and
   :func:`packet_keys8_shared` (four rays; four from one origin);
-- a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once) and
+- a leaf's triangles: :func:`leaf_filter4` (one ray, four triangles at once),
+  :func:`leaf_test4` (the same with the rest of the test's values) and
   :func:`leaf_filter4_rays` (four rays from one origin);
 - ordering and bits: :func:`min_key8`, :func:`sort_keys8`, :func:`lowest_bit`,
   :func:`bit_count`, :func:`float_bits`, :func:`next_float32`;
@@ -38,7 +39,7 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 __all__ = ["NODE_BYTES", "box_keys8", "box_mask8", "record_words", "packet_keys8",
-           "packet_keys8_shared", "leaf_filter4", "leaf_filter4_rays", "min_key8",
+           "packet_keys8_shared", "leaf_filter4", "leaf_test4", "leaf_filter4_rays", "min_key8",
            "sort_keys8", "lowest_bit", "bit_count", "float_bits", "next_float32", "grow_box",
            "prefetch", "borrowed"]
 
@@ -441,11 +442,11 @@ def _leaf_offsets(context, builder, tris_type, array, base_v, lanes_v, axes, ori
     return [[builder.fsub(values[a][j], splat[a]) for j in range(3)] for a in range(3)]
 
 
-def _leaf_hits(builder, offsets, sx, sy, lanes):
-    """Bit i set unless the watertight test rules slot i out (see :func:`leaf_filter4`),
-    for the ray of shear ``sx``, ``sy`` (scalars) and the corners less its origin
-    ``offsets`` (:func:`_leaf_offsets`), of the slots in ``lanes`` (an i64 mask); an
-    i64 of four bits."""
+def _leaf_edges(builder, offsets, sx, sy):
+    """The watertight test's 2-D edge values u, v, w and their sum det, four slots'
+    ``<4 x double>`` each, for the ray of shear ``sx``, ``sy`` (scalars) and the corners
+    less its origin ``offsets`` (:func:`_leaf_offsets`), in the scalar test's operations
+    and order (:func:`hsr.algorithms.bvh.triangle.intersect`)."""
     (dx, dy, zs), shear_x, shear_y = offsets, _splat(builder, sx), _splat(builder, sy)
     xs = [builder.fsub(dx[j], builder.fmul(shear_x, zs[j])) for j in range(3)]
     ys = [builder.fsub(dy[j], builder.fmul(shear_y, zs[j])) for j in range(3)]
@@ -453,7 +454,15 @@ def _leaf_hits(builder, offsets, sx, sy, lanes):
     u = builder.fsub(builder.fmul(cx, by), builder.fmul(cy, bx))
     v = builder.fsub(builder.fmul(ax, cy), builder.fmul(ay, cx))
     w = builder.fsub(builder.fmul(bx, ay), builder.fmul(by, ax))
-    det = builder.fadd(builder.fadd(u, v), w)
+    return u, v, w, builder.fadd(builder.fadd(u, v), w)
+
+
+def _leaf_hits(builder, offsets, sx, sy, lanes, edges=None):
+    """Bit i set unless the watertight test rules slot i out (see :func:`leaf_filter4`),
+    for the ray of shear ``sx``, ``sy`` (scalars) and the corners less its origin
+    ``offsets`` (:func:`_leaf_offsets`), of the slots in ``lanes`` (an i64 mask); an
+    i64 of four bits. ``edges``: :func:`_leaf_edges`' values, if made already."""
+    u, v, w, det = edges if edges is not None else _leaf_edges(builder, offsets, sx, sy)
     zero = ir.Constant(_D4, [0.0] * 4)
 
     def any3(op):
@@ -493,6 +502,48 @@ def leaf_filter4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy
         offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v,
                                 axes, (okx, oky, okz))
         return _leaf_hits(builder, offsets, sx, sy, lanes_v)
+
+    return sig, codegen
+
+
+@intrinsic
+def leaf_test4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, sz, out):
+    """:func:`leaf_filter4`'s bits, and the rest of the watertight test
+    (:func:`hsr.algorithms.bvh.triangle.intersect` without culling) in the same four
+    lanes, so that the slots left need no scalar test: ``out`` ((5, 4) float64,
+    C-contiguous) gets, lane i for slot base + i, the numerator of the hit's distance
+    (row 0), the edge values u, v, w (rows 1 .. 3) and their sum det (row 4), each with
+    the scalar test's operations in its order: row / det is then bit for bit the scalar
+    test's t, u, v, w (for the lanes whose bit is set; the others hold whatever they
+    compute to). The divisions are the caller's, for the few lanes left: dividing all
+    four lanes in the vector made the walk slower (measurements: docs/history.md, "Ray
+    core")."""
+    if not _corners(tris) or not (isinstance(out, types.Array) and out.ndim == 2
+                                  and out.layout == "C" and out.dtype == types.float64):
+        return None
+    sig = types.int64(tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, sz, out)
+
+    def codegen(context, builder, sig, args):
+        array, base_v, lanes_v, okx, oky, okz, kx, ky, kz, sx, sy, sz, out_v = args
+        base_v = context.cast(builder, base_v, sig.args[1], types.intp)
+        lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
+        axes = [context.cast(builder, v, t, types.intp)
+                for v, t in zip((kx, ky, kz), sig.args[6:9])]
+        offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v,
+                                axes, (okx, oky, okz))
+        u, v, w, det = edges = _leaf_edges(builder, offsets, sx, sy)
+        # t = (u (sz az) + v (sz bz) + w (sz cz)) / det, as the scalar test sums it.
+        shear_z = _splat(builder, sz)
+        zs = offsets[2]
+        t = builder.fadd(builder.fadd(
+            builder.fmul(u, builder.fmul(shear_z, zs[0])),
+            builder.fmul(v, builder.fmul(shear_z, zs[1]))),
+            builder.fmul(w, builder.fmul(shear_z, zs[2])))
+        rows = builder.bitcast(context.make_array(sig.args[12])(context, builder, out_v).data,
+                               _D4.as_pointer())
+        for r, value in enumerate((t, u, v, w, det)):
+            builder.store(value, builder.gep(rows, [_i64(r)]), align=8)
+        return _leaf_hits(builder, offsets, sx, sy, lanes_v, edges)
 
     return sig, codegen
 

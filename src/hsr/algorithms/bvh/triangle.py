@@ -22,7 +22,7 @@ from numba import njit
 
 from .layout import corner
 
-__all__ = ["ray_frame", "face_normal", "sheared_corners", "intersect", "owns"]
+__all__ = ["ray_frame", "face_normal", "sheared_corners", "culled", "intersect", "owns"]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -82,6 +82,17 @@ def sheared_corners(tris, f, okx, oky, okz, kx, ky, kz, sx, sy):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def culled(tris, f, cull_code, front_ccw, dx, dy, dz):
+    """Whether glCullFace's ``cull_code`` (1 back, 2 front, 3 both; 0 none) drops
+    triangle ``f`` for a ray of direction (dx, dy, dz): the ray meets the
+    counter-clockwise (front, when ``front_ccw``) side when the normal opposes it."""
+    nx, ny, nz = face_normal(tris, f)
+    facing = nx * dx + ny * dy + nz * dz
+    front = (facing < 0.0) == front_ccw
+    return (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3
+
+
+@njit(cache=True, nogil=True, inline="always")
 def intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_ccw, dx, dy,
                dz):
     """Woop-Benthin-Wald watertight ray/triangle test (``ok*`` are the ray origin's
@@ -100,14 +111,8 @@ def intersect(tris, f, okx, oky, okz, kx, ky, kz, sx, sy, sz, cull_code, front_c
     if (((u < 0.0) | (v < 0.0) | (w < 0.0)) & ((u > 0.0) | (v > 0.0) | (w > 0.0))) | (
             det == 0.0):
         return -1.0, 0.0, 0.0, 0.0
-    if cull_code != 0:
-        # Facing: the ray meets the counter-clockwise (front) side when the normal
-        # opposes it.
-        nx, ny, nz = face_normal(tris, f)
-        facing = nx * dx + ny * dy + nz * dz
-        front = (facing < 0.0) == front_ccw
-        if (cull_code == 1 and not front) or (cull_code == 2 and front) or cull_code == 3:
-            return -1.0, 0.0, 0.0, 0.0
+    if cull_code != 0 and culled(tris, f, cull_code, front_ccw, dx, dy, dz):
+        return -1.0, 0.0, 0.0, 0.0
     t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det
     return t, u / det, v / det, w / det
 

@@ -13,7 +13,7 @@ from ..simd import (
     borrowed,
     box_keys8,
     box_mask8,
-    leaf_filter4,
+    leaf_test4,
     lowest_bit,
     min_key8,
     sort_keys8,
@@ -39,7 +39,7 @@ from .hits import (
 from .layout import HOT_NODES, LANES, QUAD, child, fetch_links, leaf_base, nowrap, quad_lanes
 from .ranking import clip_zw, depth32, ranks_before, t_bound
 from .stack import bound_key, next_box, stack_size, walk_stack
-from .triangle import intersect, ray_frame
+from .triangle import culled, ray_frame
 
 __all__ = ["SLOTS", "INTERLEAVE_BY_VENDOR", "INTERLEAVE_BYTES", "interleave_bytes",
            "trace_range"]
@@ -147,6 +147,7 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
     one_stack = stack_size(wide_depth)
     stack_ref, stack_count, stack_t = walk_stack(wide_depth, SLOTS)
     keys = np.empty(LANES, dtype=np.int32)  # a node's entry keys (box_keys8)
+    quad = np.empty((5, QUAD))  # a leaf test's values (leaf_test4)
     # The largest magnitude of the boxes' bounds, for the float32 box test's pad.
     reach = box_reach(node_box, root_ref) if root_count == 0 else 0.0
     # Each slot's state, in two arrays (one per type; columns named by the _F_* and
@@ -340,17 +341,22 @@ def trace_range(lo, hi, origins, directions, t_min, t_max, mode, raster, tris, l
                     tests += n
                     end = ref + n
                     for base in range(leaf_base(tris, ref), end, QUAD):
-                        # The watertight test on four slots at once, then the scalar one
-                        # on the few that pass its first check (leaf_filter4).
-                        left = leaf_filter4(tris, base, quad_lanes(ref, end, base), okx, oky,
-                                            okz, kx, ky, kz, sx, sy)
+                        # The watertight test on four slots at once (leaf_test4): the
+                        # bits of those it does not rule out, and each one's values.
+                        left = leaf_test4(tris, base, quad_lanes(ref, end, base), okx, oky,
+                                          okz, kx, ky, kz, sx, sy, sz, quad)
                         while left != 0:
-                            k = base + lowest_bit(left)
+                            bit = lowest_bit(left)
+                            k, lane = base + bit, nowrap(bit)
                             left &= left - 1
-                            t, u, v, w = intersect(tris, k, okx, oky, okz, kx, ky, kz, sx, sy,
-                                                    sz, cull_code, front_ccw, dx, dy, dz)
+                            if cull_code != 0 and culled(tris, k, cull_code, front_ccw, dx,
+                                                         dy, dz):
+                                continue
+                            det = quad[4, lane]
+                            t = quad[0, lane] / det
                             if not in_interval(t, t0, t1):
                                 continue
+                            u, v, w = quad[1, lane] / det, quad[2, lane] / det, quad[3, lane] / det
                             if mode == ANY:
                                 slot_i[s, _I_COUNT] = 1
                                 done = True
