@@ -707,6 +707,24 @@ def test_the_packet_box_test_equals_a_numpy_slab_test_per_ray():
     assert {(True, True), (False, False), (True, False)} <= seen
 
 
+def _leaf_trials(rng, tris, layout, trials=800):
+    """The four-triangle tests' cases: (n, base, k0, origin, direction), a leaf of n = 1
+    .. 4 slots from k0 (in blocks, within the block from base, from any lane it fits
+    from; in rows base = k0) and a ray aimed at a corner, an edge's midpoint or the
+    inside of one of its triangles, now and then a little off."""
+    for trial in range(trials):
+        n = 1 + trial % 4
+        if layout == "blocks":
+            base = 4 * int(rng.integers(0, len(tris) // 4))
+            k0 = base + int(rng.integers(0, 5 - n))
+        else:
+            base = k0 = int(rng.integers(0, len(tris) - n + 1))
+        o = rng.normal(size=3) * 3
+        target = tris[k0 + trial % n].astype(np.float64)
+        aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
+        yield n, base, k0, o, aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
+
+
 @pytest.mark.parametrize("layout", ["rows", "blocks"])
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, layout):
@@ -741,18 +759,7 @@ def test_the_four_triangle_filter_equals_the_scalar_tests_first_check(dtype, lay
     tris = tris.astype(dtype)
     corners = corner_blocks_of(tris) if layout == "blocks" else tris.reshape(-1, 9)
     kept = cleared = 0
-    for trial in range(800):
-        n = 1 + trial % 4
-        if layout == "blocks":  # n slots in one block, from any lane they fit from
-            base = 4 * int(rng.integers(0, len(tris) // 4))
-            k0 = base + int(rng.integers(0, 5 - n))
-        else:
-            base = k0 = int(rng.integers(0, len(tris) - n + 1))
-        o = rng.normal(size=3) * 3
-        target = tris[k0 + trial % n].astype(np.float64)
-        # Aim at a corner, an edge's midpoint or inside the triangle.
-        aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
-        d = aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
+    for n, base, k0, o, d in _leaf_trials(rng, tris, layout):
         mask, scalar, (kx, ky, kz, sx, sy, okx, oky, okz) = run(corners, base, k0, n, o, d)
         assert mask & ~(((1 << n) - 1) << (k0 - base)) == 0  # the leaf's lanes alone
         mask >>= k0 - base
@@ -813,17 +820,7 @@ def test_the_four_triangle_test_gives_the_scalar_tests_values_bit_for_bit(dtype,
     tris = tris.astype(dtype)
     corners = corner_blocks_of(tris) if layout == "blocks" else tris.reshape(-1, 9)
     hits = 0
-    for trial in range(800):
-        n = 1 + trial % 4
-        if layout == "blocks":
-            base = 4 * int(rng.integers(0, len(tris) // 4))
-            k0 = base + int(rng.integers(0, 5 - n))
-        else:
-            base = k0 = int(rng.integers(0, len(tris) - n + 1))
-        o = rng.normal(size=3) * 3
-        target = tris[k0 + trial % n].astype(np.float64)
-        aim = [target[0], 0.5 * (target[0] + target[1]), target.mean(axis=0)][trial % 3]
-        d = aim - o + (rng.normal(size=3) * 0.05 if trial % 5 == 0 else 0.0)
+    for n, base, k0, o, d in _leaf_trials(rng, tris, layout):
         mask, filtered, got, want = run(corners, base, k0, n, o, d)
         assert mask == filtered
         for i in range(n):
