@@ -457,12 +457,11 @@ def _leaf_edges(builder, offsets, sx, sy):
     return u, v, w, builder.fadd(builder.fadd(u, v), w)
 
 
-def _leaf_hits(builder, offsets, sx, sy, lanes, edges=None):
+def _leaf_hits(builder, edges, lanes):
     """Bit i set unless the watertight test rules slot i out (see :func:`leaf_filter4`),
-    for the ray of shear ``sx``, ``sy`` (scalars) and the corners less its origin
-    ``offsets`` (:func:`_leaf_offsets`), of the slots in ``lanes`` (an i64 mask); an
-    i64 of four bits. ``edges``: :func:`_leaf_edges`' values, if made already."""
-    u, v, w, det = edges if edges is not None else _leaf_edges(builder, offsets, sx, sy)
+    from its edge values ``edges`` (:func:`_leaf_edges`), of the slots in ``lanes`` (an
+    i64 mask); an i64 of four bits."""
+    u, v, w, det = edges
     zero = ir.Constant(_D4, [0.0] * 4)
 
     def any3(op):
@@ -474,6 +473,18 @@ def _leaf_hits(builder, offsets, sx, sy, lanes, edges=None):
                        builder.fcmp_ordered("==", det, zero))
     bits = builder.zext(builder.bitcast(builder.not_(miss), ir.IntType(4)), _I64)
     return builder.and_(bits, lanes)
+
+
+def _one_ray_offsets(context, builder, sig, args):
+    """:func:`_leaf_offsets` for one ray's leaf test, whose arguments begin ``(tris,
+    base, lanes, okx, oky, okz, kx, ky, kz, ...)`` (:func:`leaf_filter4`,
+    :func:`leaf_test4`): the offsets, and ``lanes`` as an i64."""
+    array, base_v, lanes_v, okx, oky, okz, kx, ky, kz = args[:9]
+    base_v = context.cast(builder, base_v, sig.args[1], types.intp)
+    lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
+    axes = [context.cast(builder, v, t, types.intp) for v, t in zip((kx, ky, kz), sig.args[6:9])]
+    return _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v, axes,
+                         (okx, oky, okz)), lanes_v
 
 
 @intrinsic
@@ -494,14 +505,8 @@ def leaf_filter4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy
     sig = types.int64(tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy)
 
     def codegen(context, builder, sig, args):
-        array, base_v, lanes_v, okx, oky, okz, kx, ky, kz, sx, sy = args
-        base_v = context.cast(builder, base_v, sig.args[1], types.intp)
-        lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
-        axes = [context.cast(builder, v, t, types.intp)
-                for v, t in zip((kx, ky, kz), sig.args[6:9])]
-        offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v,
-                                axes, (okx, oky, okz))
-        return _leaf_hits(builder, offsets, sx, sy, lanes_v)
+        offsets, lanes_v = _one_ray_offsets(context, builder, sig, args)
+        return _leaf_hits(builder, _leaf_edges(builder, offsets, args[9], args[10]), lanes_v)
 
     return sig, codegen
 
@@ -524,13 +529,8 @@ def leaf_test4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, 
     sig = types.int64(tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, sz, out)
 
     def codegen(context, builder, sig, args):
-        array, base_v, lanes_v, okx, oky, okz, kx, ky, kz, sx, sy, sz, out_v = args
-        base_v = context.cast(builder, base_v, sig.args[1], types.intp)
-        lanes_v = context.cast(builder, lanes_v, sig.args[2], types.int64)
-        axes = [context.cast(builder, v, t, types.intp)
-                for v, t in zip((kx, ky, kz), sig.args[6:9])]
-        offsets = _leaf_offsets(context, builder, sig.args[0], array, base_v, lanes_v,
-                                axes, (okx, oky, okz))
+        offsets, lanes_v = _one_ray_offsets(context, builder, sig, args)
+        sx, sy, sz, out_v = args[9:13]
         u, v, w, det = edges = _leaf_edges(builder, offsets, sx, sy)
         # t = (u (sz az) + v (sz bz) + w (sz cz)) / det, as the scalar test sums it.
         shear_z = _splat(builder, sz)
@@ -543,7 +543,7 @@ def leaf_test4(typingctx, tris, base, lanes, okx, oky, okz, kx, ky, kz, sx, sy, 
                                _D4.as_pointer())
         for r, value in enumerate((t, u, v, w, det)):
             builder.store(value, builder.gep(rows, [_i64(r)]), align=8)
-        return _leaf_hits(builder, offsets, sx, sy, lanes_v, edges)
+        return _leaf_hits(builder, edges, lanes_v)
 
     return sig, codegen
 
@@ -576,8 +576,8 @@ def leaf_filter4_rays(typingctx, tris, base, lanes, frame, axes):
                                 [load(values, 4 * (3 + a)) for a in range(3)])
         bits = _i64(0)
         for r in range(4):
-            hits = _leaf_hits(builder, offsets, load(values, r), load(values, 4 + r),
-                              lanes_v)
+            hits = _leaf_hits(builder, _leaf_edges(builder, offsets, load(values, r),
+                                                   load(values, 4 + r)), lanes_v)
             bits = builder.or_(bits, builder.shl(hits, _i64(4 * r)))
         return bits
 
