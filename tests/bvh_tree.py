@@ -28,14 +28,22 @@ def build_keeping_tree(scene, threads=None) -> SimpleNamespace:
     """``sah.build(scene, threads)``'s fields and the binary tree it went through:
     node_min, node_max (N, 3) float32 (rounded outwards), node_left (N,) int32 (the first
     child, the second next to it; -1 for a leaf), node_start, node_count (N,) int32 (a
-    leaf's slots), n_nodes. The nodes are numbered from the root, breadth first, so the
-    numbers the parallel build leaves unused between its subtrees are gone."""
+    leaf's slots, numbered as the walked tree's: where the build's leaf order put them,
+    moved where the leaves are packed into blocks), n_nodes. The nodes are numbered from
+    the root, breadth first, so the numbers the parallel build leaves unused between its
+    subtrees are gone."""
     bvh = sah.build(scene, threads)
     positions, faces = sah._world_mesh(as_scene(scene))
     with Workers(threads) as workers:
         lo, hi, left, start, count, order, n_nodes = sah.binary_tree(positions, faces,
                                                                      workers)
-    assert np.array_equal(order, bvh.tri_index)  # the same tree the walked one came from
+    # The same tree the walked one came from; its leaves packed into blocks move the
+    # binary leaf order's slot k to moved[k] (the rest, padding, hold face -1).
+    moved = _moved_slots(bvh.tri_index, order)
+    assert np.array_equal(bvh.tri_index[moved], order)
+    padding = np.ones(len(bvh.tri_index), dtype=bool)
+    padding[moved] = False
+    assert (bvh.tri_index[padding] == -1).all()
     old, new_left = [0], []
     for node in old:  # (grows as it goes: breadth first)
         if left[node] >= 0:
@@ -49,5 +57,16 @@ def build_keeping_tree(scene, threads=None) -> SimpleNamespace:
     return SimpleNamespace(
         **fields, bvh=bvh, n_wide_nodes=bvh.n_wide_nodes, walked=bvh.walked,
         node_min=outwards32(lo[old], -np.inf), node_max=outwards32(hi[old], np.inf),
-        node_left=np.array(new_left, dtype=np.int32), node_start=start[old].astype(np.int32),
+        node_left=np.array(new_left, dtype=np.int32),
+        node_start=np.append(moved, len(bvh.tri_index))[start[old]].astype(np.int32),
         node_count=count[old].astype(np.int32), n_nodes=len(old))
+
+
+def _moved_slots(tri_index: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Where each slot of the binary tree's leaf order (its faces ``order``) lies in the
+    walked slots ``tri_index`` (each face in one slot; -1 in padding slots)."""
+    held = np.flatnonzero(tri_index >= 0)
+    slot_of_face = np.full(max(int(order.max(initial=-1)), int(tri_index.max(initial=-1))) + 1,
+                           -1, dtype=np.int64)
+    slot_of_face[tri_index[held]] = held
+    return slot_of_face[order]

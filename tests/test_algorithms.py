@@ -477,6 +477,49 @@ def _tree_shape(bvh):
     return shape
 
 
+def _leaf_groups(first, count):
+    """The four-slot groups the leaf test reads for leaves of ``count`` slots from slot
+    ``first`` in blocks (from the block of the first slot to that of the last)."""
+    return (first + count - 1) // layout.QUAD - first // layout.QUAD + 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(-1, 8), min_size=1, max_size=60), st.randoms(use_true_random=False))
+def test_packed_leaves_take_the_fewest_blocks(lanes, rnd):
+    """pack_leaves on wide records whose lanes hold leaves of 1 .. 8 slots (in runs of
+    slots in a shuffled order, as a collapse leaves them), wide nodes (0) and empty lanes
+    (-1): each leaf keeps its slots together, in ceil(count / 4) groups, no two slots
+    meet, the wide and empty lanes are left as they were, and the blocks are no more
+    than the leaves' own."""
+    n_wide = -(-len(lanes) // layout.LANES)
+    _, link = layout.node_records(n_wide)
+    link[:, layout.REF:layout.COUNT_AT], link[:, layout.COUNT_AT:] = 0, -1
+    leaves = [i for i, c in enumerate(lanes) if c > 0]
+    rnd.shuffle(leaves)
+    slot = 0
+    for i, c in enumerate(lanes):
+        w, lane = divmod(i, layout.LANES)
+        link[w, layout.COUNT_AT + lane] = max(c, -1)
+        link[w, layout.REF + lane] = rnd.randrange(n_wide) if c == 0 else 0
+    for i in leaves:
+        w, lane = divmod(i, layout.LANES)
+        link[w, layout.REF + lane] = slot
+        slot += lanes[i]
+    before = link.copy()
+    moved, n = layout.pack_leaves(link, n_wide)
+    assert len(moved) == slot and n % layout.QUAD == 0
+    assert len(np.unique(moved)) == slot and (moved >= 0).all() and (moved < n).all()
+    refs, counts = link[:, layout.REF:layout.COUNT_AT], link[:, layout.COUNT_AT:]
+    assert np.array_equal(counts, before[:, layout.COUNT_AT:])
+    leaf = counts > 0
+    assert np.array_equal(refs[~leaf], before[:, layout.REF:layout.COUNT_AT][~leaf])
+    for old, new, c in zip(before[:, layout.REF:layout.COUNT_AT][leaf], refs[leaf], counts[leaf]):
+        assert np.array_equal(moved[old:old + c], np.arange(new, new + c))
+    first, count = refs[leaf], counts[leaf]
+    assert np.array_equal(_leaf_groups(first, count), -(-count // layout.QUAD))
+    assert n // layout.QUAD <= (-(-count // layout.QUAD)).sum()
+
+
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_bvh_invariants(models_dir, threads):
     """cow: 5,804 faces, so with 2 or 3 threads the subtrees below the top are built in
@@ -489,8 +532,9 @@ def test_bvh_invariants(models_dir, threads):
     # Every non-degenerate triangle in exactly one leaf.
     in_leaves = np.concatenate([bvh.tri_index[s:s + c] for s, c in
                                 zip(bvh.node_start[leaves], bvh.node_count[leaves])])
-    assert np.array_equal(np.sort(in_leaves), np.sort(bvh.tri_index))
-    assert len(np.unique(bvh.tri_index)) == mesh.n_faces - int(mesh.degenerate_mask().sum())
+    held = bvh.tri_index[bvh.tri_index >= 0]  # (the rest: padding of packed blocks)
+    assert np.array_equal(np.sort(in_leaves), np.sort(held))
+    assert len(np.unique(held)) == len(held) == mesh.n_faces - int(mesh.degenerate_mask().sum())
     # Boxes contain their children and their triangles.
     for node in np.flatnonzero(~leaves):
         for child in (bvh.node_left[node], bvh.node_left[node] + 1):
@@ -523,7 +567,11 @@ def test_bvh_invariants(models_dir, threads):
     refs, counts = link[:, :layout.LANES], link[:, layout.LANES:]
     slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
                                                                 counts[counts > 0])])
-    assert np.array_equal(np.sort(slots), np.arange(len(bvh.tri_index)))
+    assert np.array_equal(np.sort(slots), np.flatnonzero(bvh.tri_index >= 0))
+    # In blocks, each leaf is read in the fewest four-slot groups (pack_leaves).
+    assert bvh.corners.shape[1] == layout.BLOCK_VALUES
+    first, count = refs[counts > 0], counts[counts > 0]
+    assert np.array_equal(_leaf_groups(first, count), -(-count // layout.QUAD))
 
 
 def test_bvh_reused_across_views(models_dir):
@@ -675,7 +723,7 @@ def test_wide_tree_is_the_least_cost_collapse_of_the_binary_tree(seed):
                 assert count <= max(collapse.LEAF_MAX, sah.LEAF_SIZE)
                 total += collapse.C_LEAF_TRIANGLE * _box_area(lo, hi) * count
                 slots += range(link[layout.REF + lane], link[layout.REF + lane] + count)
-    assert sorted(slots) == list(range(len(bvh.tri_index)))
+    assert sorted(slots) == list(np.flatnonzero(bvh.tri_index >= 0))
     assert total <= _least_collapse_cost(bvh) * (1 + 1e-6)
 
 
@@ -699,7 +747,8 @@ def test_few_overlapping_faces_make_a_wide_root_of_their_leaves(copies):
     refs, counts = link[:, :layout.LANES], link[:, layout.LANES:]
     slots = np.concatenate([np.arange(r, r + c) for r, c in zip(refs[counts > 0],
                                                                 counts[counts > 0])])
-    assert np.array_equal(np.sort(slots), np.arange(copies))
+    assert np.array_equal(np.sort(slots), np.flatnonzero(bvh.tri_index >= 0))
+    assert len(slots) == copies
     cam = hsr.Camera(eye=(0.25, 0.25, -4.0), target=(0.25, 0.25, -5.0), up=(0, 1, 0),
                      fov_y=60, near=0.1, far=100)
     for depth_func in ("less", "lequal"):  # ties: the first face, or the last

@@ -836,9 +836,10 @@ def test_the_four_triangle_test_gives_the_scalar_tests_values_bit_for_bit(dtype,
 def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny):
     """The build keeps a scene's corners in blocks of four slots when corners and nodes
     fit in layout.BLOCKS_BYTES (the bunny), else in rows (a 120k-face terrain); either
-    way each slot holds its face's corners (checked against the mesh, the blocks' lanes
-    past the last slot zeros). The same tree walked over its blocks and over the same
-    corners as rows (made here from the mesh) gives the same answers bit for bit, in
+    way each slot holds its face's corners (checked against the mesh, the blocks'
+    padding slots, face -1, zeros: the bunny's leaves are packed, pack_leaves). The same
+    tree walked over its blocks and over the same corners as rows (made here from the
+    mesh) gives the same answers bit for bit, in
     both walks and for every query, on random, inside and camera rays, with the ray
     caster's ranking too."""
     from hsr.algorithms.bvh import layout
@@ -848,14 +849,18 @@ def test_both_layouts_of_the_corners_hold_each_slots_face_and_answer_alike(bunny
 
     blocks = hsr.RayScene(bunny).bvh
     terrain = hsr.scenes.terrain_mesh(120_000)
-    for mesh, bvh, width in ((bunny, blocks, 36), (terrain, hsr.RayScene(terrain).bvh, 9)):
+    in_rows = hsr.RayScene(terrain).bvh
+    for mesh, bvh, width in ((bunny, blocks, 36), (terrain, in_rows, 9)):
         assert bvh.corners.shape[1] == width
-        slots = np.arange(len(bvh.leaf_face))
-        rows = mesh.positions[mesh.faces[bvh.leaf_face]]
+        slots = np.flatnonzero(bvh.leaf_face >= 0)
+        rows = mesh.positions[mesh.faces[bvh.leaf_face[slots]]]
         assert np.array_equal(layout.slot_corners(bvh.corners, slots), rows)
-    past = np.arange(len(blocks.leaf_face), 4 * len(blocks.corners))  # the last lanes
-    assert len(past) and not layout.slot_corners(blocks.corners, past).any()
+    assert (in_rows.leaf_face >= 0).all()  # rows: no padding
+    padding = np.concatenate([np.flatnonzero(blocks.leaf_face < 0),
+                              np.arange(len(blocks.leaf_face), 4 * len(blocks.corners))])
+    assert len(padding) and not layout.slot_corners(blocks.corners, padding).any()
     rows = bunny.positions[bunny.faces[blocks.leaf_face]].reshape(-1, 9)
+    rows[blocks.leaf_face < 0] = 0.0
     rng = np.random.default_rng(33)
     lo, hi = np.array(bunny.bounds())
     n = 4000

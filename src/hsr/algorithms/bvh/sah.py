@@ -23,6 +23,7 @@ from .layout import (
     corner_layout,
     corner_rows,
     node_records,
+    pack_leaves,
     set_corner,
 )
 
@@ -44,7 +45,9 @@ class BVH:
     read it (the binary tree the build goes through is not kept: no walk reads it).
 
     - tri_index : (T,) int32 the face id in each slot (degenerate faces are left out),
-      in leaf order; leaf_face is the walks' name for it (the same array);
+      in leaf order, -1 in the padding slots of packed blocks
+      (:func:`hsr.algorithms.bvh.layout.pack_leaves`; no leaf holds them); leaf_face is
+      the walks' name for it (the same array);
     - corners : the world-space corners of each slot's face, slots in leaf order (a
       leaf's triangles are one run of memory): (T, 9) rows, or for a scene that fits in
       :data:`hsr.algorithms.bvh.layout.BLOCKS_BYTES` the blocks of four slots of
@@ -132,10 +135,15 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
         # files give them) keeps its corners in float32: half the bytes, and every
         # test reads them back as the same float64 values, so no answer changes.
         dtype = np.dtype(np.float32 if _float32_exact(positions) else np.float64)
-        if corner_layout(len(tri_index), dtype.itemsize, len(node_box)):
-            corners = corner_blocks(len(tri_index), dtype)
-        else:
+        if not corner_layout(len(tri_index), dtype.itemsize, len(node_box)):
             corners = corner_rows(len(tri_index), dtype)
+        else:
+            if root == (0, 0):  # each leaf in as few blocks as it can take
+                moved, n_slots = pack_leaves(node_link, len(node_link))
+                packed = np.full(n_slots, -1, dtype=np.int32)
+                packed[moved] = tri_index
+                tri_index = packed
+            corners = corner_blocks(len(tri_index), dtype)
         workers.run_range(_gather_corners, len(tri_index), positions, faces, tri_index,
                           corners)
     return BVH(tri_index, corners=corners, n_faces=n_faces, node_box=node_box,
@@ -211,9 +219,12 @@ def _float32_exact(positions):
 @njit(cache=True, nogil=True)
 def _gather_corners(lo, hi, positions, faces, order, corners):
     """Slots ``lo .. hi - 1`` of the walks' corners (rows or blocks,
-    :mod:`hsr.algorithms.bvh.layout`): face ``order[k]``'s, in leaf order."""
+    :mod:`hsr.algorithms.bvh.layout`): face ``order[k]``'s, in leaf order (-1: a
+    padding slot, left as it is)."""
     for k in range(lo, hi):
         f = order[k]
+        if f < 0:
+            continue
         for j in range(3):
             v = faces[f, j]
             for a in range(3):
