@@ -208,7 +208,9 @@ def public_names() -> set:
     return names
 
 
-def test_site_builds_strictly_and_names_the_api(tmp_path):
+def test_site_builds_strictly_and_names_the_api(tmp_path, models_dir):
+    # (models_dir: the gallery draws the shared models; without them this skips as the
+    # other tests that read them do, and fails in CI)
     pytest.importorskip("mkdocs")  # the test extra installs it; CI fails without it
     site = tmp_path / "site"
     done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d",
