@@ -39,7 +39,7 @@ def build_keeping_tree(scene, threads=None) -> SimpleNamespace:
                                                                      workers)
     # The same tree the walked one came from; its leaves packed into blocks move the
     # binary leaf order's slot k to moved[k] (the rest, padding, hold face -1).
-    moved = _moved_slots(bvh.tri_index, order)
+    moved = _moved_slots(bvh.tri_index, order, len(faces))
     assert np.array_equal(bvh.tri_index[moved], order)
     padding = np.ones(len(bvh.tri_index), dtype=bool)
     padding[moved] = False
@@ -62,11 +62,11 @@ def build_keeping_tree(scene, threads=None) -> SimpleNamespace:
         node_count=count[old].astype(np.int32), n_nodes=len(old))
 
 
-def _moved_slots(tri_index: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """Where each slot of the binary tree's leaf order (its faces ``order``) lies in the
-    walked slots ``tri_index`` (each face in one slot; -1 in padding slots)."""
+def _moved_slots(tri_index: np.ndarray, order: np.ndarray, n_faces: int) -> np.ndarray:
+    """Where each slot of the binary tree's leaf order (its faces ``order``, of
+    ``n_faces``) lies in the walked slots ``tri_index`` (each face in one slot; -1 in
+    padding slots)."""
     held = np.flatnonzero(tri_index >= 0)
-    slot_of_face = np.full(max(int(order.max(initial=-1)), int(tri_index.max(initial=-1))) + 1,
-                           -1, dtype=np.int64)
+    slot_of_face = np.full(n_faces, -1, dtype=np.int64)
     slot_of_face[tri_index[held]] = held
     return slot_of_face[order]

@@ -506,7 +506,7 @@ def test_packed_leaves_take_the_fewest_blocks(lanes, rnd):
         link[w, layout.REF + lane] = slot
         slot += lanes[i]
     before = link.copy()
-    moved, n = layout.pack_leaves(link, n_wide)
+    moved, n = layout.pack_leaves(link)
     assert len(moved) == slot and n % layout.QUAD == 0
     assert len(np.unique(moved)) == slot and (moved >= 0).all() and (moved < n).all()
     refs, counts = link[:, layout.REF:layout.COUNT_AT], link[:, layout.COUNT_AT:]

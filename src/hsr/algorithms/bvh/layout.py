@@ -188,8 +188,8 @@ def quad_lanes(first, end, base):
 
 
 @njit(cache=True, nogil=True)
-def pack_leaves(node_link, n_wide):
-    """Pack the leaves of the first ``n_wide`` wide nodes into blocks of :data:`QUAD`
+def pack_leaves(node_link):
+    """Pack the leaves of the wide nodes ``node_link`` into blocks of :data:`QUAD`
     slots, so that each is read in ceil(count / 4) four-slot groups, the fewest (the leaf
     test reads the blocks a leaf's slots touch, :func:`leaf_base`): a leaf of at most
     four slots in one block, a longer one from a block's start or from where a block's
@@ -202,6 +202,7 @@ def pack_leaves(node_link, n_wide):
     it, a longer one into the room at the end (a leaf runs on in the next block), or
     each starts a new block. In blocks as written the bunny's leaves (4.4 slots on
     average) took 1.87 groups a leaf; packed, 1.33, for 3.9% of padding slots."""
+    n_wide = node_link.shape[0]
     n_slots = 0
     for w in range(n_wide):
         for lane in range(LANES):

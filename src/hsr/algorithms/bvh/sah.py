@@ -139,7 +139,7 @@ def build(scene: SceneLike, threads: int | None = None) -> BVH:
             corners = corner_rows(len(tri_index), dtype)
         else:
             if root == (0, 0):  # each leaf in as few blocks as it can take
-                moved, n_slots = pack_leaves(node_link, len(node_link))
+                moved, n_slots = pack_leaves(node_link)
                 packed = np.full(n_slots, -1, dtype=np.int32)
                 packed[moved] = tri_index
                 tri_index = packed
